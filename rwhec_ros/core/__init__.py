@@ -1,0 +1,1 @@
+"""ROS-free mathematics of generalized robot-world/hand-eye calibration."""

@@ -1,0 +1,231 @@
+"""The MLE objective of generalized RWHEC as a quadratic form (paper Sections 4.4-4.6).
+
+State vector (eq. (44)-(46))::
+
+    x = [t_X1 .. t_XM, t_Y1 .. t_YP, alpha, vec(R_X1) .. vec(R_XM), vec(R_Y1) .. vec(R_YP)]
+
+of length ``12 (M + P) + 1``; for known scale ``alpha`` plays the homogenising variable ``s``
+(``s^2 = 1``). ``vec`` is column-major, so with eq. (26)::
+
+    vec(R_A R_X) = (I (x) R_A) vec(R_X),   vec(R_Y R_B) = (R_B^T (x) I) vec(R_Y),
+    R_Y t_B = (t_B^T (x) I) vec(R_Y).
+
+(The Kronecker factors printed in eqs. (25) and (36) are the transposes of these; the tests check
+``x^T Q x`` against the direct sum of eq. (33), which is what counts.)
+
+The objective ``x^T Q x`` equals ``1/2 sum_e sum_i J_ijk`` of eq. (33)::
+
+    J = 1/sigma^2 |R_A t_X + alpha t_A - t_Y - R_Y t_B|^2 + kappa |R_A R_X - R_Y R_B|_F^2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .lie import vec
+from .problem import Problem
+
+__all__ = [
+    "StateLayout",
+    "build_cost_matrix",
+    "direct_cost",
+    "ReducedCost",
+    "reduce_cost",
+    "pack_state",
+]
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Index layout of the state vector ``x`` of eq. (44) for ``M`` X- and ``P`` Y-frames."""
+
+    M: int
+    P: int
+
+    @property
+    def n_frames(self) -> int:
+        return self.M + self.P
+
+    @property
+    def n_t(self) -> int:
+        """Number of translation entries, ``3 (M + P)``."""
+        return 3 * self.n_frames
+
+    @property
+    def alpha(self) -> int:
+        """Index of ``alpha`` / ``s``."""
+        return self.n_t
+
+    @property
+    def r0(self) -> int:
+        """Index of the first rotation entry."""
+        return self.n_t + 1
+
+    @property
+    def size(self) -> int:
+        return 12 * self.n_frames + 1
+
+    def t_slice(self, frame: int) -> slice:
+        """Translation of global frame ``frame`` (X: ``j``, Y: ``M + k``)."""
+        return slice(3 * frame, 3 * frame + 3)
+
+    def r_slice(self, frame: int) -> slice:
+        """``vec(R)`` of global frame ``frame``."""
+        return slice(self.r0 + 9 * frame, self.r0 + 9 * frame + 9)
+
+
+def _local_blocks(A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+    """Per-pair 25x25 blocks of ``1/2 (w_t M_t^T M_t + kappa M_R^T M_R)`` summed per pair.
+
+    Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``.
+    Returns shape (N, 25, 25).
+    """
+    N = A.shape[0]
+    RA, tA = A[:, :3, :3], A[:, :3, 3]
+    RB, tB = B[:, :3, :3], B[:, :3, 3]
+    I3 = np.eye(3)
+    Mt = np.zeros((N, 3, 25))
+    Mt[:, :, 0:3] = RA
+    Mt[:, :, 3:6] = -I3
+    Mt[:, :, 6] = tA
+    # -(t_B^T (x) I): column block c of vec(R_Y) multiplies t_B[c]
+    Mt[:, :, 16:25] = -np.einsum("nc,ij->nicj", tB, I3).reshape(N, 3, 9)
+    MR = np.zeros((N, 9, 25))
+    MR[:, :, 7:16] = np.einsum("ab,nij->naibj", I3, RA).reshape(N, 9, 9)  # I (x) R_A
+    MR[:, :, 16:25] = -np.einsum("nba,ij->naibj", RB, I3).reshape(N, 9, 9)  # -(R_B^T (x) I)
+    wt = 0.5 / sigma**2
+    wr = 0.5 * kappa
+    return np.einsum("n,nki,nkj->nij", wt, Mt, Mt) + np.einsum("n,nki,nkj->nij", wr, MR, MR)
+
+
+def _local_to_global(layout: StateLayout, xi: np.ndarray, yi: np.ndarray) -> np.ndarray:
+    """Global indices (E, 25) of the local variables of edges with X ``xi`` and Y ``yi``."""
+    M = layout.M
+    E = xi.shape[0]
+    idx = np.empty((E, 25), dtype=int)
+    three = np.arange(3)
+    nine = np.arange(9)
+    idx[:, 0:3] = 3 * xi[:, None] + three
+    idx[:, 3:6] = 3 * (M + yi[:, None]) + three
+    idx[:, 6] = layout.alpha
+    idx[:, 7:16] = layout.r0 + 9 * xi[:, None] + nine
+    idx[:, 16:25] = layout.r0 + 9 * (M + yi[:, None]) + nine
+    return idx
+
+
+def build_cost_matrix(problem: Problem) -> sp.csr_matrix:
+    """Sparse symmetric ``Q`` of Problem 5 (eq. (42)), size ``12 (M + P) + 1``.
+
+    Built in time linear in the number of pairs: per-pair blocks are computed vectorised, summed
+    per edge, and scattered once per edge.
+    """
+    layout = StateLayout(problem.M, problem.P)
+    blocks = []
+    for e in problem.edges:
+        blocks.append(_local_blocks(e.A, e.B, e.sigma, e.kappa).sum(axis=0))
+    blocks_arr = np.stack(blocks)  # (E, 25, 25)
+    idx = _local_to_global(layout, problem.edge_x, problem.edge_y)
+    rows = np.repeat(idx[:, :, None], 25, axis=2)
+    cols = np.repeat(idx[:, None, :], 25, axis=1)
+    Q = sp.coo_matrix(
+        (blocks_arr.ravel(), (rows.ravel(), cols.ravel())), shape=(layout.size, layout.size)
+    ).tocsr()
+    Q.sum_duplicates()
+    return Q
+
+
+def pack_state(
+    layout: StateLayout, X: np.ndarray, Y: np.ndarray, alpha: float = 1.0
+) -> np.ndarray:
+    """State vector of eq. (44) from transforms ``X`` (M, 4, 4), ``Y`` (P, 4, 4) and ``alpha``.
+
+    For unknown scale the translations enter as ``alpha t`` (eq. (22)).
+    """
+    T = np.concatenate([np.asarray(X, float), np.asarray(Y, float)])
+    x = np.empty(layout.size)
+    x[: layout.n_t] = alpha * T[:, :3, 3].ravel()
+    x[layout.alpha] = alpha
+    x[layout.r0 :] = vec(T[:, :3, :3]).ravel()
+    return x
+
+
+def direct_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1.0) -> float:
+    """``1/2 sum J_ijk`` of eq. (33) evaluated directly, with metric translations of ``X, Y``.
+
+    ``X`` (M, 4, 4), ``Y`` (P, 4, 4); for unknown scale the residual uses ``alpha t_X``,
+    ``alpha t_A`` and ``alpha t_Y`` (eq. (22)).
+    """
+    X = np.asarray(X, float)
+    Y = np.asarray(Y, float)
+    total = 0.0
+    for e, j, k in zip(problem.edges, problem.edge_x, problem.edge_y):
+        RA, tA = e.A[:, :3, :3], e.A[:, :3, 3]
+        RB, tB = e.B[:, :3, :3], e.B[:, :3, 3]
+        RX, tX = X[j, :3, :3], X[j, :3, 3]
+        RY, tY = Y[k, :3, :3], Y[k, :3, 3]
+        rt = alpha * (RA @ tX + tA - tY) - tB @ RY.T
+        rR = RA @ RX - RY @ RB
+        total += 0.5 * np.sum((rt**2).sum(axis=1) / e.sigma**2)
+        total += 0.5 * np.sum(e.kappa * (rR**2).sum(axis=(1, 2)))
+    return float(total)
+
+
+@dataclass(frozen=True)
+class ReducedCost:
+    """The Schur reduction of ``Q`` onto the rotations (eq. (47)-(48)).
+
+    Attributes
+    ----------
+    Qr : ndarray, shape (9 (M + P) + 1, 9 (M + P) + 1)
+        Reduced objective on ``z = [vec(R_X), vec(R_Y), s]`` (the homogenising ``s`` last). For
+        known scale the last row/column carry the terms of ``s = alpha``; for unknown scale
+        ``alpha`` is eliminated too and they are zero (paper Fig. 4 caption).
+    recover : ndarray, shape (3 (M + P) + 1, 9 (M + P) + 1)
+        Linear map ``[t_alpha; alpha] = recover @ z`` (eq. (47)); for known scale the ``alpha``
+        row simply copies ``s``.
+    unknown_scale : bool
+    """
+
+    Qr: np.ndarray
+    recover: np.ndarray
+    unknown_scale: bool
+
+
+def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> ReducedCost:
+    """Eliminate translations (and ``alpha`` for unknown scale) from ``Q`` (eq. (47)-(48)).
+
+    Uses the pseudo-inverse of the eliminated block, as the paper does (generalized Schur
+    complement), so rank-deficient translation blocks (unidentifiable translations) still give
+    the minimum-norm recovery.
+    """
+    Qd = Q.toarray() if sp.issparse(Q) else np.asarray(Q)
+    nt = layout.n_t
+    a = layout.alpha
+    r = np.arange(layout.r0, layout.size)
+    if unknown_scale:
+        elim = np.arange(0, nt + 1)  # t and alpha
+        keep = r
+    else:
+        elim = np.arange(0, nt)
+        keep = np.concatenate([r, [a]])  # rotations then s
+    Qee = Qd[np.ix_(elim, elim)]
+    Qek = Qd[np.ix_(elim, keep)]
+    Qkk = Qd[np.ix_(keep, keep)]
+    Qee_pinv = np.linalg.pinv(Qee, rcond=1e-12, hermitian=True)
+    G = -Qee_pinv @ Qek
+    Qr_keep = Qkk + Qek.T @ G
+    Qr_keep = 0.5 * (Qr_keep + Qr_keep.T)
+    nr = 9 * layout.n_frames
+    Qr = np.zeros((nr + 1, nr + 1))
+    recover = np.zeros((nt + 1, nr + 1))
+    if unknown_scale:
+        Qr[:nr, :nr] = Qr_keep
+        recover[:, :nr] = G
+    else:
+        Qr[:, :] = Qr_keep
+        recover[:nt, :] = G
+        recover[nt, nr] = 1.0
+    return ReducedCost(Qr=Qr, recover=recover, unknown_scale=unknown_scale)

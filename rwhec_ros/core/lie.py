@@ -1,0 +1,166 @@
+"""SO(3)/SE(3) helpers on top of :mod:`scipy.spatial.transform`.
+
+Conventions (see README):
+
+* ``T_a_b`` is a 4x4 homogeneous transform that maps coordinates in frame ``b`` to frame ``a``
+  (the paper's ``T_ab``, eq. (2)).
+* Quaternions are ``(x, y, z, w)`` everywhere inside the package (ROS and scipy order). The paper's
+  CSV files store ``(w, x, y, z)``; :func:`quat_wxyz_to_xyzw` / :func:`quat_xyzw_to_wxyz` are the one
+  place where that order is converted.
+* ``vec`` is column-major (Fortran) vectorisation, as in the paper's eq. (26).
+
+All functions accept a single object or a stack along the leading axis where noted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+__all__ = [
+    "hat",
+    "vee",
+    "so3_exp",
+    "so3_log",
+    "project_to_so3",
+    "make_transform",
+    "invert_transform",
+    "transform_from_quat_xyzw",
+    "transform_to_quat_xyzw",
+    "quat_wxyz_to_xyzw",
+    "quat_xyzw_to_wxyz",
+    "rotation_angle",
+    "rotation_distance",
+    "vec",
+    "unvec",
+]
+
+
+def hat(p: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrix ``p^`` of eq. (3); ``p`` of shape (..., 3) -> (..., 3, 3)."""
+    p = np.asarray(p, dtype=float)
+    out = np.zeros(p.shape[:-1] + (3, 3))
+    out[..., 0, 1] = -p[..., 2]
+    out[..., 0, 2] = p[..., 1]
+    out[..., 1, 0] = p[..., 2]
+    out[..., 1, 2] = -p[..., 0]
+    out[..., 2, 0] = -p[..., 1]
+    out[..., 2, 1] = p[..., 0]
+    return out
+
+
+def vee(S: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`hat` (uses the antisymmetric part); (..., 3, 3) -> (..., 3)."""
+    S = np.asarray(S, dtype=float)
+    return 0.5 * np.stack(
+        [S[..., 2, 1] - S[..., 1, 2], S[..., 0, 2] - S[..., 2, 0], S[..., 1, 0] - S[..., 0, 1]],
+        axis=-1,
+    )
+
+
+def so3_exp(phi: np.ndarray) -> np.ndarray:
+    """Exponential map so(3) -> SO(3); rotation vector(s) (..., 3) -> (..., 3, 3)."""
+    phi = np.asarray(phi, dtype=float)
+    flat = phi.reshape(-1, 3)
+    R = Rotation.from_rotvec(flat).as_matrix()
+    return R.reshape(phi.shape[:-1] + (3, 3))
+
+
+def so3_log(R: np.ndarray) -> np.ndarray:
+    """Logarithm SO(3) -> so(3) as rotation vector(s); (..., 3, 3) -> (..., 3)."""
+    R = np.asarray(R, dtype=float)
+    flat = R.reshape(-1, 3, 3)
+    phi = Rotation.from_matrix(flat).as_rotvec()
+    return phi.reshape(R.shape[:-2] + (3,))
+
+
+def project_to_so3(M: np.ndarray) -> np.ndarray:
+    """Closest rotation in Frobenius norm to ``M`` (SVD with det correction); (..., 3, 3)."""
+    M = np.asarray(M, dtype=float)
+    U, _, Vt = np.linalg.svd(M)
+    d = np.sign(np.linalg.det(U @ Vt))
+    d = np.where(d == 0, 1.0, d)
+    D = np.zeros(M.shape[:-2] + (3,))
+    D[..., 0] = 1.0
+    D[..., 1] = 1.0
+    D[..., 2] = d
+    return (U * D[..., None, :]) @ Vt
+
+
+def make_transform(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Stack rotation(s) (..., 3, 3) and translation(s) (..., 3) into (..., 4, 4)."""
+    R = np.asarray(R, dtype=float)
+    t = np.asarray(t, dtype=float)
+    T = np.zeros(R.shape[:-2] + (4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = t
+    T[..., 3, 3] = 1.0
+    return T
+
+
+def invert_transform(T: np.ndarray) -> np.ndarray:
+    """Inverse of rigid transform(s) (..., 4, 4): ``T_b_a`` from ``T_a_b``."""
+    T = np.asarray(T, dtype=float)
+    R = T[..., :3, :3]
+    t = T[..., :3, 3]
+    Rt = np.swapaxes(R, -1, -2)
+    return make_transform(Rt, -np.einsum("...ij,...j->...i", Rt, t))
+
+
+def transform_from_quat_xyzw(q_xyzw: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Transform(s) from quaternion(s) (..., 4) in (x, y, z, w) order and translation(s) (..., 3).
+
+    The quaternion is normalised; a zero or non-finite quaternion raises ``ValueError``.
+    """
+    q = np.asarray(q_xyzw, dtype=float)
+    norms = np.linalg.norm(q, axis=-1)
+    if not np.all(np.isfinite(q)) or np.any(norms < 1e-12):
+        raise ValueError(f"quaternion must be finite and non-zero, got {q.tolist()}")
+    R = Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
+    return make_transform(R, t)
+
+
+def transform_to_quat_xyzw(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(quaternion (x, y, z, w) with w >= 0, translation) of transform(s) (..., 4, 4)."""
+    T = np.asarray(T, dtype=float)
+    q = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_quat(canonical=True)
+    return q.reshape(T.shape[:-2] + (4,)), T[..., :3, 3].copy()
+
+
+def quat_wxyz_to_xyzw(q_wxyz: np.ndarray) -> np.ndarray:
+    """Convert quaternion(s) from the paper's CSV order (w, x, y, z) to (x, y, z, w).
+
+    This is the one place where the scalar-first order enters the package.
+    """
+    q = np.asarray(q_wxyz, dtype=float)
+    return np.concatenate([q[..., 1:4], q[..., 0:1]], axis=-1)
+
+
+def quat_xyzw_to_wxyz(q_xyzw: np.ndarray) -> np.ndarray:
+    """Convert quaternion(s) from (x, y, z, w) to the paper's CSV order (w, x, y, z)."""
+    q = np.asarray(q_xyzw, dtype=float)
+    return np.concatenate([q[..., 3:4], q[..., 0:3]], axis=-1)
+
+
+def rotation_angle(R: np.ndarray) -> np.ndarray:
+    """Rotation angle(s) in radians, in [0, pi], of (..., 3, 3), robust near 0 and pi."""
+    return np.linalg.norm(so3_log(R), axis=-1)
+
+
+def rotation_distance(R1: np.ndarray, R2: np.ndarray) -> np.ndarray:
+    """Geodesic angle (radians) between rotations, ``|log(R1^T R2)|``."""
+    R1 = np.asarray(R1, dtype=float)
+    R2 = np.asarray(R2, dtype=float)
+    return rotation_angle(np.swapaxes(R1, -1, -2) @ R2)
+
+
+def vec(M: np.ndarray) -> np.ndarray:
+    """Column-major vectorisation of (..., 3, 3) -> (..., 9), cf. eq. (26)."""
+    M = np.asarray(M, dtype=float)
+    return np.swapaxes(M, -1, -2).reshape(M.shape[:-2] + (9,))
+
+
+def unvec(v: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`vec`: (..., 9) -> (..., 3, 3)."""
+    v = np.asarray(v, dtype=float)
+    return np.swapaxes(v.reshape(v.shape[:-1] + (3, 3)), -1, -2)

@@ -1,0 +1,183 @@
+"""Options and results of the calibration solvers (documented dataclasses, a status enum)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from .lie import rotation_distance, transform_to_quat_xyzw
+
+__all__ = ["Status", "Certificate", "CalibrationResult"]
+
+
+class Status(str, Enum):
+    """Outcome of a solve. "Not certified" is a status, never an exception."""
+
+    #: Relative suboptimality bound below tolerance AND one-dimensional null space of Z.
+    CERTIFIED_OPTIMAL = "certified_optimal"
+    #: The dual certificate does not prove optimality (gap too large or Z has a larger null
+    #: space / negative eigenvalue): the relaxation is not tight at this solution.
+    NOT_TIGHT = "not_tight"
+    #: The conic solver did not reach its tolerances; numbers are reported but prove nothing.
+    SOLVER_INACCURATE = "solver_inaccurate"
+    #: A local solution without any certificate (mode ``local``).
+    LOCAL_ONLY = "local_only"
+
+
+@dataclass
+class Certificate:
+    """Global-optimality certificate of a solution (paper Section 9.3, eq. (71)-(73)).
+
+    Attributes
+    ----------
+    status : Status
+    primal_cost : float
+        ``p``: objective of the returned (feasible) solution, eq. (33) with the 1/2.
+    dual_bound : float
+        ``d``: rigorous lower bound on the global optimum,
+        ``lambda_s + min(0, lambda_min(Z)) (3 (M + P) + 1)``.
+    suboptimality_bound : float
+        ``rho_hat = (p - d) / d`` (eq. (73)); ``nan`` when no dual bound exists.
+    lambda_min : float
+        Smallest eigenvalue of ``Z(lambda)`` (scaled problem units).
+    eigenvalues : ndarray
+        The smallest few eigenvalues of ``Z(lambda)`` (scaled problem units); a tight relaxation
+        shows one (near-)zero followed by clearly positive values.
+    null_space_dim : int
+        Number of eigenvalues of ``Z`` at or below ``eig_tol``.
+    tolerance : float
+        The ``rho_hat`` tolerance used for ``CERTIFIED_OPTIMAL``.
+    message : str
+        Human-readable explanation of the status.
+    """
+
+    status: Status
+    primal_cost: float
+    dual_bound: float
+    suboptimality_bound: float
+    lambda_min: float
+    eigenvalues: np.ndarray
+    null_space_dim: int
+    tolerance: float
+    message: str = ""
+
+    @property
+    def certified(self) -> bool:
+        return self.status is Status.CERTIFIED_OPTIMAL
+
+    @staticmethod
+    def local_only(primal_cost: float, message: str = "local solution, not certified") -> Certificate:
+        return Certificate(
+            status=Status.LOCAL_ONLY,
+            primal_cost=float(primal_cost),
+            dual_bound=float("nan"),
+            suboptimality_bound=float("nan"),
+            lambda_min=float("nan"),
+            eigenvalues=np.zeros(0),
+            null_space_dim=-1,
+            tolerance=float("nan"),
+            message=message,
+        )
+
+
+@dataclass
+class CalibrationResult:
+    """Estimated extrinsics with their certificate.
+
+    Attributes
+    ----------
+    x_names, y_names : tuple of str
+    X : ndarray, shape (M, 4, 4)
+        ``X_j`` in metric units (``A X_j = Y_k B``).
+    Y : ndarray, shape (P, 4, 4)
+    scale : float
+        ``alpha`` (1.0 for known scale): B translations are ``alpha`` times metric ones.
+    certificate : Certificate
+    mode : str
+        ``sdp``, ``fast`` or ``local``.
+    timing_s : dict of str to float
+        Seconds per phase (``build``, ``compile``, ``solve``, ``extract``, ``certify``, ...).
+    solver_status : str
+        Status string of the underlying numerical solver.
+    rounding_displacement : float
+        Largest geodesic angle [rad] by which the final projection onto SO(3) moved a rotation.
+    notes : list of str
+        Anything the user should know (fallbacks, dropped edges, ...).
+    """
+
+    x_names: tuple[str, ...]
+    y_names: tuple[str, ...]
+    X: np.ndarray
+    Y: np.ndarray
+    scale: float
+    certificate: Certificate
+    mode: str
+    timing_s: dict[str, float] = field(default_factory=dict)
+    solver_status: str = ""
+    rounding_displacement: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def certified(self) -> bool:
+        return self.certificate.certified
+
+    def transform(self, name: str) -> np.ndarray:
+        """The 4x4 estimate of the frame called ``name``."""
+        if name in self.x_names:
+            return self.X[self.x_names.index(name)]
+        if name in self.y_names:
+            return self.Y[self.y_names.index(name)]
+        raise KeyError(f"no frame named {name!r}; have {list(self.x_names + self.y_names)}")
+
+    def frames(self) -> list[dict]:
+        """One mapping per frame: name, role (X or Y), matrix, translation, quaternion_xyzw."""
+        out = []
+        for role, names, Ts in (("X", self.x_names, self.X), ("Y", self.y_names, self.Y)):
+            for name, T in zip(names, Ts):
+                q, t = transform_to_quat_xyzw(T)
+                out.append(
+                    {
+                        "name": name,
+                        "role": role,
+                        "matrix": np.asarray(T).tolist(),
+                        "translation": t.tolist(),
+                        "quaternion_xyzw": q.tolist(),
+                    }
+                )
+        return out
+
+    def errors_to(self, X_true: np.ndarray, Y_true: np.ndarray) -> dict[str, np.ndarray]:
+        """Per-frame translation [m] and rotation [rad] errors against ground truth."""
+        return {
+            "t_x": np.linalg.norm(self.X[:, :3, 3] - X_true[:, :3, 3], axis=1),
+            "r_x": rotation_distance(self.X[:, :3, :3], X_true[:, :3, :3]),
+            "t_y": np.linalg.norm(self.Y[:, :3, 3] - Y_true[:, :3, 3], axis=1),
+            "r_y": rotation_distance(self.Y[:, :3, :3], Y_true[:, :3, :3]),
+        }
+
+    def to_dict(self) -> dict:
+        """Plain-Python mapping with the acceptance keys of the result YAML."""
+        c = self.certificate
+        return {
+            "certified": bool(self.certified),
+            "status": c.status.value,
+            "suboptimality_bound": float(c.suboptimality_bound),
+            "scale": float(self.scale),
+            "mode": self.mode,
+            "frames": self.frames(),
+            "timing_s": {k: float(v) for k, v in self.timing_s.items()},
+            "certificate": {
+                "primal_cost": float(c.primal_cost),
+                "dual_bound": float(c.dual_bound),
+                "lambda_min": float(c.lambda_min),
+                "smallest_eigenvalues": [float(v) for v in np.asarray(c.eigenvalues)],
+                "null_space_dim": int(c.null_space_dim),
+                "tolerance": float(c.tolerance),
+                "message": c.message,
+            },
+            "solver_status": self.solver_status,
+            "rounding_displacement_rad": float(self.rounding_displacement),
+            "notes": list(self.notes),
+        }

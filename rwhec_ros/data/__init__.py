@@ -1,0 +1,1 @@
+"""rwhec_ros.data"""
