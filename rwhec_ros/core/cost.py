@@ -77,7 +77,14 @@ class StateLayout:
         return slice(self.r0 + 9 * frame, self.r0 + 9 * frame + 9)
 
 
-def _local_blocks(A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+def _local_blocks(
+    A: np.ndarray,
+    B: np.ndarray,
+    sigma: np.ndarray,
+    kappa: np.ndarray,
+    *,
+    with_translation: bool = True,
+) -> np.ndarray:
     """Per-pair 25x25 blocks of ``1/2 (w_t M_t^T M_t + kappa M_R^T M_R)`` summed per pair.
 
     Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``.
@@ -96,9 +103,11 @@ def _local_blocks(A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.nda
     MR = np.zeros((N, 9, 25))
     MR[:, :, 7:16] = np.einsum("ab,nij->naibj", I3, RA).reshape(N, 9, 9)  # I (x) R_A
     MR[:, :, 16:25] = -np.einsum("nba,ij->naibj", RB, I3).reshape(N, 9, 9)  # -(R_B^T (x) I)
-    wt = 0.5 / sigma**2
     wr = 0.5 * kappa
-    return np.einsum("n,nki,nkj->nij", wt, Mt, Mt) + np.einsum("n,nki,nkj->nij", wr, MR, MR)
+    out = np.einsum("n,nki,nkj->nij", wr, MR, MR)
+    if with_translation:
+        out += np.einsum("n,nki,nkj->nij", 0.5 / sigma**2, Mt, Mt)
+    return out
 
 
 def _local_to_global(layout: StateLayout, xi: np.ndarray, yi: np.ndarray) -> np.ndarray:
@@ -116,16 +125,18 @@ def _local_to_global(layout: StateLayout, xi: np.ndarray, yi: np.ndarray) -> np.
     return idx
 
 
-def build_cost_matrix(problem: Problem) -> sp.csr_matrix:
+def build_cost_matrix(problem: Problem, *, with_translation: bool = True) -> sp.csr_matrix:
     """Sparse symmetric ``Q`` of Problem 5 (eq. (42)), size ``12 (M + P) + 1``.
 
     Built in time linear in the number of pairs: per-pair blocks are computed vectorised, summed
-    per edge, and scattered once per edge.
+    per edge, and scattered once per edge. ``with_translation=False`` keeps only the rotation
+    terms ``J_R`` (the rotation-only Problem 8 weighted by kappa).
     """
     layout = StateLayout(problem.M, problem.P)
     blocks = []
     for e in problem.edges:
-        blocks.append(_local_blocks(e.A, e.B, e.sigma, e.kappa).sum(axis=0))
+        local = _local_blocks(e.A, e.B, e.sigma, e.kappa, with_translation=with_translation)
+        blocks.append(local.sum(axis=0))
     blocks_arr = np.stack(blocks)  # (E, 25, 25)
     idx = _local_to_global(layout, problem.edge_x, problem.edge_y)
     rows = np.repeat(idx[:, :, None], 25, axis=2)

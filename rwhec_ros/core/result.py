@@ -102,7 +102,8 @@ class CalibrationResult:
     solver_status : str
         Status string of the underlying numerical solver.
     rounding_displacement : float
-        Largest geodesic angle [rad] by which the final projection onto SO(3) moved a rotation.
+        Largest Frobenius distance by which the final projection onto SO(3) moved a rotation
+        block of the extracted (normalised) null vector; ~0 when the relaxation is tight.
     notes : list of str
         Anything the user should know (fallbacks, dropped edges, ...).
     """
@@ -178,6 +179,6 @@ class CalibrationResult:
                 "message": c.message,
             },
             "solver_status": self.solver_status,
-            "rounding_displacement_rad": float(self.rounding_displacement),
+            "rounding_displacement": float(self.rounding_displacement),
             "notes": list(self.notes),
         }

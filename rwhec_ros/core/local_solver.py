@@ -1,0 +1,162 @@
+"""Local solver on the SDP's own MLE objective and the fast (SE-Sync style) certificate.
+
+The objective is the reduced chordal cost of Problem 6, ``f(R) = z^T Q' z`` with
+``z = [vec R_1, ..., vec R_n, 1]`` (translations and, for unknown scale, ``alpha`` eliminated in
+closed form by eq. (47)), minimised over SO(3)^n by a damped Riemannian Newton method with
+right perturbations ``R_l <- R_l exp(omega_l^)``.
+
+With ``G_l`` the 3x3 block of ``Q' z`` belonging to ``R_l`` (half the Euclidean gradient):
+
+* Riemannian gradient: ``g_l = 2 * vee(R_l^T G_l - G_l^T R_l)`` (``vee`` of the antisymmetric part),
+* Riemannian Hessian: ``H = 2 J^T Q' J + 2 Diag(S_l - tr(S_l) I)`` with ``S_l = sym(R_l^T G_l)``
+  and ``J`` the block-diagonal map ``omega_l -> vec(R_l omega_l^)``.
+
+Fast certificate (cf. SE-Sync, Rosen et al. 2019): at a first-order critical point the Lagrange
+multipliers of the orthogonality constraints ``R^T R = s^2 I`` (eq. (50b)) are
+``Gamma_l = sym(R_l^T G_l)``, and those of ``s^2 = 1`` is ``lambda_s = p`` (the cost), which gives::
+
+    Z = Q' - Diag(Gamma_l (x) I_3, 0) + (sum_l tr(Gamma_l) - lambda_s) e_s e_s^T,
+
+with ``Z z = 0``. Its multipliers for the remaining constraints of eq. (50) are zero, which is a
+valid (if not always the strongest) dual point: if ``Z >= 0`` the solution is globally optimal by
+weak duality (the bound of :mod:`certificate` applies unchanged); if ``lambda_min(Z) < 0`` the fast
+certificate is inconclusive and :func:`rwhec_ros.core.solve.solve` falls back to the SDP.
+At a non-global critical point ``Z`` cannot be PSD, so a wrong basin is never certified.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .lie import hat, so3_exp, vee
+
+__all__ = ["LocalSolverOptions", "LocalSolution", "refine_rotations", "fast_certificate_matrix"]
+
+
+@dataclass
+class LocalSolverOptions:
+    """Options of :func:`refine_rotations`.
+
+    Attributes
+    ----------
+    max_iterations : int
+    gradient_tol : float
+        Stop when the Riemannian gradient norm is below ``gradient_tol * max(1, f)`` (1e-10).
+    step_tol : float
+        Stop when the step norm is below this (1e-12 rad).
+    """
+
+    max_iterations: int = 100
+    gradient_tol: float = 1e-10
+    step_tol: float = 1e-12
+
+
+@dataclass
+class LocalSolution:
+    """Rotations (n, 3, 3), cost ``f``, Riemannian gradient norm, iterations, convergence flag."""
+
+    R: np.ndarray
+    cost: float
+    gradient_norm: float
+    iterations: int
+    converged: bool
+
+
+def _z_of(R: np.ndarray) -> np.ndarray:
+    return np.concatenate([np.swapaxes(R, 1, 2).reshape(-1), [1.0]])
+
+
+def _basis_jacobian(R: np.ndarray) -> np.ndarray:
+    """``J_l[:, i] = vec(R_l hat(e_i))``, shape (n, 9, 3)."""
+    E = hat(np.eye(3))  # (3, 3, 3): E[i] = hat(e_i)
+    RE = np.einsum("nab,ibc->niac", R, E)  # (n, 3 basis, 3, 3)
+    return np.swapaxes(RE, 2, 3).reshape(R.shape[0], 3, 9).transpose(0, 2, 1)
+
+
+def _grad_hess(Q: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    n = R.shape[0]
+    z = _z_of(R)
+    Qz = Q @ z
+    f = float(z @ Qz)
+    G = np.swapaxes(Qz[: 9 * n].reshape(n, 3, 3), 1, 2)  # unvec blocks
+    RtG = np.swapaxes(R, 1, 2) @ G
+    g = 2.0 * (2.0 * vee(RtG))  # d f / d omega = 2 tr(G^T R hat w) = 4 vee(R^T G) . w
+    J = _basis_jacobian(R)  # (n, 9, 3)
+    Qrr = Q[: 9 * n, : 9 * n].reshape(n, 9, n, 9)
+    H = 2.0 * np.einsum("kai,kalb,lbj->kilj", J, Qrr, J).reshape(3 * n, 3 * n)
+    S = 0.5 * (RtG + np.swapaxes(RtG, 1, 2))
+    D = S - np.trace(S, axis1=1, axis2=2)[:, None, None] * np.eye(3)
+    for l in range(n):
+        H[3 * l : 3 * l + 3, 3 * l : 3 * l + 3] += 2.0 * D[l]
+    return f, g.reshape(-1), 0.5 * (H + H.T)
+
+
+def refine_rotations(
+    Q: np.ndarray, R0: np.ndarray, options: LocalSolverOptions | None = None
+) -> LocalSolution:
+    """Minimise ``z^T Q z`` over SO(3)^n from ``R0`` (n, 3, 3) by damped Riemannian Newton.
+
+    ``Q`` (9 n + 1, 9 n + 1) is the (possibly scaled) reduced cost of eq. (48).
+    """
+    opts = options or LocalSolverOptions()
+    R = np.array(R0, dtype=float)
+    n = R.shape[0]
+    mu = 1e-6
+    f, g, H = _grad_hess(Q, R)
+    converged = False
+    it = 0
+    for it in range(1, opts.max_iterations + 1):
+        gnorm = float(np.linalg.norm(g))
+        if gnorm <= opts.gradient_tol * max(1.0, abs(f)):
+            converged = True
+            it -= 1
+            break
+        scale_h = max(1.0, float(np.max(np.abs(np.diag(H)))))
+        accepted = False
+        for _ in range(30):
+            try:
+                L = np.linalg.cholesky(H + mu * scale_h * np.eye(3 * n))
+            except np.linalg.LinAlgError:
+                mu *= 10.0
+                continue
+            step = -np.linalg.solve(L.T, np.linalg.solve(L, g))
+            R_new = R @ so3_exp(step.reshape(n, 3))
+            f_new, g_new, H_new = _grad_hess(Q, R_new)
+            predicted = -(g @ step + 0.5 * step @ H @ step)
+            actual = f - f_new
+            if actual >= 0.25 * predicted or (abs(actual) <= 1e-15 * max(1.0, abs(f))):
+                R, f, g, H = R_new, f_new, g_new, H_new
+                mu = max(mu / 10.0, 1e-12)
+                accepted = True
+                break
+            mu *= 10.0
+        if not accepted:
+            break
+        if float(np.linalg.norm(step)) < opts.step_tol:
+            converged = True
+            break
+    return LocalSolution(R=R, cost=f, gradient_norm=float(np.linalg.norm(g)), iterations=it,
+                         converged=converged)
+
+
+def fast_certificate_matrix(Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, float]:
+    """Certificate matrix ``Z`` and ``lambda_s`` from the first-order multipliers at ``R``.
+
+    Returns ``(Z, lambda_s)`` in the units of ``Q``; see the module docstring.
+    """
+    n = R.shape[0]
+    z = _z_of(R)
+    Qz = Q @ z
+    G = np.swapaxes(Qz[: 9 * n].reshape(n, 3, 3), 1, 2)
+    RtG = np.swapaxes(R, 1, 2) @ G
+    Gamma = 0.5 * (RtG + np.swapaxes(RtG, 1, 2))
+    lambda_s = float(z @ Qz)
+    Z = np.array(Q, dtype=float, copy=True)
+    I3 = np.eye(3)
+    for l in range(n):
+        sl = slice(9 * l, 9 * l + 9)
+        Z[sl, sl] -= np.kron(Gamma[l], I3)
+    Z[-1, -1] += float(np.trace(Gamma, axis1=1, axis2=2).sum()) - lambda_s
+    return 0.5 * (Z + Z.T), lambda_s

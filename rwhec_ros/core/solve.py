@@ -1,0 +1,214 @@
+"""The one entry point of the solvers: :func:`solve` with modes ``sdp``, ``fast`` and ``local``.
+
+* ``sdp`` — Algorithm 1: form ``Q'`` (eq. (48)), solve the dual SDP (Problem 7) with Clarabel,
+  take the null vector of ``Z(lambda*)``, normalise it (``s = 1``, ``det R = +1``), project onto
+  SO(3), recover translations and scale by eq. (47), and certify (eq. (73)).
+* ``fast`` — closed-form initialisation, local Riemannian Newton refinement on the same MLE
+  objective, and the SE-Sync style certificate of :mod:`local_solver`; when that certificate is
+  inconclusive, fall back to ``sdp`` and say so in ``notes``.
+* ``local`` — the refinement alone, reported as ``LOCAL_ONLY`` (no certificate).
+
+All modes scale the data matrix by an upper bound on the optimum (the cost at the closed-form
+estimate) before any numerical work, so that tolerances are relative to the optimal cost.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .certificate import CertificateOptions, certify_from_Z
+from .cost import StateLayout, build_cost_matrix, reduce_cost
+from .initialization import closed_form_estimate, estimate_from_rotations, rotations_from_vector
+from .lie import make_transform
+from .local_solver import LocalSolverOptions, fast_certificate_matrix, refine_rotations
+from .problem import Problem
+from .relaxation import SdpOptions, evaluate_Z, so3_constraint_matrices, solve_dual_sdp
+from .result import CalibrationResult, Certificate, Status
+
+__all__ = ["SolveOptions", "solve", "MODES"]
+
+MODES = ("sdp", "fast", "local")
+
+
+@dataclass
+class SolveOptions:
+    """Options of :func:`solve`.
+
+    Attributes
+    ----------
+    mode : str
+        ``"fast"`` (default), ``"sdp"`` or ``"local"``.
+    sdp : SdpOptions
+        Clarabel settings for the SDP.
+    certificate : CertificateOptions
+        Tolerances of the certificate.
+    local : LocalSolverOptions
+        Options of the local refinement.
+    initial : tuple (X (M,4,4), Y (P,4,4)) or None
+        Start for ``fast``/``local`` instead of the closed-form estimate (rotations are used).
+    fallback_to_sdp : bool
+        In ``fast`` mode, run the SDP when the fast certificate is inconclusive (True).
+    """
+
+    mode: str = "fast"
+    sdp: SdpOptions = field(default_factory=SdpOptions)
+    certificate: CertificateOptions = field(default_factory=CertificateOptions)
+    local: LocalSolverOptions = field(default_factory=LocalSolverOptions)
+    initial: tuple[np.ndarray, np.ndarray] | None = None
+    fallback_to_sdp: bool = True
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"mode: expected one of {MODES}, got {self.mode!r}")
+
+
+@dataclass
+class _Prepared:
+    problem: Problem
+    layout: StateLayout
+    reduced: object
+    scale: float
+    Qs: np.ndarray
+    init_R: np.ndarray
+    timing: dict
+
+
+def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
+    timing: dict[str, float] = {}
+    t0 = time.perf_counter()
+    layout = StateLayout(problem.M, problem.P)
+    Q = build_cost_matrix(problem)
+    reduced = reduce_cost(Q, layout, problem.unknown_scale)
+    timing["build"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    if options.initial is not None:
+        X0, Y0 = options.initial
+        R0 = np.concatenate([np.asarray(X0, float), np.asarray(Y0, float)])[:, :3, :3]
+        if R0.shape != (problem.n_frames, 3, 3):
+            raise ValueError(f"initial: expected {problem.M} X and {problem.P} Y transforms, "
+                             f"got {R0.shape[0]} in total")
+        init = estimate_from_rotations(problem, reduced, R0)
+    else:
+        init = closed_form_estimate(problem, reduced)
+    timing["initialise"] = time.perf_counter() - t1
+    # Scale by an upper bound on the optimum (cost at a feasible point), floored relative to the
+    # data so that noise-free problems (optimum 0) stay well conditioned.
+    floor = 1e-12 * max(float(np.trace(reduced.Qr)), 1e-300)
+    scale = max(float(init.cost), floor)
+    return _Prepared(problem, layout, reduced, scale, reduced.Qr / scale, init.R, timing)
+
+
+def _result(prep: _Prepared, R: np.ndarray, cert: Certificate, mode: str, solver_status: str,
+            moved: float, notes: list[str]) -> CalibrationResult:
+    est = estimate_from_rotations(prep.problem, prep.reduced, R)
+    T = make_transform(est.R, est.t)
+    M = prep.problem.M
+    return CalibrationResult(
+        x_names=prep.problem.x_names,
+        y_names=prep.problem.y_names,
+        X=T[:M],
+        Y=T[M:],
+        scale=float(est.alpha),
+        certificate=cert,
+        mode=mode,
+        timing_s=dict(prep.timing),
+        solver_status=solver_status,
+        rounding_displacement=moved,
+        notes=notes,
+    )
+
+
+def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> CalibrationResult:
+    n = prep.problem.n_frames
+    d = 9 * n + 1
+    t0 = time.perf_counter()
+    cons = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
+    prep.timing["constraints"] = time.perf_counter() - t0
+    sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
+    prep.timing["compile"] = sol.compile_s
+    prep.timing["solve"] = sol.solve_s
+    t1 = time.perf_counter()
+    solver_ok = sol.status == "optimal" and bool(np.all(np.isfinite(sol.lam)))
+    if not np.all(np.isfinite(sol.lam)):
+        cert = Certificate(Status.SOLVER_INACCURATE, float("nan"), float("nan"), float("nan"),
+                           float("nan"), np.zeros(0), -1, options.certificate.rho_tol,
+                           f"SDP solver returned no solution (status '{sol.status}')")
+        R = prep.init_R
+        prep.timing["extract"] = time.perf_counter() - t1
+        notes.append("SDP failed; returning the closed-form estimate")
+        return _result(prep, R, cert, "sdp", sol.status, 0.0, notes)
+    Z = evaluate_Z(prep.Qs, cons, sol.lam)
+    w, V = np.linalg.eigh(Z)
+    v = V[:, 0]
+    # Algorithm 1 step 6: scale the null vector so that s = 1 (sign and magnitude), then fix
+    # det R = +1 via the mean cube-root determinant and project each block onto SO(3).
+    if abs(v[-1]) > 1e-8 * np.linalg.norm(v):
+        v = v / v[-1]
+    R_raw, moved = rotations_from_vector(v[:-1], n)
+    prep.timing["extract"] = time.perf_counter() - t1
+    t2 = time.perf_counter()
+    est = estimate_from_rotations(prep.problem, prep.reduced, R_raw)
+    cert = certify_from_Z(Z, sol.lambda_s, est.cost, prep.scale, n, solver_ok=solver_ok,
+                          solver_status=sol.status, options=options.certificate)
+    prep.timing["certify"] = time.perf_counter() - t2
+    return _result(prep, R_raw, cert, "sdp", sol.status, moved, notes)
+
+
+def _solve_local(prep: _Prepared, options: SolveOptions) -> tuple[np.ndarray, object]:
+    t0 = time.perf_counter()
+    loc = refine_rotations(prep.Qs, prep.init_R, options.local)
+    prep.timing["local"] = time.perf_counter() - t0
+    return loc.R, loc
+
+
+def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationResult:
+    """Solve a generalized RWHEC problem (Problem 3/4) and certify the solution.
+
+    Parameters
+    ----------
+    problem : Problem
+    options : SolveOptions, optional
+
+    Returns
+    -------
+    CalibrationResult
+        ``X`` (M, 4, 4), ``Y`` (P, 4, 4), ``scale`` and a :class:`Certificate`; a solution that
+        could not be certified carries status NOT_TIGHT, SOLVER_INACCURATE or LOCAL_ONLY, never
+        CERTIFIED_OPTIMAL.
+    """
+    options = options or SolveOptions()
+    t_start = time.perf_counter()
+    prep = _prepare(problem, options)
+    notes: list[str] = []
+    if options.mode == "sdp":
+        res = _solve_sdp(prep, options, notes)
+    else:
+        R, loc = _solve_local(prep, options)
+        if not loc.converged:
+            notes.append(f"local solver stopped after {loc.iterations} iterations without "
+                         f"converging (gradient norm {loc.gradient_norm:.3g})")
+        if options.mode == "local":
+            est = estimate_from_rotations(problem, prep.reduced, R)
+            res = _result(prep, R, Certificate.local_only(est.cost), "local",
+                          "converged" if loc.converged else "not converged", 0.0, notes)
+        else:
+            t0 = time.perf_counter()
+            Z, lam_s = fast_certificate_matrix(prep.Qs, R)
+            est = estimate_from_rotations(problem, prep.reduced, R)
+            cert = certify_from_Z(Z, lam_s, est.cost, prep.scale, problem.n_frames,
+                                  solver_ok=True, solver_status="local",
+                                  options=options.certificate)
+            prep.timing["certify"] = time.perf_counter() - t0
+            if cert.certified or not options.fallback_to_sdp:
+                res = _result(prep, R, cert, "fast",
+                              "converged" if loc.converged else "not converged", 0.0, notes)
+            else:
+                notes.append(f"fast certificate inconclusive ({cert.message}); fell back to the "
+                             "SDP relaxation")
+                res = _solve_sdp(prep, options, notes)
+                res.mode = "fast"
+    res.timing_s["total"] = time.perf_counter() - t_start
+    return res
