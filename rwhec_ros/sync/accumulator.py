@@ -1,0 +1,478 @@
+"""Accumulation of synchronised ``(A, B)`` measurement pairs per edge, with keyframe selection.
+
+One edge is an (X-frame, Y-frame) = (tag, camera) pair of the problem graph (paper Section 4.5);
+each offered pair satisfies ``A_i X_j = Y_k B_i`` (eq. (7)) with ``A = T_<camera carrier>_<tag
+carrier>`` (noise-free, interpolated from the pose stream) and ``B = T_cam_tag`` (noisy, from
+the detector).
+
+Keyframe selection: a pair is kept only if its ``A`` moved by more than ``keyframe_rotation_rad``
+(geodesic angle) OR ``keyframe_translation_m`` (``|t_A - t_A_last|``, equal to the translation of
+``A_last^-1 A``) since the edge's last kept pair, so a stationary robot does not flood an edge with
+copies of the same constraint. The first pair of an edge is always kept.
+
+Memory bound: pairs are stored in preallocated float64/int64 arrays of 296 bytes per slot
+(stamp 8, A 128, B 128, sigma 8, kappa 8, nearest-neighbour bookkeeping 16), grown by doubling up
+to ``max_pairs_per_edge`` slots, so the memory held between calls never exceeds
+``max_edges * (296 * max_pairs_per_edge + 8192)`` bytes (8192 bytes cover the per-edge Python
+objects, measured at 3-4.5 kB with ``tracemalloc``); with the defaults (256 edges, 2000 pairs)
+that is 153.6 MB. An offer needs transient work arrays of a few hundred bytes per stored pair of
+its edge. See :meth:`PairAccumulator.memory_bound_bytes` and :meth:`PairAccumulator.nbytes`.
+
+Full edge policy (counted, never silent): when an edge holds ``max_pairs_per_edge`` pairs, a new
+keyframe replaces the most redundant stored pair (the one closest to its nearest stored
+neighbour) if the new pair's nearest-neighbour distance, without that pair, is larger
+(``"replaced_redundant"``); otherwise the new pair is dropped (``"dropped_full"``). The distance
+between two pairs is ``max(angle / keyframe_rotation_rad, |t_A1 - t_A2| / keyframe_translation_m)``
+on their ``A``, so the stored set keeps spreading over the visited poses.
+Offers for a new edge beyond ``max_edges`` are dropped (``"dropped_max_edges"``).
+
+Determinism promise: each edge's stored pairs are a deterministic function of the sequence of
+pairs offered *to that edge*; the interleaving of offers across edges does not matter. Offering
+pairs in stamp order (as the ROS layer does after synchronisation) therefore makes the result
+independent of the arrival order of poses and images. Outputs are sorted by stamp.
+
+Not thread-safe: the caller serialises access (e.g. one lock in the live session).
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.problem import DEFAULT_ROTATION_TOL, Edge, Problem, check_transforms
+
+__all__ = ["EdgeData", "PairAccumulator", "PairListener"]
+
+#: ``callback(x_name, y_name, A (4, 4), B (4, 4))``, called for every kept pair.
+PairListener = Callable[[str, str, np.ndarray, np.ndarray], None]
+
+_BYTES_PER_SLOT = 8 + 128 + 128 + 8 + 8 + 8 + 8
+_BYTES_PER_EDGE_OVERHEAD = 8192
+_INITIAL_SLOTS = 64
+
+_COUNTERS = (
+    "offered",
+    "kept",
+    "skipped_no_motion",
+    "duplicate_stamp",
+    "replaced_redundant",
+    "dropped_full",
+    "dropped_max_edges",
+    "rejected_invalid",
+)
+
+
+@dataclass(frozen=True)
+class EdgeData:
+    """The pairs kept for one edge, sorted by stamp (copies).
+
+    Attributes
+    ----------
+    x, y : str
+        X-frame (tag) and Y-frame (camera) names.
+    stamps_ns : ndarray, shape (N,), int64
+        Image stamps [ns].
+    A, B : ndarray, shape (N, 4, 4)
+        ``T_<camera carrier>_<tag carrier>`` and ``T_cam_tag`` at each stamp.
+    sigma, kappa : ndarray, shape (N,)
+        Translation standard deviation [m] and Langevin concentration of each ``B``.
+    """
+
+    x: str
+    y: str
+    stamps_ns: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    sigma: np.ndarray
+    kappa: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.stamps_ns.shape[0])
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _rotation_angles(R_stack: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Geodesic angles between each of (n, 3, 3) and (3, 3), accurate near 0 and pi."""
+    Rel = np.swapaxes(R_stack, -1, -2) @ R
+    c = 0.5 * (np.trace(Rel, axis1=-2, axis2=-1) - 1.0)
+    w = np.stack(
+        [Rel[:, 2, 1] - Rel[:, 1, 2], Rel[:, 0, 2] - Rel[:, 2, 0], Rel[:, 1, 0] - Rel[:, 0, 1]],
+        axis=-1,
+    )
+    s = 0.5 * np.linalg.norm(w, axis=-1)
+    return np.arctan2(s, c)
+
+
+class _EdgeStore:
+    """Growing preallocated arrays of one edge plus nearest-neighbour bookkeeping."""
+
+    _FIELDS = ("stamps", "A", "B", "sigma", "kappa", "nn_dist", "nn_idx")
+
+    def __init__(self, x: str, y: str, max_pairs: int) -> None:
+        self.x, self.y = x, y
+        self.n = 0
+        self.last_A: np.ndarray | None = None
+        slots = min(_INITIAL_SLOTS, max_pairs)
+        self.stamps = np.zeros(slots, dtype=np.int64)
+        self.A = np.zeros((slots, 4, 4))
+        self.B = np.zeros((slots, 4, 4))
+        self.sigma = np.zeros(slots)
+        self.kappa = np.zeros(slots)
+        self.nn_dist = np.full(slots, np.inf)  # distance of each pair to its nearest neighbour
+        self.nn_idx = np.full(slots, -1, dtype=np.int64)  # index of that neighbour
+
+    def grow(self, slots: int) -> None:
+        """Reallocate every array to ``slots`` entries, keeping the first ``n``."""
+        for name in self._FIELDS:
+            old = getattr(self, name)
+            new = np.full((slots,) + old.shape[1:], np.inf if name == "nn_dist" else 0,
+                          dtype=old.dtype)
+            new[: self.n] = old[: self.n]
+            setattr(self, name, new)
+
+    @property
+    def slots(self) -> int:
+        return int(self.stamps.shape[0])
+
+    def nbytes(self) -> int:
+        return sum(getattr(self, name).nbytes for name in self._FIELDS)
+
+    def distances(self, A: np.ndarray, rot_scale: float, trans_scale: float) -> np.ndarray:
+        """Keyframe distance of ``A`` to each stored ``A``, shape (n,)."""
+        stored = self.A[: self.n]
+        rot = _rotation_angles(stored[:, :3, :3], A[:3, :3]) / rot_scale
+        trans = np.linalg.norm(stored[:, :3, 3] - A[:3, 3], axis=-1) / trans_scale
+        return np.maximum(rot, trans)
+
+    def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float) -> None:
+        self.stamps[i] = stamp
+        self.A[i] = A
+        self.B[i] = B
+        self.sigma[i] = sigma
+        self.kappa[i] = kappa
+
+    def data(self) -> EdgeData:
+        order = np.argsort(self.stamps[: self.n], kind="stable")
+        return EdgeData(
+            x=self.x,
+            y=self.y,
+            stamps_ns=self.stamps[: self.n][order].copy(),
+            A=self.A[: self.n][order].copy(),
+            B=self.B[: self.n][order].copy(),
+            sigma=self.sigma[: self.n][order].copy(),
+            kappa=self.kappa[: self.n][order].copy(),
+        )
+
+
+class PairAccumulator:
+    """Per-edge store of synchronised measurement pairs with keyframe selection.
+
+    Parameters
+    ----------
+    keyframe_rotation_rad : float
+        Keep a pair when ``A`` rotated by more than this [rad] since the edge's last kept pair
+        (default 2 degrees).
+    keyframe_translation_m : float
+        ... or translated by more than this [m] (default 1 cm).
+    max_pairs_per_edge : int
+        Stored pairs per edge (default 2000); see the module docstring for the full-edge policy.
+    max_edges : int
+        Number of edges (default 256); offers for further edges are dropped and counted.
+    rotation_tol : float
+        Rigid-transform validation tolerance for ``A`` and ``B`` (as :meth:`Edge.build`).
+    """
+
+    def __init__(
+        self,
+        keyframe_rotation_rad: float = float(np.deg2rad(2.0)),
+        keyframe_translation_m: float = 0.01,
+        max_pairs_per_edge: int = 2000,
+        max_edges: int = 256,
+        *,
+        rotation_tol: float = DEFAULT_ROTATION_TOL,
+    ) -> None:
+        for name, value in (
+            ("keyframe_rotation_rad", keyframe_rotation_rad),
+            ("keyframe_translation_m", keyframe_translation_m),
+            ("rotation_tol", rotation_tol),
+        ):
+            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value > 0):
+                raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
+        for name, value, minimum in (
+            ("max_pairs_per_edge", max_pairs_per_edge, 2),
+            ("max_edges", max_edges, 1),
+        ):
+            if not _is_int(value) or value < minimum:
+                raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
+        self.keyframe_rotation_rad = float(keyframe_rotation_rad)
+        self.keyframe_translation_m = float(keyframe_translation_m)
+        self.max_pairs_per_edge = int(max_pairs_per_edge)
+        self.max_edges = int(max_edges)
+        self.rotation_tol = float(rotation_tol)
+        self._edges: dict[tuple[str, str], _EdgeStore] = {}
+        self._x_frames: set[str] = set()
+        self._y_frames: set[str] = set()
+        self._listeners: list[PairListener] = []
+        self._counters = dict.fromkeys(_COUNTERS, 0)
+
+    # --- listeners -----------------------------------------------------------------------------
+    def add_listener(self, callback: PairListener) -> None:
+        """Call ``callback(x, y, A, B)`` (copies) for every pair kept from now on.
+
+        Listeners are not told when a full edge later replaces a pair. Exceptions propagate to
+        the caller of :meth:`offer` (after the pair has been stored).
+        """
+        if not callable(callback):
+            raise ValueError(f"callback: expected a callable, got {callback!r}")
+        self._listeners.append(callback)
+
+    def remove_listener(self, callback: PairListener) -> None:
+        """Stop calling ``callback``; unknown callbacks raise ``ValueError``."""
+        try:
+            self._listeners.remove(callback)
+        except ValueError:
+            raise ValueError(f"callback: not a registered listener: {callback!r}") from None
+
+    # --- input ---------------------------------------------------------------------------------
+    def _moved(self, last_A: np.ndarray, A: np.ndarray) -> bool:
+        angle = float(_rotation_angles(last_A[None, :3, :3], A[:3, :3])[0])
+        shift = float(np.linalg.norm(A[:3, 3] - last_A[:3, 3]))
+        return angle > self.keyframe_rotation_rad or shift > self.keyframe_translation_m
+
+    def _distances(self, store: _EdgeStore, A: np.ndarray) -> np.ndarray:
+        return store.distances(A, self.keyframe_rotation_rad, self.keyframe_translation_m)
+
+    def _check_names(self, x: object, y: object) -> None:
+        for field_name, value in (("x", x), ("y", y)):
+            if not isinstance(value, str) or not value:
+                raise ValueError(f"{field_name}: expected a non-empty frame name, got {value!r}")
+        if x == y:
+            raise ValueError(f"x and y must differ, both are {x!r}")
+        if x in self._y_frames:
+            raise ValueError(f"x: frame {x!r} is already used as a Y-frame")
+        if y in self._x_frames:
+            raise ValueError(f"y: frame {y!r} is already used as an X-frame")
+
+    def _validate(self, x: str, y: str, stamp_ns, A, B, sigma, kappa) -> tuple:
+        name = f"offer ({x}, {y})"
+        if not _is_int(stamp_ns):
+            raise ValueError(f"{name} stamp_ns: expected integer nanoseconds, got {stamp_ns!r}")
+        if stamp_ns < 0:
+            raise ValueError(f"{name} stamp_ns: must be >= 0, got {stamp_ns!r}")
+        A = check_transforms(A, what=f"{name} A", rotation_tol=self.rotation_tol)
+        B = check_transforms(B, what=f"{name} B", rotation_tol=self.rotation_tol)
+        if A.shape[0] != 1 or B.shape[0] != 1:
+            raise ValueError(f"{name}: expected one (4, 4) A and B, got {A.shape} and {B.shape}")
+        for field_name, value in (("sigma", sigma), ("kappa", kappa)):
+            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} {field_name}: must be finite and > 0, got {value!r}")
+        return int(stamp_ns), A[0], B[0], float(sigma), float(kappa)
+
+    def offer(
+        self,
+        x: str,
+        y: str,
+        stamp_ns: int,
+        A: np.ndarray,
+        B: np.ndarray,
+        sigma: float,
+        kappa: float,
+        *,
+        strict: bool = False,
+    ) -> bool:
+        """Offer one pair of edge ``(x, y)``; returns True when it was kept.
+
+        Parameters
+        ----------
+        x, y : str
+            X-frame (tag) and Y-frame (camera) names. A name used as X and as Y raises
+            ``ValueError`` (a configuration error, not bad data).
+        stamp_ns : int
+            Image stamp [ns]; a stamp already stored for this edge is dropped
+            (``"duplicate_stamp"``).
+        A, B : ndarray, shape (4, 4)
+            ``T_<camera carrier>_<tag carrier>`` and ``T_cam_tag`` at ``stamp_ns`` (copied).
+        sigma, kappa : float
+            Precision of ``B``: translation standard deviation [m], Langevin concentration.
+        strict : bool
+            Raise ``ValueError`` for invalid stamp/A/B/sigma/kappa instead of counting
+            ``"rejected_invalid"`` and returning False.
+        """
+        self._check_names(x, y)
+        self._counters["offered"] += 1
+        try:
+            stamp, A, B, sigma, kappa = self._validate(x, y, stamp_ns, A, B, sigma, kappa)
+        except ValueError:
+            if strict:
+                raise
+            self._counters["rejected_invalid"] += 1
+            return False
+        key = (x, y)
+        store = self._edges.get(key)
+        if store is None:
+            if len(self._edges) >= self.max_edges:
+                self._counters["dropped_max_edges"] += 1
+                return False
+            store = self._edges[key] = _EdgeStore(x, y, self.max_pairs_per_edge)
+            self._x_frames.add(x)
+            self._y_frames.add(y)
+        if store.n and np.any(store.stamps[: store.n] == stamp):
+            self._counters["duplicate_stamp"] += 1
+            return False
+        if store.last_A is not None and not self._moved(store.last_A, A):
+            self._counters["skipped_no_motion"] += 1
+            return False
+        if store.n < self.max_pairs_per_edge:
+            self._append(store, stamp, A, B, sigma, kappa)
+        elif not self._replace_most_redundant(store, stamp, A, B, sigma, kappa):
+            self._counters["dropped_full"] += 1
+            return False
+        store.last_A = A.copy()
+        self._counters["kept"] += 1
+        for callback in list(self._listeners):
+            callback(x, y, A.copy(), B.copy())
+        return True
+
+    def _append(self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float) -> None:
+        if store.n == store.slots:
+            store.grow(min(2 * store.slots, self.max_pairs_per_edge))
+        d = self._distances(store, A)
+        k = store.n
+        store.write(k, stamp, A, B, sigma, kappa)
+        if k:
+            closer = d < store.nn_dist[:k]
+            store.nn_dist[:k][closer] = d[closer]
+            store.nn_idx[:k][closer] = k
+            store.nn_dist[k] = d.min()
+            store.nn_idx[k] = int(np.argmin(d))
+        store.n = k + 1
+
+    def _replace_most_redundant(
+        self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float
+    ) -> bool:
+        n = store.n
+        r = int(np.argmin(store.nn_dist[:n]))
+        d = self._distances(store, A)
+        d[r] = np.inf
+        if not d.min() > store.nn_dist[r]:
+            return False
+        store.write(r, stamp, A, B, sigma, kappa)
+        others = np.arange(n) != r
+        affected = np.flatnonzero(others & (store.nn_idx[:n] == r))
+        closer = others & (d < store.nn_dist[:n])
+        store.nn_dist[:n][closer] = d[closer]
+        store.nn_idx[:n][closer] = r
+        for a in affected:
+            da = self._distances(store, store.A[a])
+            da[a] = np.inf
+            store.nn_dist[a] = da.min()
+            store.nn_idx[a] = int(np.argmin(da))
+        store.nn_dist[r] = d.min()
+        store.nn_idx[r] = int(np.argmin(d))
+        self._counters["replaced_redundant"] += 1
+        return True
+
+    # --- output --------------------------------------------------------------------------------
+    def edges(self) -> dict[tuple[str, str], EdgeData]:
+        """Kept pairs per edge ``(x, y)`` (sorted by stamp; copies), in first-offer order."""
+        return {key: store.data() for key, store in self._edges.items() if store.n}
+
+    def counts(self) -> dict[tuple[str, str], int]:
+        """Number of kept pairs per edge ``(x, y)``."""
+        return {key: store.n for key, store in self._edges.items() if store.n}
+
+    def counters(self) -> dict[str, int]:
+        """A copy of the event counters (fixed keys, all present from the start)."""
+        return dict(self._counters)
+
+    def nbytes(self) -> int:
+        """Bytes currently allocated for stored pairs (arrays only)."""
+        return sum(store.nbytes() for store in self._edges.values())
+
+    def memory_bound_bytes(self) -> int:
+        """Bound on the memory held, ``max_edges * (296 * max_pairs_per_edge + 8192)`` bytes."""
+        return self.max_edges * (
+            _BYTES_PER_SLOT * self.max_pairs_per_edge + _BYTES_PER_EDGE_OVERHEAD
+        )
+
+    def clear(self) -> None:
+        """Forget every pair and edge (counters and listeners are kept)."""
+        self._edges.clear()
+        self._x_frames.clear()
+        self._y_frames.clear()
+
+    def to_problem(
+        self,
+        x_names: Sequence[str] | None = None,
+        y_names: Sequence[str] | None = None,
+        unknown_scale: bool = False,
+        min_pairs: int = 3,
+    ) -> tuple[Problem, dict[tuple[str, str], str]]:
+        """The kept pairs as a :class:`Problem` and the edges left out, with a reason each.
+
+        Parameters
+        ----------
+        x_names, y_names : sequence of str, optional
+            Frame order of the problem (default: sorted names of the edges). Edges of frames not
+            listed are excluded. Frames left without an edge are dropped.
+        unknown_scale : bool
+            Monocular problem with unknown scale (paper Problem 3).
+        min_pairs : int
+            Edges with fewer kept pairs are excluded.
+
+        Returns
+        -------
+        problem : Problem
+            Edges ordered by (X index, Y index); pairs by stamp; built with :meth:`Edge.build`.
+        excluded : dict[(x, y), str]
+            Reason for each edge left out.
+
+        Raises
+        ------
+        ValueError
+            If no edge is left.
+        """
+        if not _is_int(min_pairs) or min_pairs < 1:
+            raise ValueError(f"min_pairs: expected an integer >= 1, got {min_pairs!r}")
+        data = self.edges()
+        xs = sorted({x for x, _ in data}) if x_names is None else [str(n) for n in x_names]
+        ys = sorted({y for _, y in data}) if y_names is None else [str(n) for n in y_names]
+        x_index = {n: i for i, n in enumerate(xs)}
+        y_index = {n: i for i, n in enumerate(ys)}
+        excluded: dict[tuple[str, str], str] = {}
+        kept: list[EdgeData] = []
+        for (x, y), e in data.items():
+            if x not in x_index:
+                excluded[(x, y)] = f"X frame {x!r} not in x_names"
+            elif y not in y_index:
+                excluded[(x, y)] = f"Y frame {y!r} not in y_names"
+            elif e.n < min_pairs:
+                excluded[(x, y)] = f"{e.n} pairs < min_pairs={min_pairs}"
+            else:
+                kept.append(e)
+        if not kept:
+            raise ValueError(
+                f"to_problem: no edge has at least min_pairs={min_pairs} pairs among the "
+                f"requested frames; excluded: {excluded}"
+            )
+        kept.sort(key=lambda e: (x_index[e.x], y_index[e.y]))
+        edges = [
+            Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa,
+                       rotation_tol=self.rotation_tol)
+            for e in kept
+        ]
+        touched = {e.x for e in kept} | {e.y for e in kept}
+        problem = Problem(
+            [n for n in xs if n in touched],
+            [n for n in ys if n in touched],
+            edges,
+            unknown_scale=unknown_scale,
+        )
+        return problem, excluded

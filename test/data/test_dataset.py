@@ -1,0 +1,236 @@
+"""Our data set format: lossless round trips, conversions, and bad files."""
+
+import hashlib
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rwhec_ros import __version__
+from rwhec_ros.core.lie import make_transform, so3_exp
+from rwhec_ros.core.synthetic import random_instance, random_transforms
+from rwhec_ros.data.dataset import Dataset, DatasetEdge
+from rwhec_ros.sync.accumulator import PairAccumulator
+
+SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
+FIELDS = ("stamps_ns", "A", "B", "sigma", "kappa")
+
+
+def awkward_dataset(rng):
+    """Values that stress float repr: tiny, huge, negative zero, 17-digit mantissas."""
+    problem, _ = random_instance(rng, 2, 2, edges=[(0, 0), (1, 0), (1, 1)], n_per_edge=4,
+                                 sigma=0.01, kappa=200.0)
+    stamps = [1_700_000_000_123_456_789 + np.arange(e.n, dtype=np.int64) * 33_333_333
+              for e in problem.edges]
+    ds = Dataset.from_problem(problem, stamps=stamps, metadata={"config": {"tag_size_m": 0.16}},
+                              carriers={"y0": "base_link", "x0": "world"})
+    e = ds.edges[0]
+    A = e.A.copy()
+    A[0, :3, 3] = [-0.0, 1e-300, 1.2345678901234567e-5]
+    A[1] = make_transform(so3_exp([1e-17, 0.0, 0.0]), [1e300, -5e-324, 0.1 + 0.2])
+    sigma = e.sigma.copy()
+    sigma[:] = [5e-324, 0.1, 1.0 / 3.0, 1e-3]
+    kappa = e.kappa.copy()
+    kappa[0] = 1.7976931348623157e308
+    edges = (DatasetEdge(e.x, e.y, e.stamps_ns, A, e.B, sigma, kappa),) + ds.edges[1:]
+    return Dataset(ds.x_names, ds.y_names, edges, unknown_scale=True, metadata=ds.metadata,
+                   carriers=ds.carriers)
+
+
+def assert_bit_exact(ds1, ds2):
+    assert ds2.x_names == ds1.x_names and ds2.y_names == ds1.y_names
+    assert ds2.unknown_scale == ds1.unknown_scale
+    assert ds2.metadata == ds1.metadata and ds2.carriers == ds1.carriers
+    assert [(e.x, e.y) for e in ds2.edges] == [(e.x, e.y) for e in ds1.edges]
+    for e1, e2 in zip(ds1.edges, ds2.edges):
+        for f in FIELDS:
+            a, b = getattr(e1, f), getattr(e2, f)
+            assert a.dtype == b.dtype and a.shape == b.shape
+            # Bit-exact, including the sign of zero and subnormals.
+            assert a.tobytes() == b.tobytes(), f"edge ({e1.x}, {e1.y}) {f}"
+
+
+@pytest.mark.parametrize("arrays", ["inline", "npz"])
+def test_round_trip_is_bit_exact(tmp_path, arrays):
+    ds = awkward_dataset(np.random.default_rng(0))
+    path = ds.save(tmp_path / "collected.yaml", arrays=arrays)
+    assert path == tmp_path / "collected.yaml"
+    assert (tmp_path / "collected.npz").exists() == (arrays == "npz")
+    header = yaml.safe_load(path.read_text())
+    assert header["format"] == "rwhec_ros.dataset" and header["version"] == 1
+    assert header["metadata"]["package_version"] == __version__
+    assert header["metadata"]["config"] == {"tag_size_m": 0.16}
+    assert_bit_exact(ds, Dataset.load(path))
+
+
+def test_auto_switches_to_npz_above_threshold(tmp_path):
+    ds = awkward_dataset(np.random.default_rng(1))  # 12 pairs
+    ds.save(tmp_path / "small.yaml", inline_max_pairs=12)
+    ds.save(tmp_path / "large.yaml", inline_max_pairs=11)
+    assert not (tmp_path / "small.npz").exists()
+    assert "A" in yaml.safe_load((tmp_path / "small.yaml").read_text())["edges"][0]
+    assert (tmp_path / "large.npz").exists()
+    assert_bit_exact(Dataset.load(tmp_path / "small.yaml"), Dataset.load(tmp_path / "large.yaml"))
+
+
+def test_problem_round_trip_and_min_pairs():
+    rng = np.random.default_rng(2)
+    problem, _ = random_instance(rng, 3, 2, edges=[(0, 0), (1, 0), (2, 1)], n_per_edge=3)
+    ds = Dataset.from_problem(problem)
+    np.testing.assert_array_equal(ds.edges[0].stamps_ns, [0, 1, 2])  # placeholder stamps
+    p2 = ds.to_problem()
+    assert p2.x_names == problem.x_names and p2.y_names == problem.y_names
+    for e1, e2 in zip(problem.edges, p2.edges):
+        for f in ("A", "B", "sigma", "kappa"):
+            np.testing.assert_array_equal(getattr(e1, f), getattr(e2, f))
+    # Drop one pair of edge (2, 1): min_pairs=3 removes it and frames x2, y1.
+    e = ds.edges[2]
+    short = DatasetEdge(e.x, e.y, e.stamps_ns[:2], e.A[:2], e.B[:2], e.sigma[:2], e.kappa[:2])
+    ds_short = Dataset(ds.x_names, ds.y_names, ds.edges[:2] + (short,))
+    p3 = ds_short.to_problem(min_pairs=3)
+    assert p3.x_names == ("x0", "x1") and p3.y_names == ("y0",)
+    with pytest.raises(ValueError, match="min_pairs=4"):
+        ds.to_problem(min_pairs=4)
+    with pytest.raises(ValueError, match="stamps"):
+        Dataset.from_problem(problem, stamps=[np.arange(3)])
+
+
+def test_from_accumulator(tmp_path):
+    rng = np.random.default_rng(3)
+    acc = PairAccumulator()
+    A = random_transforms(rng, 8)
+    B = random_transforms(rng, 8)
+    for i in range(8):
+        acc.offer("tag_1" if i % 2 else "tag_0", "cam_0", 1000 + i, A[i], B[i], 0.01, 125.0)
+    ds = Dataset.from_accumulator(acc, metadata={"config": {"keyframe_rotation_deg": 2.0}},
+                                  carriers={"cam_0": "base_link"})
+    assert ds.x_names == ("tag_0", "tag_1") and ds.y_names == ("cam_0",)
+    np.testing.assert_array_equal(ds.edge("tag_1", "cam_0").stamps_ns, [1001, 1003, 1005, 1007])
+    np.testing.assert_array_equal(ds.edge("tag_0", "cam_0").A, A[0::2])
+    assert ds.n_pairs == 8
+    assert_bit_exact(ds, Dataset.load(ds.save(tmp_path / "acc.yaml")))
+    with pytest.raises(ValueError, match="not listed"):
+        Dataset.from_accumulator(acc, x_names=["tag_0"])
+
+
+def test_paper_real_world_data_round_trip(tmp_path):
+    directory = SHARED / "data" / "paper_real_world"
+    if not directory.is_dir():
+        pytest.skip(f"shared data not available at {directory}")
+    paper_csv = pytest.importorskip("rwhec_ros.data.paper_csv")
+    problem = paper_csv.read_paper_csv(directory, min_pairs=1)
+    ds = Dataset.from_problem(problem, metadata={"source": "paper_real_world"})
+    loaded = Dataset.load(ds.save(tmp_path / "paper.yaml", arrays="npz"))
+    assert_bit_exact(ds, loaded)
+    assert loaded.to_problem().n_measurements == problem.n_measurements > 0
+
+
+# --- bad files ---------------------------------------------------------------------------------
+def small_doc(tmp_path):
+    ds = awkward_dataset(np.random.default_rng(4))
+    path = ds.save(tmp_path / "ds.yaml", arrays="inline")
+    return path, yaml.safe_load(path.read_text())
+
+
+def write(path, doc):
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def _set(doc, keys, value):
+    target = doc
+    for k in keys[:-1]:
+        target = target[k]
+    target[keys[-1]] = value
+
+
+def _delete(doc, keys):
+    target = doc
+    for k in keys[:-1]:
+        target = target[k]
+    del target[keys[-1]]
+
+
+BAD_EDITS = [
+    # (edit, expected message fragments after the file name)
+    (lambda d: _set(d, ["format"], "rosbag2"), ["'format'", "'rosbag2'"]),
+    (lambda d: _set(d, ["version"], 2), ["'version'", "got 2"]),
+    (lambda d: _delete(d, ["x_names"]), ["'x_names'", "None"]),
+    (lambda d: _delete(d, ["edges", 1, "B"]), ["edges[1] (x1, y0)", "'B'"]),
+    (lambda d: _set(d, ["edges", 0, "x"], "x9"), ["edges[0] (x9, y0)", "'x9' is not in x_names"]),
+    (lambda d: _set(d, ["edges", 2, "A", 1, 0, 0], 1.5),
+     ["edges[2] (x1, y1)", "A[1]", "not orthonormal"]),
+    (lambda d: _set(d, ["edges", 0, "A", 3, 1, 2], "abc"), ["edges[0] (x0, y0)", "'A'", "'abc'"]),
+    (lambda d: _set(d, ["edges", 1, "stamps_ns", 2], 3.5), ["edges[1]", "'stamps_ns'", "3.5"]),
+    (lambda d: _set(d, ["edges", 1, "n"], 7), ["edges[1]", "'n' is 7"]),
+    (lambda d: _set(d, ["edges", 2, "sigma", 3], -0.01), ["edges[2]", "sigma[3]", "-0.01"]),
+    (lambda d: _set(d, ["edges", 2, "kappa"], [1.0]), ["edges[2]", "kappa", "(4,)", "(1,)"]),
+    (lambda d: _set(d, ["carriers"], {"cam_9": "base"}), ["carriers", "'cam_9'"]),
+    (lambda d: _set(d, ["y_names"], ["y0", "y1", "x0"]), ["duplicated", "x0"]),
+]
+
+
+@pytest.mark.parametrize("edit, fragments", BAD_EDITS)
+def test_bad_files_name_file_key_and_value(tmp_path, edit, fragments):
+    path, doc = small_doc(tmp_path)
+    edit(doc)
+    write(path, doc)
+    with pytest.raises(ValueError) as info:
+        Dataset.load(path)
+    message = str(info.value)
+    assert message.startswith(str(path))
+    for fragment in fragments:
+        assert fragment in message, message
+
+
+def test_bad_yaml_and_non_mapping(tmp_path):
+    path = tmp_path / "broken.yaml"
+    path.write_text("format: [unclosed\n")
+    with pytest.raises(ValueError, match=r"broken\.yaml: not valid YAML"):
+        Dataset.load(path)
+    path.write_text("- just\n- a list\n")
+    with pytest.raises(ValueError, match=r"broken\.yaml: expected a YAML mapping"):
+        Dataset.load(path)
+
+
+def test_bad_npz_sidecar(tmp_path):
+    ds = awkward_dataset(np.random.default_rng(5))
+    path = ds.save(tmp_path / "big.yaml", arrays="npz")
+    npz = tmp_path / "big.npz"
+    payload = npz.read_bytes()
+    npz.write_bytes(payload[:-10] + b"0123456789")
+    with pytest.raises(ValueError, match=r"big\.yaml: key 'arrays.sha256': big\.npz has SHA-256"):
+        Dataset.load(path)
+    npz.unlink()
+    with pytest.raises(ValueError, match=r"big\.yaml: key 'arrays.file': cannot read"):
+        Dataset.load(path)
+    # A valid .npz (matching hash) that lacks an edge's array.
+    arrays = {k: v for k, v in np.load(io.BytesIO(payload)).items() if k != "e1_B"}
+    np.savez(npz, **arrays)
+    doc = yaml.safe_load(path.read_text())
+    doc["arrays"]["sha256"] = hashlib.sha256(npz.read_bytes()).hexdigest()
+    write(path, doc)
+    with pytest.raises(ValueError, match=r"big\.yaml: edges\[1\] \(x1, y0\): array 'e1_B' missing"):
+        Dataset.load(path)
+
+
+def test_construction_validation():
+    e = DatasetEdge("t", "c", np.array([0, 1]), np.stack([np.eye(4)] * 2),
+                    np.stack([np.eye(4)] * 2), np.full(2, 0.01), np.full(2, 100.0))
+    with pytest.raises(ValueError, match="stamps_ns: expected integers"):
+        DatasetEdge("t", "c", np.array([0.0, 1.0]), e.A, e.B, e.sigma, e.kappa)
+    with pytest.raises(ValueError, match=r"stamps_ns\[1\]: must be >= 0"):
+        DatasetEdge("t", "c", np.array([0, -1]), e.A, e.B, e.sigma, e.kappa)
+    with pytest.raises(ValueError, match="B: expected 2 transforms"):
+        DatasetEdge("t", "c", e.stamps_ns, e.A, e.B[:1], e.sigma, e.kappa)
+    with pytest.raises(ValueError, match=r"metadata\.when: cannot store a object"):
+        Dataset(("t",), ("c",), (e,), metadata={"when": object()})
+    with pytest.raises(ValueError, match="duplicate edge"):
+        Dataset(("t",), ("c",), (e, e))
+    with pytest.raises(ValueError, match="unknown_scale"):
+        Dataset(("t",), ("c",), (e,), unknown_scale="yes")
+    ds = Dataset(("t", "unused"), ("c",), (e,), metadata={"n": np.int64(3), "v": np.ones(2)})
+    assert ds.metadata == {"n": 3, "v": [1.0, 1.0]}
+    assert ds.to_problem().x_names == ("t",)  # frames without an edge are dropped
