@@ -36,16 +36,12 @@ class CertificateOptions:
         millionth of the cost, three orders above the ~1e-9 solver accuracy).
     null_tol : float
         Eigenvalues of the scaled ``Z`` at or below this count towards its null space (1e-6).
-    abs_gap_floor : float
-        Relative-to-scale floor used instead of ``d`` in the denominator of ``rho_hat`` when the
-        optimum is ~0 (noise-free data), so that exact data can be certified (1e-9).
     n_eigenvalues : int
         How many of the smallest eigenvalues to report (6).
     """
 
     rho_tol: float = 1e-6
     null_tol: float = 1e-6
-    abs_gap_floor: float = 1e-9
     n_eigenvalues: int = 6
 
 
@@ -58,6 +54,8 @@ def certify_from_Z(
     *,
     solver_ok: bool = True,
     solver_status: str = "",
+    homogeneous: bool = False,
+    cost_floor: float = 0.0,
     options: CertificateOptions | None = None,
 ) -> Certificate:
     """Build a :class:`Certificate` from a (scaled) certificate matrix.
@@ -76,15 +74,30 @@ def certify_from_Z(
         Number of rotation variables ``n = M + P``.
     solver_ok : bool
         Whether the numerical solver that produced ``lambda`` reported success.
+    homogeneous : bool
+        The objective does not involve ``s`` (unknown scale, Problem 6: ``alpha`` is eliminated
+        and the last row/column of ``Q'`` is zero). Then ``(r, s)`` and ``(r, -s)`` have the same
+        cost, and when ``Z`` does not couple ``s`` to the rotations (the orthogonality-only
+        multipliers of the fast certificate) ``e_s`` is a trivial null vector of ``Z``; it carries
+        no information about the rotations, so uniqueness is judged on the rotation block.
+    cost_floor : float
+        A cost regarded as zero at the scale of the data (noise-free problems have optimum 0, where
+        eq. (73) is undefined): ``rho_hat = (p - d) / max(d, cost_floor)``.
     """
     opts = options or CertificateOptions()
     w = np.linalg.eigvalsh(0.5 * (Z_scaled + Z_scaled.T))
     lam_min = float(w[0])
     null_dim = int(np.sum(w <= opts.null_tol))
+    trivial_s = False
+    if homogeneous and np.linalg.norm(Z_scaled[:-1, -1]) <= opts.null_tol and \
+            abs(Z_scaled[-1, -1]) <= opts.null_tol:
+        w_r = np.linalg.eigvalsh(0.5 * (Z_scaled[:-1, :-1] + Z_scaled[:-1, :-1].T))
+        null_dim = int(np.sum(w_r <= opts.null_tol))
+        trivial_s = True
     bound_scaled = lambda_s_scaled + min(0.0, lam_min) * (3 * n_rotations + 1)
     d = float(bound_scaled * scale)
     p = float(primal_cost)
-    denom = max(d, opts.abs_gap_floor * scale)
+    denom = max(d, cost_floor)
     rho = (p - d) / denom if np.isfinite(d) else float("nan")
     eigs = w[: opts.n_eigenvalues].copy()
     if not solver_ok or not np.isfinite(rho):
@@ -96,6 +109,8 @@ def certify_from_Z(
         msg = (f"certified globally optimal: rho_hat={rho:.3g} <= {opts.rho_tol:g}, Z has a "
                f"one-dimensional null space (eigenvalues {eigs[0]:.2g}, {eigs[1]:.2g}, ...)"
                if len(eigs) > 1 else "certified globally optimal")
+        if trivial_s:
+            msg += " on the rotation block (the sign of s is free for unknown scale)"
     else:
         status = Status.NOT_TIGHT
         why = []

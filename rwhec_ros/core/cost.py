@@ -145,7 +145,7 @@ def build_cost_matrix(problem: Problem, *, with_translation: bool = True) -> sp.
         (blocks_arr.ravel(), (rows.ravel(), cols.ravel())), shape=(layout.size, layout.size)
     ).tocsr()
     Q.sum_duplicates()
-    return Q
+    return ((Q + Q.T) * 0.5).tocsr()  # exact symmetry (einsum round-off differs by order)
 
 
 def pack_state(

@@ -142,16 +142,16 @@ class SdpOptions:
     ----------
     clarabel : dict
         Settings passed to Clarabel through cvxpy (e.g. ``tol_gap_abs``, ``tol_gap_rel``,
-        ``tol_feas``, ``max_iter``, ``chordal_decomposition_enable``). Defaults tighten Clarabel's
-        gap tolerances to 1e-10 so that ``rho_hat`` is resolved well below 1e-6.
+        ``tol_feas``, ``max_iter``, ``chordal_decomposition_*``). Defaults are Clarabel's 1e-8
+        tolerances, which on the scaled problem (optimum ~1) resolve ``rho_hat`` to ~1e-8.
     verbose : bool
     """
 
     clarabel: dict = field(
         default_factory=lambda: {
-            "tol_gap_abs": 1e-10,
-            "tol_gap_rel": 1e-10,
-            "tol_feas": 1e-10,
+            "tol_gap_abs": 1e-8,
+            "tol_gap_rel": 1e-8,
+            "tol_feas": 1e-8,
             "max_iter": 200,
         }
     )

@@ -32,6 +32,9 @@ __all__ = ["SolveOptions", "solve", "MODES"]
 
 MODES = ("sdp", "fast", "local")
 
+#: Costs below this fraction of the largest entry of ``Q'`` count as zero (noise-free data).
+COST_FLOOR_REL = 1e-4
+
 
 @dataclass
 class SolveOptions:
@@ -74,6 +77,7 @@ class _Prepared:
     Qs: np.ndarray
     init_R: np.ndarray
     timing: dict
+    cost_floor: float
 
 
 def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
@@ -95,10 +99,11 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
         init = closed_form_estimate(problem, reduced)
     timing["initialise"] = time.perf_counter() - t1
     # Scale by an upper bound on the optimum (cost at a feasible point), floored relative to the
-    # data so that noise-free problems (optimum 0) stay well conditioned.
-    floor = 1e-12 * max(float(np.trace(reduced.Qr)), 1e-300)
+    # data (1e-4 of the largest entry of Q') so that noise-free problems (optimum 0) stay well
+    # conditioned; the same floor is the "zero cost" of the certificate.
+    floor = COST_FLOOR_REL * max(float(np.abs(reduced.Qr).max()), 1e-300)
     scale = max(float(init.cost), floor)
-    return _Prepared(problem, layout, reduced, scale, reduced.Qr / scale, init.R, timing)
+    return _Prepared(problem, layout, reduced, scale, reduced.Qr / scale, init.R, timing, floor)
 
 
 def _result(prep: _Prepared, R: np.ndarray, cert: Certificate, mode: str, solver_status: str,
@@ -152,7 +157,9 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
     t2 = time.perf_counter()
     est = estimate_from_rotations(prep.problem, prep.reduced, R_raw)
     cert = certify_from_Z(Z, sol.lambda_s, est.cost, prep.scale, n, solver_ok=solver_ok,
-                          solver_status=sol.status, options=options.certificate)
+                          solver_status=sol.status, homogeneous=prep.problem.unknown_scale,
+                          cost_floor=prep.cost_floor,
+                          options=options.certificate)
     prep.timing["certify"] = time.perf_counter() - t2
     return _result(prep, R_raw, cert, "sdp", sol.status, moved, notes)
 
@@ -200,6 +207,8 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
             est = estimate_from_rotations(problem, prep.reduced, R)
             cert = certify_from_Z(Z, lam_s, est.cost, prep.scale, problem.n_frames,
                                   solver_ok=True, solver_status="local",
+                                  homogeneous=problem.unknown_scale,
+                                  cost_floor=prep.cost_floor,
                                   options=options.certificate)
             prep.timing["certify"] = time.perf_counter() - t0
             if cert.certified or not options.fallback_to_sdp:
