@@ -26,6 +26,7 @@ setup(
         # 4.x only: the 5.0 Python wheel lacks calibrateHandEye / calibrateRobotWorldHandEye.
         "opencv-contrib-python-headless>=4.10,<5",
         "PyYAML>=6",
+        "threadpoolctl>=3",
         "matplotlib>=3.7",
         "rosbags>=0.10",
     ],

@@ -77,18 +77,14 @@ class StateLayout:
         return slice(self.r0 + 9 * frame, self.r0 + 9 * frame + 9)
 
 
-def _local_blocks(
-    A: np.ndarray,
-    B: np.ndarray,
-    sigma: np.ndarray,
-    kappa: np.ndarray,
-    *,
-    with_translation: bool = True,
-) -> np.ndarray:
-    """Per-pair 25x25 blocks of ``1/2 (w_t M_t^T M_t + kappa M_R^T M_R)`` summed per pair.
+def _edge_blocks(
+    A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Summed 25x25 blocks of one edge: ``1/2 sum_i (M_t^T M_t / sigma_i^2 + kappa_i M_R^T M_R)``
+    and its rotation-only part ``1/2 sum_i kappa_i M_R^T M_R``.
 
-    Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``.
-    Returns shape (N, 25, 25).
+    Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``; the per-pair
+    rows are stacked with their square-root weights and reduced by one matrix product each.
     """
     N = A.shape[0]
     RA, tA = A[:, :3, :3], A[:, :3, 3]
@@ -103,11 +99,12 @@ def _local_blocks(
     MR = np.zeros((N, 9, 25))
     MR[:, :, 7:16] = np.einsum("ab,nij->naibj", I3, RA).reshape(N, 9, 9)  # I (x) R_A
     MR[:, :, 16:25] = -np.einsum("nba,ij->naibj", RB, I3).reshape(N, 9, 9)  # -(R_B^T (x) I)
-    wr = 0.5 * kappa
-    out = np.einsum("n,nki,nkj->nij", wr, MR, MR)
-    if with_translation:
-        out += np.einsum("n,nki,nkj->nij", 0.5 / sigma**2, Mt, Mt)
-    return out
+    Mt *= np.sqrt(0.5 / sigma**2)[:, None, None]
+    MR *= np.sqrt(0.5 * kappa)[:, None, None]
+    Mt2 = Mt.reshape(3 * N, 25)
+    MR2 = MR.reshape(9 * N, 25)
+    rot = MR2.T @ MR2
+    return rot + Mt2.T @ Mt2, rot
 
 
 def _local_to_global(layout: StateLayout, xi: np.ndarray, yi: np.ndarray) -> np.ndarray:
@@ -133,10 +130,8 @@ def build_cost_matrix(problem: Problem, *, with_translation: bool = True) -> sp.
     terms ``J_R`` (the rotation-only Problem 8 weighted by kappa).
     """
     layout = StateLayout(problem.M, problem.P)
-    blocks = []
-    for e in problem.edges:
-        local = _local_blocks(e.A, e.B, e.sigma, e.kappa, with_translation=with_translation)
-        blocks.append(local.sum(axis=0))
+    blocks = [_edge_blocks(e.A, e.B, e.sigma, e.kappa)[0 if with_translation else 1]
+              for e in problem.edges]
     blocks_arr = np.stack(blocks)  # (E, 25, 25)
     idx = _local_to_global(layout, problem.edge_x, problem.edge_y)
     rows = np.repeat(idx[:, :, None], 25, axis=2)

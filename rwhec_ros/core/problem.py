@@ -6,8 +6,10 @@ transform and ``B`` the noisy camera-target measurement, together with per-pair 
 ``sigma_i`` (translation standard deviation, metres) and ``kappa_i`` (Langevin rotation
 concentration), cf. eq. (32) and footnote 7.
 
-With ``unknown_scale=True`` (monocular, Section 4.3, Problem 3) the translations of ``A`` are
-multiplied by an unknown common scale ``alpha``; otherwise ``alpha = 1`` (Problem 4).
+With ``unknown_scale=True`` (monocular, Section 4.3, Problem 3) the translations of ``B`` are
+``alpha`` times their metric values for an unknown common scale ``alpha`` (eq. (20): e.g. tags of
+nominal size); the residual of eq. (22) then carries ``alpha t_A`` and the scaled unknowns
+``alpha t_X``, ``alpha t_Y``. Otherwise ``alpha = 1`` (Problem 4).
 
 Frame ordering in every state vector of the package: X-frames ``0..M-1`` first, then Y-frames
 ``0..P-1`` (global index ``M + k``).
@@ -150,7 +152,7 @@ class Problem:
         Use :meth:`Edge.build` (validated). Every frame must be touched by an edge; at most one
         edge per (x, y) pair.
     unknown_scale : bool
-        Estimate a common scale ``alpha`` of the A translations (monocular, Problem 3).
+        Estimate a common scale ``alpha`` of the B translations (monocular, Problem 3).
     """
 
     def __init__(

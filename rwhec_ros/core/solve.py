@@ -18,6 +18,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .certificate import CertificateOptions, certify_from_Z
 from .cost import StateLayout, build_cost_matrix, reduce_cost
@@ -54,6 +55,11 @@ class SolveOptions:
         Start for ``fast``/``local`` instead of the closed-form estimate (rotations are used).
     fallback_to_sdp : bool
         In ``fast`` mode, run the SDP when the fast certificate is inconclusive (True).
+    blas_threads : int or None
+        BLAS threads during the solve. The matrices of typical problems are small, where
+        multi-threaded BLAS only adds contention (measured: 30 ms single-threaded vs. 60-600 ms
+        with two threads on a busy 2-core machine for the real 16x8 data set). ``None`` chooses 1
+        for problems with at most 64 frames and leaves the BLAS default otherwise.
     """
 
     mode: str = "fast"
@@ -62,6 +68,7 @@ class SolveOptions:
     local: LocalSolverOptions = field(default_factory=LocalSolverOptions)
     initial: tuple[np.ndarray, np.ndarray] | None = None
     fallback_to_sdp: bool = True
+    blas_threads: int | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -187,6 +194,16 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
         CERTIFIED_OPTIMAL.
     """
     options = options or SolveOptions()
+    threads = options.blas_threads
+    if threads is None and problem.n_frames <= 64:
+        threads = 1
+    if threads is None:
+        return _solve(problem, options)
+    with threadpool_limits(limits=threads, user_api="blas"):
+        return _solve(problem, options)
+
+
+def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
     t_start = time.perf_counter()
     prep = _prepare(problem, options)
     notes: list[str] = []
