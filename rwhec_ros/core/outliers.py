@@ -47,11 +47,16 @@ pair agrees with itself and validates nothing). Stage 2 is repeated while it val
 * **Two-pair edges** are kept (both pairs) only if, in stage 2, the two pairs agree under eq. (70)
   with a frame known from a validated edge; if they disagree neither can be blamed and the edge is
   dropped; if no validated edge shares a frame they are dropped as unvalidated.
+* **Limitation**: when no edge is identifiable on its own (e.g. every edge saw only planar
+  motion) stage 1 validates nothing, stage 2 has no
+  frame to start from, and every edge is dropped; use ``RobustOptions(use_ransac=False)`` (GNC
+  alone) for such data.
 * **Unknown scale** (monocular, Problem 3): like the paper we assume the tag size known within 10 %,
   i.e. ``|alpha - 1| <= scale_tolerance``. RANSAC runs with ``alpha = 1`` and the translation
-  threshold of pair ``i`` is widened to ``translation_threshold + scale_tolerance |t_B_i|``, the
-  largest translation residual a correct pair can get from the scale error alone
-  (``|(1 - alpha) t_B|``).
+  threshold of pair ``i`` is widened to ``translation_threshold + scale_tolerance |t_B_i|``, about
+  the largest translation residual a correct pair can get from the scale error alone
+  (``|(1 - 1/alpha) t_B|`` at the true frames). It can let a translation outlier of
+  ``~ translation_threshold + scale_tolerance |t_B|`` through; GNC then still has it.
 
 GNC-TLS robust solve (:func:`robust_solve`)
 -------------------------------------------
@@ -483,7 +488,7 @@ def _fit_1x1y(
     C[..., 9:] = -np.einsum("hnba,ij->hnaibj", RB, I3).reshape(H, k, 9, 9)
     if kappa is not None:
         C *= np.sqrt(kappa)[..., None, None]
-    _, _, Vt = np.linalg.svd(C.reshape(H, 9 * k, 18))
+    _, _, Vt = np.linalg.svd(C.reshape(H, 9 * k, 18), full_matrices=False)
     blocks = unvec(Vt[:, -1, :].reshape(H, 2, 9))
     eta = np.mean(np.cbrt(np.linalg.det(blocks)), axis=1)
     eta = np.where(np.abs(eta) < 1e-300, 1.0, eta)
@@ -911,20 +916,24 @@ def tls_threshold(quantile: float = 0.99, dof: int = 6) -> float:
     """``c^2``: the ``quantile`` of ``chi2(dof)``, the law of ``J_i`` of an inlier (6 dof)."""
     if not 0.0 < quantile < 1.0:
         raise ValueError(f"quantile: expected a value in (0, 1), got {quantile!r}")
+    if int(dof) != dof or dof < 1:
+        raise ValueError(f"dof: expected a positive integer, got {dof!r}")
     return float(chi2.ppf(quantile, dof))
 
 
 def gnc_tls_weights(r2: np.ndarray, c2: float, mu: float) -> np.ndarray:
-    """GNC-TLS weight update (Yang et al. 2020, Prop. of the TLS surrogate).
+    r"""GNC-TLS weight update (Yang et al. 2020, TLS surrogate of the Black-Rangarajan duality).
 
     .. math::
 
-        w_i = \\begin{cases} 1 & r_i^2 \\le \\frac{\\mu}{\\mu+1} c^2 \\\\
-        \\frac{c}{r_i}\\sqrt{\\mu(\\mu+1)} - \\mu & \\text{otherwise, if }
-        r_i^2 \\le \\frac{\\mu+1}{\\mu} c^2 \\\\ 0 & \\text{otherwise} \\end{cases}
+        w_i = \begin{cases} 1 & r_i^2 \le \frac{\mu}{\mu+1} c^2 \\
+        \frac{c}{r_i}\sqrt{\mu(\mu+1)} - \mu & \text{otherwise, if }
+        r_i^2 \le \frac{\mu+1}{\mu} c^2 \\ 0 & \text{otherwise} \end{cases}
 
     ``r2`` (N,) squared (normalised) residuals, ``c2`` the squared threshold, ``mu > 0``.
     """
+    _check_positive("c2", c2)
+    _check_positive("mu", mu)
     r2 = np.asarray(r2, dtype=float)
     lo = mu / (mu + 1.0) * c2
     hi = (mu + 1.0) / mu * c2
