@@ -1,0 +1,921 @@
+"""The ROS-free live calibration session: poses and images in, certified extrinsics out.
+
+:class:`CalibrationSession` is a thin layer over the pipeline: the pose stream goes into a
+:class:`~rwhec_ros.sync.buffer.PoseBuffer` (as ``A = T_<camera carrier>_<tag carrier>``, inverted
+from ``T_parent_child`` where the configuration says so); each image is searched for tags
+(:class:`~rwhec_ros.vision.detection.TagDetector`, ``B = T_cam_tag``), ``A`` is looked up at the
+image stamp, and every ``(A, B)`` pair is offered to a
+:class:`~rwhec_ros.sync.accumulator.PairAccumulator` whose kept pairs feed an incremental
+:class:`~rwhec_ros.core.identifiability.IdentifiabilityTracker`.
+:meth:`CalibrationSession.calibrate` solves the paper's MLE (``A_i X_j = Y_k B_i``, eq. (7))
+with :func:`rwhec_ros.core.solve.solve` and writes the result YAML, the data set and a
+static-transform launch file.
+
+Live-path promise: :meth:`~CalibrationSession.add_pose` and :meth:`~CalibrationSession.add_image`
+never raise for bad data (missing intrinsics, wrong image size, unknown tags, no pose at the
+stamp, ...): every rejection is counted by reason (:meth:`~CalibrationSession.counters`).
+
+Threading: the ROS node calls ``add_pose``/``add_image`` from worker threads and ``calibrate``
+from a service thread. Shared state is protected by one lock that is never held during tag
+detection or the solve (the data are copied under the lock, then processed).
+:class:`ImageQueue` and :class:`QueueWorker` move detection off the caller's thread with a bounded
+drop-oldest queue; both are plain Python and testable without ROS.
+"""
+
+from __future__ import annotations
+
+import collections
+import datetime as _dt
+import enum
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .config import CalibratorConfig
+from .core.lie import invert_transform, transform_to_quat_xyzw
+from .core.result import CalibrationResult
+from .sync.accumulator import PairAccumulator
+from .sync.buffer import LookupStatus, PoseBuffer
+from .vision.detection import DetectorConfig, RejectReason, TagDetector
+from .vision.intrinsics import CameraIntrinsics
+
+__all__ = [
+    "ImageOutcome",
+    "SolveOutcome",
+    "CalibrationSession",
+    "ImageQueue",
+    "QueueWorker",
+    "static_transforms_launch",
+]
+
+_NS_PER_S = 1_000_000_000
+
+
+@dataclass
+class ImageOutcome:
+    """What happened to one image.
+
+    Attributes
+    ----------
+    camera : str
+    stamp_ns : int
+    status : str
+        ``"used"`` (at least one pair kept), ``"no_new_pairs"`` (tags seen, pose found, but no
+        pair passed the keyframe test), ``"no_tags"``, ``"pending"`` (detections wait for a pose
+        newer than the stamp) or ``"rejected"``.
+    observations : int
+        Accepted tag detections.
+    pairs_kept : int
+        Pairs the accumulator kept.
+    reasons : list of str
+        Counter keys of every rejection in this image.
+    """
+
+    camera: str
+    stamp_ns: int
+    status: str
+    observations: int = 0
+    pairs_kept: int = 0
+    reasons: list[str] = field(default_factory=list)
+
+
+@dataclass
+class SolveOutcome:
+    """Answer of :meth:`CalibrationSession.calibrate`.
+
+    Attributes
+    ----------
+    success : bool
+        A solution was computed (certified or not: see ``result.certified``). False when there
+        were not enough data or the solver failed; the session keeps all its data either way.
+    message : str
+        Short summary: certified?, ``rho_hat``, each frame's estimate, edges excluded and why
+        (or the reason of the failure).
+    result : CalibrationResult or None
+    excluded : dict of str to str
+        Edge ``"(x, y)"`` -> reason it was left out of the problem.
+    files : dict of str to str
+        ``result``, ``dataset``, ``launch`` -> written paths (empty on failure).
+    identifiability : dict or None
+        The identifiability report at the time of the solve (``IdentifiabilityReport.to_dict()``).
+    result_yaml : str
+        The text of the result YAML (also written to ``files["result"]``); empty on failure.
+    """
+
+    success: bool
+    message: str
+    result: CalibrationResult | None = None
+    excluded: dict[str, str] = field(default_factory=dict)
+    files: dict[str, str] = field(default_factory=dict)
+    identifiability: dict | None = None
+    result_yaml: str = ""
+
+
+class CalibrationSession:
+    """Accumulate synchronised measurement pairs live and calibrate on request.
+
+    Parameters
+    ----------
+    config : CalibratorConfig
+        Validated configuration (:func:`rwhec_ros.config.load_config` or
+        :meth:`CalibratorConfig.from_parameters`).
+    now : callable returning datetime, optional
+        Clock for the timestamped output names (default: current UTC time); injectable for tests.
+
+    Notes
+    -----
+    Frame names: Y variables are the camera names of the configuration, X variables the tag frame
+    names ``<tags.frame_prefix><id>``; results are published as ``(parent, child)`` from
+    :meth:`CalibratorConfig.published_frames`.
+    """
+
+    def __init__(
+        self,
+        config: CalibratorConfig,
+        *,
+        now: Callable[[], _dt.datetime] | None = None,
+    ) -> None:
+        self.config = config
+        self._now = now if now is not None else (lambda: _dt.datetime.now(_dt.timezone.utc))
+        self._lock = threading.Lock()
+        self._solve_lock = threading.Lock()
+        self._local = threading.local()
+        self._detector_config = DetectorConfig(
+            family=config.tags.family,
+            tag_sizes=dict(config.tags.sizes),
+            default_tag_size=None,
+            unknown_scale=config.tags.unknown_scale,
+            corner_refinement=config.detection.corner_refinement,
+            max_reprojection_rms_px=config.detection.max_reprojection_rms_px,
+            min_side_px=config.detection.min_side_px,
+            max_obliquity_deg=config.detection.max_obliquity_deg,
+            estimate_precision=True,
+        )
+        self._tag_names = {t: config.tags.frame_name(t) for t in config.tags.ids}
+        self._intrinsics: dict[str, CameraIntrinsics] = {}
+        self._last_outcome: SolveOutcome | None = None
+        self._init_data()
+
+    # --- state -------------------------------------------------------------------------------
+    def _init_data(self) -> None:
+        """(Re)create the data-holding parts; call with the lock held (or from __init__)."""
+        c = self.config
+        self._buffer = PoseBuffer(
+            capacity=c.sync.pose_buffer_size,
+            max_gap_ns=max(1, int(round(c.sync.max_gap_s * _NS_PER_S))),
+            extrapolation_tol_ns=int(round(c.sync.extrapolation_tolerance_s * _NS_PER_S)),
+        )
+        self._acc = PairAccumulator(
+            keyframe_rotation_rad=c.keyframe.min_rotation_rad,
+            keyframe_translation_m=c.keyframe.min_translation_m,
+            max_pairs_per_edge=c.keyframe.max_pairs_per_edge,
+            max_edges=max(1, len(c.cameras) * len(c.tags.ids)),
+        )
+        self._tracker = _make_tracker(c.tags.unknown_scale)
+        self._pending: collections.deque = collections.deque()
+        self._counters: collections.Counter = collections.Counter()
+
+    def _count(self, key: str, n: int = 1) -> None:
+        self._counters[key] += n
+
+    def record(self, reason: str, n: int = 1) -> None:
+        """Count an event seen outside the session (e.g. a message the node could not convert,
+        ``"bad_image_message"``). Thread-safe; never raises."""
+        with self._lock:
+            self._count(str(reason), int(n))
+
+    # --- inputs ------------------------------------------------------------------------------
+    def set_camera_info(self, camera: str, intrinsics: CameraIntrinsics) -> bool:
+        """Set (or replace) the intrinsics of ``camera``; False (counted) for an unknown camera."""
+        with self._lock:
+            if camera not in self.config.camera_names:
+                self._count("camera_info_unknown_camera")
+                return False
+            if not isinstance(intrinsics, CameraIntrinsics):
+                self._count("camera_info_invalid")
+                return False
+            if self._intrinsics.get(camera) != intrinsics:
+                self._count("camera_info_updates")
+            self._intrinsics[camera] = intrinsics
+            return True
+
+    def has_camera_info(self, camera: str) -> bool:
+        with self._lock:
+            return camera in self._intrinsics
+
+    def _pose_to_A(self, T_parent_child: Any) -> np.ndarray | None:
+        try:
+            T = np.asarray(T_parent_child, dtype=float)
+        except (TypeError, ValueError):
+            return None
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            return None
+        return invert_transform(T) if self.config.pose_source.invert else T.copy()
+
+    def add_pose(
+        self, stamp_ns: int, T_parent_child: np.ndarray, source: str | None = None
+    ) -> bool:
+        """Add one sample ``T_parent_child`` of the pose stream at ``stamp_ns`` [ns].
+
+        ``source`` is the message's parent frame (``header.frame_id``); a non-empty value that is
+        not ``pose_source.parent`` is rejected (counted ``pose_rejected_frame_id``). The sample is
+        stored as ``A = T_<camera carrier>_<tag carrier>``. Images waiting for this pose are
+        processed. Returns True when the sample was stored. Never raises for bad data.
+        """
+        with self._lock:
+            self._count("poses")
+            if source and source != self.config.pose_source.parent:
+                self._count("pose_rejected_frame_id")
+                return False
+            A = self._pose_to_A(T_parent_child)
+            if A is None:
+                self._count("pose_rejected_invalid")
+                return False
+            try:
+                ok = self._buffer.add(stamp_ns, A)
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                self._count("pose_rejected_buffer")
+            if self._pending:
+                self._process_pending()
+            return bool(ok)
+
+    def add_image(
+        self,
+        camera: str,
+        stamp_ns: int,
+        gray: np.ndarray,
+        T_parent_child: np.ndarray | None = None,
+    ) -> ImageOutcome:
+        """Detect tags in one image and offer the ``(A, B)`` pairs.
+
+        Parameters
+        ----------
+        camera : str
+            Camera name of the configuration.
+        stamp_ns : int
+            Image stamp [ns].
+        gray : ndarray, shape (H, W), uint8
+            Grayscale image of the camera's intrinsics size.
+        T_parent_child : ndarray (4, 4), optional
+            The pose at exactly this stamp (e.g. a tf lookup); otherwise it is looked up in the
+            pose buffer, and detections wait (bounded, ``sync.max_pending_images``) when the
+            buffer has no pose after the stamp yet.
+
+        Returns
+        -------
+        ImageOutcome
+            Never raises for bad data; each rejection is counted by reason.
+        """
+        reasons: list[str] = []
+
+        def reject(reason: str) -> ImageOutcome:
+            with self._lock:
+                self._count(reason)
+            reasons.append(reason)
+            return ImageOutcome(camera, _safe_int(stamp_ns), "rejected", reasons=reasons)
+
+        with self._lock:
+            self._count("images")
+            intrinsics = self._intrinsics.get(camera)
+        if camera not in self.config.camera_names:
+            return reject("image_unknown_camera")
+        if intrinsics is None:
+            return reject("image_missing_camera_info")
+        stamp = _safe_int(stamp_ns)
+        if stamp is None:
+            return reject("image_bad_stamp")
+        img = np.asarray(gray) if isinstance(gray, np.ndarray) else None
+        if img is None or img.ndim != 2 or img.dtype != np.uint8:
+            return reject("image_not_gray_uint8")
+        if img.shape != (intrinsics.height, intrinsics.width):
+            return reject("image_size_mismatch")
+
+        try:  # outside the lock: detection is the expensive part
+            detection = self._detector().detect(img, intrinsics)
+        except Exception as exc:  # noqa: BLE001 - the live path never raises
+            return reject(f"image_detector_error:{type(exc).__name__}")
+
+        with self._lock:
+            for r in detection.rejections:
+                key = (
+                    "tag_not_in_config"
+                    if r.reason == RejectReason.NOT_IN_CONFIGURATION.value
+                    else f"tag_rejected:{r.reason}"
+                )
+                self._count(key)
+                reasons.append(key)
+            obs = [o for o in detection.observations if o.tag_id in self._tag_names]
+            self._count("tags_detected", len(obs))
+            if not obs:
+                self._count("images_without_tags")
+                return ImageOutcome(camera, stamp, "no_tags", reasons=reasons)
+            if T_parent_child is not None:
+                A = self._pose_to_A(T_parent_child)
+                if A is None:
+                    self._count("image_bad_pose")
+                    reasons.append("image_bad_pose")
+                    return ImageOutcome(camera, stamp, "rejected", len(obs), reasons=reasons)
+                kept = self._offer(camera, stamp, A, obs)
+            else:
+                state, kept, reason = self._resolve(camera, stamp, obs, final=False)
+                if state == "wait":
+                    if self.config.sync.max_pending_images == 0:
+                        state, kept, reason = self._resolve(camera, stamp, obs, final=True)
+                    else:
+                        if len(self._pending) >= self.config.sync.max_pending_images:
+                            self._resolve(*self._pending.popleft(), final=True)
+                        self._pending.append((camera, stamp, obs))
+                        self._count("images_pending")
+                        return ImageOutcome(camera, stamp, "pending", len(obs), reasons=reasons)
+                if state == "rejected":
+                    reasons.append(reason)
+                    return ImageOutcome(camera, stamp, "rejected", len(obs), reasons=reasons)
+                return ImageOutcome(camera, stamp, state, len(obs), kept, reasons)
+            self._count("images_used" if kept else "images_no_new_pairs")
+            return ImageOutcome(
+                camera, stamp, "used" if kept else "no_new_pairs", len(obs), kept, reasons
+            )
+
+    def _resolve(self, camera: str, stamp: int, obs: list, *, final: bool):
+        """Pose lookup for one detected image (lock held): ``(state, kept, reason)`` with state
+        ``used``/``no_new_pairs``/``rejected``/``wait``.
+
+        An image newer than the newest pose waits (``wait``) for a pose after its stamp, so that
+        ``A`` is interpolated rather than held from the previous sample, unless ``final`` (the
+        image leaves the pending queue) or the gap already exceeds ``sync.max_gap_s``.
+        """
+        newest = self._buffer.newest_ns
+        status = self._buffer.lookup_status(stamp)
+        bracketed = newest is not None and stamp <= newest
+        if not final and not bracketed and (status.retry or status is LookupStatus.OK):
+            return "wait", 0, ""
+        if status is LookupStatus.OK:
+            kept = self._offer(camera, stamp, self._buffer.lookup(stamp), obs)
+            state = "used" if kept else "no_new_pairs"
+            self._count("images_" + state)
+            return state, kept, ""
+        reason = f"no_pose_at_stamp:{status.value}"
+        self._count(reason)
+        return "rejected", 0, reason
+
+    def _detector(self) -> TagDetector:
+        det = getattr(self._local, "detector", None)
+        if det is None:  # one detector per thread: cv2 detector objects are not shared
+            det = self._local.detector = TagDetector(self._detector_config)
+        return det
+
+    def _offer(self, camera: str, stamp: int, A: np.ndarray, observations: list) -> int:
+        """Offer the pairs of one image (lock held); returns the number kept."""
+        noise = self.config.noise
+        kept = 0
+        for o in observations:
+            if noise.from_reprojection and o.sigma is not None and o.kappa is not None:
+                sigma, kappa = float(o.sigma), float(o.kappa)
+            else:
+                sigma, kappa = noise.sigma, noise.kappa
+            x = self._tag_names[o.tag_id]
+            ok = self._acc.offer(x, camera, stamp, A, o.T_cam_tag, sigma, kappa)
+            self._count("pairs_offered")
+            if ok:
+                kept += 1
+                if self._tracker is not None:
+                    try:
+                        self._tracker.add_pair(x, camera, A, o.T_cam_tag, sigma, kappa)
+                    except ValueError:
+                        self._count("identifiability_rejected_pair")
+        self._count("pairs_kept", kept)
+        return kept
+
+    def _process_pending(self) -> None:
+        """Retry images waiting for a pose (lock held)."""
+        still = collections.deque()
+        while self._pending:
+            camera, stamp, obs = self._pending.popleft()
+            if self._resolve(camera, stamp, obs, final=False)[0] == "wait":
+                still.append((camera, stamp, obs))
+        self._pending = still
+
+    # --- monitoring --------------------------------------------------------------------------
+    def counters(self) -> dict[str, int]:
+        """Event counts by reason (session, pose buffer ``buffer:*`` and accumulator
+        ``pairs:*``)."""
+        with self._lock:
+            out = dict(self._counters)
+            out.update({f"buffer:{k}": v for k, v in self._buffer.counters().items() if v})
+            out.update({f"pairs:{k}": v for k, v in self._acc.counters().items() if v})
+            out["pending_images"] = len(self._pending)
+            return out
+
+    def report(self):
+        """The incremental identifiability report (``IdentifiabilityReport``) of the kept pairs
+        (per edge, per component; cf. paper Section 6), or None before the first pair."""
+        with self._lock:
+            return self._tracker_report()
+
+    def _tracker_report(self):
+        if self._tracker is None:
+            return None
+        try:
+            return self._tracker.report()
+        except ValueError:  # no pairs yet
+            return None
+
+    def diagnostics(self) -> list[dict[str, Any]]:
+        """One dict per observed edge: ``x``, ``y``, ``pairs``, ``status``, ``identifiable``
+        (bool, or None when unknown) and ``reasons`` (list of str)."""
+        with self._lock:
+            counts = self._acc.counts()
+            report = self._tracker_report()
+        per_edge = _edge_statuses(report)
+        min_pairs = self.config.solver.min_pairs
+        rows = []
+        for (x, y), n in counts.items():
+            status, ident, reasons = per_edge.get((x, y), ("unknown", None, []))
+            reasons = list(reasons)
+            if n < min_pairs:
+                reasons.append(f"{n} pairs < solver.min_pairs={min_pairs}")
+            rows.append(
+                {"x": x, "y": y, "pairs": int(n), "status": status, "identifiable": ident,
+                 "reasons": reasons}
+            )
+        return rows
+
+    @property
+    def last_outcome(self) -> SolveOutcome | None:
+        """The outcome of the latest :meth:`calibrate`."""
+        with self._lock:
+            return self._last_outcome
+
+    # --- solve -------------------------------------------------------------------------------
+    def calibrate(self) -> SolveOutcome:
+        """Solve with the data so far and write the outputs; never discards data.
+
+        Returns
+        -------
+        SolveOutcome
+            ``success=False`` with the reason when there are not enough pairs or the solver
+            raised; otherwise the result, a short summary and the written files (under
+            ``output.directory`` in a new timestamped directory, never overwriting).
+        """
+        with self._solve_lock:
+            outcome = self._calibrate()
+        with self._lock:
+            self._last_outcome = outcome
+        return outcome
+
+    def _snapshot(self):
+        """Problem, excluded edges, identifiability and data set, copied under the lock."""
+        c = self.config
+        with self._lock:
+            report = self._tracker_report()
+            try:
+                problem, excluded = self._acc.to_problem(
+                    x_names=c.x_names, y_names=c.y_names, unknown_scale=c.tags.unknown_scale,
+                    min_pairs=c.solver.min_pairs,
+                )
+                err = None
+            except ValueError as exc:
+                problem, excluded, err = None, {}, str(exc)
+            dataset = self._dataset_locked()
+            counts = self._acc.counts()
+        return problem, excluded, err, report, dataset, counts
+
+    def _calibrate(self) -> SolveOutcome:
+        c = self.config
+        problem, excluded, err, report, dataset, counts = self._snapshot()
+        ident = _report_dict(report)
+        excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
+        if problem is None:
+            n = sum(counts.values())
+            return SolveOutcome(
+                False,
+                f"not enough data: {n} pairs on {len(counts)} edges, no edge has "
+                f"solver.min_pairs={c.solver.min_pairs} pairs ({err}); all data kept",
+                excluded=excl,
+                identifiability=ident,
+            )
+        notes: list[str] = []
+        if c.solver.reject_outliers:
+            problem, dropped = _reject_outliers(problem, notes)
+            excl.update(dropped)
+        try:
+            from .core.solve import SolveOptions, solve
+
+            result = solve(problem, SolveOptions(mode=c.solver.mode))
+        except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
+            return SolveOutcome(
+                False, f"solver failed: {type(exc).__name__}: {exc}; all data kept",
+                excluded=excl, identifiability=ident,
+            )
+        result.notes.extend(notes)
+        ident = _full_report(problem, result) or ident
+        text = yaml.safe_dump(self.result_document(result, excl, ident), sort_keys=False)
+        try:
+            files = self._write_outputs(result, text, dataset)
+            write_error = ""
+        except OSError as exc:
+            files, write_error = {}, f"; WRITING OUTPUTS FAILED: {exc}"
+        message = _summary(result, problem, excl, self.config) + write_error
+        return SolveOutcome(True, message, result, excl, files, ident, text)
+
+    # --- outputs -----------------------------------------------------------------------------
+    def published_transforms(self, result: CalibrationResult) -> list[tuple[str, str, np.ndarray]]:
+        """``(parent, child, T_parent_child)`` for every estimated frame of ``result``."""
+        frames = self.config.published_frames()
+        out = []
+        for names, Ts in ((result.y_names, result.Y), (result.x_names, result.X)):
+            for name, T in zip(names, Ts, strict=True):
+                parent, child = frames[name]
+                out.append((parent, child, np.asarray(T, dtype=float)))
+        return out
+
+    def result_document(
+        self,
+        result: CalibrationResult,
+        excluded: dict[str, str] | None = None,
+        identifiability: dict | None = None,
+    ) -> dict[str, Any]:
+        """The result YAML as a mapping: ``CalibrationResult.to_dict()`` (``certified``,
+        ``suboptimality_bound``, ``scale``, ``frames``, ``timing_s``, ...) with each frame's
+        ``parent``/``child`` published frame names, plus ``identifiability``, ``excluded_edges``,
+        ``counters`` and ``config`` (the flat parameters)."""
+        doc = result.to_dict()
+        frames = self.config.published_frames()
+        for f in doc["frames"]:
+            parent, child = frames.get(f["name"], ("", ""))
+            f["parent"], f["child"] = parent, child
+        doc["excluded_edges"] = dict(excluded or {})
+        doc["identifiability"] = identifiability
+        doc["counters"] = self.counters()
+        doc["config"] = self.config.to_parameters()
+        return _plain(doc)
+
+    def _output_dir(self, kind: str) -> Path:
+        """A new directory ``<output.directory>/<kind>_<UTC stamp>[_n]`` (never reused)."""
+        root = Path(self.config.output.directory)
+        root.mkdir(parents=True, exist_ok=True)
+        stamp = self._now().astimezone(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S_%fZ")
+        base = f"{kind}_{stamp}"
+        for i in range(1000):
+            path = root / (base if i == 0 else f"{base}_{i}")
+            try:
+                path.mkdir()
+            except FileExistsError:
+                continue
+            return path
+        raise OSError(f"output.directory: could not create a new directory for {base!r}")
+
+    def _write_outputs(self, result: CalibrationResult, text: str, dataset) -> dict[str, str]:
+        out = self._output_dir("calibration")
+        files: dict[str, str] = {}
+        path = out / "result.yaml"
+        with open(path, "x", encoding="utf-8") as fh:
+            fh.write(text)
+        files["result"] = str(path)
+        launch = out / "static_transforms.launch.py"
+        with open(launch, "x", encoding="utf-8") as fh:
+            fh.write(static_transforms_launch(self.published_transforms(result), header=(
+                f"certified: {result.certified}, suboptimality bound "
+                f"{result.certificate.suboptimality_bound:.3g}, created "
+                f"{out.name.split('_', 1)[1]}"
+            )))
+        files["launch"] = str(launch)
+        if dataset is not None:
+            files["dataset"] = _save_dataset(dataset, out / "dataset.yaml")
+        return files
+
+    def _dataset_locked(self):
+        """A data-set object of the kept pairs (lock held), or None if unavailable."""
+        try:
+            from .data.dataset import Dataset
+        except ImportError:
+            return None
+        c = self.config
+        carriers = {n: c.camera_carrier.frame for n in c.y_names}
+        carriers.update({n: c.tag_carrier.frame for n in c.x_names})
+        try:
+            return Dataset.from_accumulator(
+                self._acc,
+                x_names=c.x_names,
+                y_names=c.y_names,
+                unknown_scale=c.tags.unknown_scale,
+                metadata={"config": c.to_parameters()},
+                carriers=carriers,
+            )
+        except ValueError:
+            return None
+
+    def save_dataset(self, path: str | Path | None = None) -> str:
+        """Save the kept pairs (format of :mod:`rwhec_ros.data.dataset`) and return the path.
+
+        Default path: a new timestamped directory under ``output.directory``. Raises
+        ``ValueError`` when there is nothing to save or the data-set module is unavailable.
+        """
+        with self._lock:
+            dataset = self._dataset_locked()
+            n = sum(self._acc.counts().values())
+        if dataset is None or n == 0:
+            raise ValueError(f"save_dataset: nothing to save ({n} pairs)")
+        target = Path(path) if path is not None else self._output_dir("dataset") / "dataset.yaml"
+        return _save_dataset(dataset, target)
+
+    def reset(self) -> None:
+        """Forget poses, pairs, pending images and counters (intrinsics are kept)."""
+        with self._lock:
+            self._init_data()
+
+
+# ------------------------------------------------------------------------------------------------
+# queue + worker
+
+
+class ImageQueue:
+    """Bounded FIFO that drops the OLDEST item when full (fresh images matter most live).
+
+    Thread-safe. ``put`` never blocks; ``get`` blocks up to ``timeout`` seconds and returns None
+    on timeout or after :meth:`close`.
+    """
+
+    def __init__(self, maxsize: int) -> None:
+        if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
+            raise ValueError(f"maxsize: expected an integer >= 1, got {maxsize!r}")
+        self.maxsize = maxsize
+        self._items: collections.deque = collections.deque()
+        self._cond = threading.Condition()
+        self._dropped = 0
+        self._closed = False
+
+    def put(self, item: Any) -> bool:
+        """Enqueue ``item``; returns False when an older item had to be dropped (counted)."""
+        with self._cond:
+            dropped = False
+            if len(self._items) >= self.maxsize:
+                self._items.popleft()
+                self._dropped += 1
+                dropped = True
+            self._items.append(item)
+            self._cond.notify()
+            return not dropped
+
+    def get(self, timeout: float | None = None) -> Any | None:
+        """Next item, or None after ``timeout`` seconds or once closed and empty."""
+        with self._cond:
+            if not self._items and not self._closed:
+                self._cond.wait(timeout)
+            if self._items:
+                return self._items.popleft()
+            return None
+
+    def close(self) -> None:
+        """Wake every waiting ``get``; later ``get`` calls return the remaining items then None."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    @property
+    def closed(self) -> bool:
+        with self._cond:
+            return self._closed
+
+    @property
+    def dropped(self) -> int:
+        with self._cond:
+            return self._dropped
+
+    def __len__(self) -> int:
+        with self._cond:
+            return len(self._items)
+
+
+class QueueWorker:
+    """A daemon thread that feeds every item of an :class:`ImageQueue` to ``handler``.
+
+    Exceptions raised by ``handler`` are counted (``errors``) and passed to ``on_error`` (e.g. a
+    throttled logger); they never stop the worker.
+    """
+
+    def __init__(
+        self,
+        queue: ImageQueue,
+        handler: Callable[[Any], Any],
+        *,
+        name: str = "rwhec-image-worker",
+        on_error: Callable[[BaseException], None] | None = None,
+    ) -> None:
+        self.queue = queue
+        self.handler = handler
+        self.on_error = on_error
+        self.processed = 0
+        self.errors = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> QueueWorker:
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            item = self.queue.get(timeout=0.1)
+            if item is None:
+                if self.queue.closed:
+                    break
+                continue
+            try:
+                self.handler(item)
+            except Exception as exc:  # noqa: BLE001 - the worker must survive bad data
+                self.errors += 1
+                if self.on_error is not None:
+                    try:
+                        self.on_error(exc)
+                    except Exception:  # noqa: BLE001
+                        pass
+            finally:
+                self.processed += 1
+
+    def stop(self, timeout: float | None = 2.0) -> None:
+        """Stop after the current item and join the thread."""
+        self._stop.set()
+        self.queue.close()
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+
+    @property
+    def alive(self) -> bool:
+        return self._thread.is_alive()
+
+
+# ------------------------------------------------------------------------------------------------
+# helpers
+
+
+def _safe_int(value: Any) -> int | None:
+    try:
+        if isinstance(value, bool):
+            return None
+        out = int(value)
+        return out if out == value else None
+    except (TypeError, ValueError, OverflowError):
+        return None
+
+
+def _make_tracker(unknown_scale: bool):
+    try:
+        from .core.identifiability import IdentifiabilityTracker
+    except ImportError:
+        return None
+    # the accumulator holds the pairs; the tracker keeps only its fixed-size sums
+    return IdentifiabilityTracker(unknown_scale=unknown_scale, keep_pairs=False)
+
+
+def _full_report(problem, result: CalibrationResult) -> dict | None:
+    """Whole-problem identifiability at the solution (``analyze(..., full=True)``), or None."""
+    try:
+        from .core.identifiability import analyze
+
+        report = analyze(problem, solution=(result.X, result.Y, float(result.scale)))
+    except Exception:  # noqa: BLE001 - optional extra; the tracker's report remains
+        return None
+    return _report_dict(report)
+
+
+def _report_dict(report) -> dict | None:
+    if report is None:
+        return None
+    return _plain(report.to_dict())
+
+
+def _edge_statuses(report) -> dict[tuple[str, str], tuple[str, bool | None, list[str]]]:
+    """Per-edge ``(status, identifiable, reasons)`` from an IdentifiabilityReport."""
+    if report is None:
+        return {}
+    out = {}
+    for e in getattr(report, "edges", ()):
+        x, y = getattr(e, "x", None), getattr(e, "y", None)
+        status = getattr(e, "status", "unknown")
+        status = getattr(status, "value", status)
+        ident = getattr(e, "identifiable", None)
+        reasons = getattr(e, "reasons", None)
+        if reasons is None:
+            reason = getattr(e, "reason", "")
+            reasons = [reason] if reason else []
+        out[(x, y)] = (str(status), None if ident is None else bool(ident), list(reasons))
+    return out
+
+
+def _reject_outliers(problem, notes: list[str]):
+    """Optional robust pre-pass (``rwhec_ros.core.outliers``); returns (problem, dropped)."""
+    try:
+        from .core import outliers
+    except ImportError:
+        notes.append("solver.reject_outliers: rwhec_ros.core.outliers is not available; skipped")
+        return problem, {}
+    func = getattr(outliers, "reject_outliers", None)
+    if func is None:
+        notes.append("solver.reject_outliers: no reject_outliers() in core.outliers; skipped")
+        return problem, {}
+    out = func(problem)
+    cleaned = getattr(out, "problem", out[0] if isinstance(out, tuple) else out)
+    n_before, n_after = problem.n_measurements, cleaned.n_measurements
+    notes.append(f"outlier rejection kept {n_after} of {n_before} pairs")
+    return cleaned, {}
+
+
+def _summary(result: CalibrationResult, problem, excluded: dict, config) -> str:
+    c = result.certificate
+    head = (
+        f"CERTIFIED globally optimal (rho_hat={c.suboptimality_bound:.2e})"
+        if result.certified
+        else f"NOT certified: {c.status.value} (rho_hat={c.suboptimality_bound:.2e})"
+    )
+    parts = [
+        head,
+        f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode {result.mode}",
+    ]
+    if problem.unknown_scale:
+        parts.append(f"scale {result.scale:.5f}")
+    frames = config.published_frames()
+    for name, T in list(zip(result.y_names, result.Y, strict=True)) + list(
+        zip(result.x_names, result.X, strict=True)
+    ):
+        q, t = transform_to_quat_xyzw(T)
+        parent, child = frames.get(name, ("?", name))
+        parts.append(
+            f"{parent}->{child}: t=[{t[0]:.4f} {t[1]:.4f} {t[2]:.4f}] "
+            f"q=[{q[0]:.4f} {q[1]:.4f} {q[2]:.4f} {q[3]:.4f}]"
+        )
+    if excluded:
+        parts.append("excluded: " + ", ".join(f"{k}: {v}" for k, v in excluded.items()))
+    missing = [n for n in config.y_names + config.x_names if n not in problem.frame_names]
+    if missing:
+        parts.append(f"not calibrated (no usable edge): {missing}")
+    if result.notes:
+        parts.append("notes: " + " | ".join(result.notes))
+    return "; ".join(parts)
+
+
+def _plain(obj: Any) -> Any:
+    """Plain Python (YAML-safe) copy of nested dicts/lists/tuples/numpy values."""
+    if isinstance(obj, dict):
+        return {str(k) if not isinstance(k, str) else k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist())
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, enum.Enum):
+        return obj.value
+    return obj
+
+
+def _save_dataset(dataset, path: Path) -> str:
+    result = dataset.save(path)
+    return str(result if result is not None else path)
+
+
+def static_transforms_launch(
+    transforms: list[tuple[str, str, np.ndarray]], *, header: str = ""
+) -> str:
+    """Text of a ROS 2 Python launch file that publishes ``transforms`` with
+    ``tf2_ros static_transform_publisher`` (one node per ``(parent, child, T_parent_child)``),
+    so the calibration is reproduced at bring-up: ``ros2 launch <file>``."""
+    lines = [
+        f'"""Static transforms of an rwhec_ros calibration. {header}',
+        "",
+        "Generated file: ros2 launch <this file>. One tf2_ros static_transform_publisher per",
+        "frame (--frame-id parent, --child-frame-id child: T_parent_child).",
+        '"""',
+        "",
+        "from launch import LaunchDescription",
+        "from launch_ros.actions import Node",
+        "",
+        "",
+        "def generate_launch_description():",
+        "    return LaunchDescription([",
+    ]
+    for parent, child, T in transforms:
+        q, t = transform_to_quat_xyzw(np.asarray(T, dtype=float))
+        name = "rwhec_static_" + "".join(ch if ch.isalnum() else "_" for ch in child)
+        args = [
+            "--x", repr(float(t[0])), "--y", repr(float(t[1])), "--z", repr(float(t[2])),
+            "--qx", repr(float(q[0])), "--qy", repr(float(q[1])), "--qz", repr(float(q[2])),
+            "--qw", repr(float(q[3])), "--frame-id", parent, "--child-frame-id", child,
+        ]
+        lines += [
+            "        Node(",
+            '            package="tf2_ros",',
+            '            executable="static_transform_publisher",',
+            f"            name={name!r},",
+            f"            arguments={args!r},",
+            "        ),",
+        ]
+    lines += ["    ])", ""]
+    return "\n".join(lines)

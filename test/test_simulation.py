@@ -1,0 +1,87 @@
+"""The demo simulation: consistent ground truth, visible tags, rotation about several axes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rwhec_ros.core.lie import invert_transform, rotation_angle, so3_log
+from rwhec_ros.simulation import SimulatedRig, Trajectory, demo_rig
+
+
+@pytest.fixture(scope="module")
+def rig() -> SimulatedRig:
+    return demo_rig()
+
+
+def test_measurement_model_closes_the_loop(rig):
+    # A X_j = Y_k B with A = T_rig_world (inverse of the pose stream), B = T_cam_tag
+    T_world_rig = rig.T_world_rig(3.7)
+    A = invert_transform(T_world_rig)
+    for cam in rig.cameras:
+        for tag in rig.tag_ids:
+            B = rig.T_cam_tag(cam, tag, T_world_rig)
+            lhs = A @ rig.T_world_tag[tag]
+            rhs = rig.T_rig_cam[cam] @ B
+            assert np.allclose(lhs, rhs, atol=1e-12)  # exact algebra, rounding only
+
+
+def test_ground_truth_is_rigid(rig):
+    for T in list(rig.T_rig_cam.values()) + list(rig.T_world_tag.values()):
+        R = T[:3, :3]
+        assert np.allclose(R.T @ R, np.eye(3), atol=1e-12)  # orthonormal to rounding
+        assert np.isclose(np.linalg.det(R), 1.0, atol=1e-12)
+
+
+def test_one_turn_gives_a_connected_camera_tag_graph(rig):
+    seen = set()
+    for t in np.arange(0.0, 24.0, 0.2):
+        T = rig.T_world_rig(t)
+        for cam in rig.cameras:
+            for tag in rig.visible_tags(cam, T):
+                seen.add((cam, tag.tag_id))
+                assert tag.T_cam_tag[2, 3] > 0  # in front of the camera
+    for cam in rig.cameras:  # the yaw turn sweeps each camera over most of the ring
+        assert sum(1 for c, _ in seen if c == cam) >= 4
+    # weakly connected bipartite graph (paper Section 4.5): one component holds every frame
+    reached, frontier = {rig.cameras[0]}, [rig.cameras[0]]
+    while frontier:
+        node = frontier.pop()
+        for cam, tag in seen:
+            for a, b in ((cam, tag), (tag, cam)):
+                if a == node and b not in reached:
+                    reached.add(b)
+                    frontier.append(b)
+    assert reached == set(rig.cameras) | set(rig.tag_ids)
+
+
+def test_trajectory_rotates_about_several_axes():
+    traj = Trajectory()
+    R0 = traj.pose(0.0)[:3, :3]
+    axes = np.array([so3_log(R0.T @ traj.pose(t)[:3, :3]) for t in np.arange(0.5, 6.0, 0.5)])
+    # the relative rotation vectors span 3D (rank 3): not a single-axis motion (paper Sec. 6)
+    s = np.linalg.svd(axes, compute_uv=False)
+    assert s[2] > 0.05 * s[0]
+    assert rotation_angle(traj.pose(12.0)[:3, :3] @ R0.T) > np.pi / 2
+
+
+def test_render_is_deterministic_given_the_rng(rig):
+    T = rig.T_world_rig(1.0)
+    a = rig.render("cam1", T, np.random.default_rng(5), supersample=1)
+    b = rig.render("cam1", T, np.random.default_rng(5), supersample=1)
+    assert a.shape == (480, 640) and a.dtype == np.uint8
+    assert np.array_equal(a, b)
+
+
+def test_pose_noise_needs_an_rng(rig):
+    with pytest.raises(ValueError, match="rng"):
+        rig.pose_measurement(0.0, None, 1e-3)
+    T = rig.pose_measurement(0.0, np.random.default_rng(0), 1e-3, 1e-3)
+    assert not np.allclose(T, rig.T_world_rig(0.0))
+
+
+def test_demo_rig_validates_sizes():
+    with pytest.raises(ValueError, match="n_cameras"):
+        demo_rig(0)
+    with pytest.raises(ValueError, match="room_radius"):
+        demo_rig(room_radius=0.1)
