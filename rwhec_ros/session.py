@@ -501,20 +501,15 @@ class CalibrationSession:
                 excluded=excl,
                 identifiability=ident,
             )
-        notes: list[str] = []
-        if c.solver.reject_outliers:
-            problem, dropped = _reject_outliers(problem, notes)
-            excl.update(dropped)
         try:
-            from .core.solve import SolveOptions, solve
-
-            result = solve(problem, SolveOptions(mode=c.solver.mode))
+            result, dropped, notes = solve_problem(problem, mode=c.solver.mode,
+                                                   reject_outliers=c.solver.reject_outliers)
+            excl.update(dropped)
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
                 False, f"solver failed: {type(exc).__name__}: {exc}; all data kept",
                 excluded=excl, identifiability=ident,
             )
-        result.notes.extend(notes)
         ident = _full_report(problem, result) or ident
         text = yaml.safe_dump(self.result_document(result, excl, ident), sort_keys=False)
         try:
@@ -810,22 +805,38 @@ def _edge_statuses(report) -> dict[tuple[str, str], tuple[str, bool | None, list
     return out
 
 
+def solve_problem(
+    problem, *, mode: str = "fast", reject_outliers: bool = False
+) -> tuple[CalibrationResult, dict[str, str], list[str]]:
+    """The solve step shared by the session and the CLI: ``solve`` in ``mode``, or with
+    ``reject_outliers`` RANSAC (paper Section 9.1) + GNC-TLS re-certified on the inlier set
+    (:func:`rwhec_ros.core.outliers.robust_solve`). Returns (result, dropped edges, notes)."""
+    from .core.solve import SolveOptions, solve
+
+    options = SolveOptions(mode=mode)
+    if not reject_outliers:
+        return solve(problem, options), {}, []
+    from .core.outliers import RobustOptions, robust_solve
+
+    robust = robust_solve(problem, options=RobustOptions(solve=options))
+    dropped = {}
+    if robust.ransac is not None:
+        dropped = {str(edge): f"outlier rejection: {reason}" for edge, reason in
+                   robust.ransac.dropped}
+    notes = [f"outlier rejection: {len(robust.rejected)} of {problem.n_measurements} pairs "
+             f"rejected ({len(dropped)} edges dropped)"]
+    robust.result.notes.extend(notes)
+    return robust.result, dropped, notes
+
+
 def _reject_outliers(problem, notes: list[str]):
-    """Optional robust pre-pass (``rwhec_ros.core.outliers``); returns (problem, dropped)."""
-    try:
-        from .core import outliers
-    except ImportError:
-        notes.append("solver.reject_outliers: rwhec_ros.core.outliers is not available; skipped")
-        return problem, {}
-    func = getattr(outliers, "reject_outliers", None)
-    if func is None:
-        notes.append("solver.reject_outliers: no reject_outliers() in core.outliers; skipped")
-        return problem, {}
-    out = func(problem)
-    cleaned = getattr(out, "problem", out[0] if isinstance(out, tuple) else out)
-    n_before, n_after = problem.n_measurements, cleaned.n_measurements
-    notes.append(f"outlier rejection kept {n_after} of {n_before} pairs")
-    return cleaned, {}
+    """RANSAC pre-pass only (kept for the CLI until it calls :func:`solve_problem`)."""
+    from .core.outliers import ransac_filter
+
+    report = ransac_filter(problem, rng=np.random.default_rng(0))
+    notes.append(f"RANSAC rejected {report.n_rejected} of {problem.n_measurements} pairs")
+    dropped = {str(edge): f"RANSAC: {reason}" for edge, reason in report.dropped}
+    return report.filtered(problem), dropped
 
 
 def _summary(result: CalibrationResult, problem, excluded: dict, config) -> str:
