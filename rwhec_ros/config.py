@@ -176,8 +176,10 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("keyframe.min_translation_m", "double", 0.02,
               doc="... or this translation [m]"),
     ParamSpec("keyframe.max_pairs_per_edge", "int", 300, doc="cap on kept pairs per edge"),
-    ParamSpec("detection.corner_refinement", "string", "subpix",
-              doc="cv2.aruco corner refinement: 'subpix', 'apriltag', 'contour' or 'none'"),
+    ParamSpec("detection.corner_refinement", "string", "edge",
+              doc="corner refinement: 'edge' (sub-pixel edge-line fit, the most accurate "
+                  "measured, see benchmarks/perception.md), or cv2.aruco's 'subpix', "
+                  "'apriltag', 'contour', 'none'"),
     ParamSpec("detection.max_reprojection_rms_px", "double", 1.0,
               doc="reject a tag whose RMS corner reprojection error exceeds this [px]"),
     ParamSpec("detection.min_side_px", "double", 20.0,
@@ -660,7 +662,7 @@ def _build(v: dict[str, Any], names: tuple[str, ...]) -> CalibratorConfig:
     )
     detection = DetectionConfig(
         corner_refinement=_choice(
-            v, "detection.corner_refinement", ("subpix", "apriltag", "contour", "none")
+            v, "detection.corner_refinement", ("edge", "subpix", "apriltag", "contour", "none")
         ),
         max_reprojection_rms_px=_positive(v, "detection.max_reprojection_rms_px"),
         min_side_px=_positive(v, "detection.min_side_px", allow_zero=True),

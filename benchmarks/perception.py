@@ -1,0 +1,415 @@
+"""Perception benchmark: AprilTag detection + pose on rendered images (prints Markdown).
+
+Run from the repository root::
+
+    python benchmarks/perception.py > benchmarks/perception.md
+
+Tables: corner refinement comparison (the basis of ``DetectorConfig``'s defaults), pose accuracy
+vs distance with a check of the precision model, distortion round trips, throughput on one core.
+Every image is rendered by :mod:`rwhec_ros.vision.render` with a known ``T_cam_tag``; seeds are
+fixed, so the accuracy tables are reproducible (the throughput table depends on the machine and
+its load).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from rwhec_ros.core.lie import invert_transform, make_transform, so3_log  # noqa: E402
+from rwhec_ros.vision.detection import (  # noqa: E402
+    DetectorConfig,
+    TagDetector,
+    pose_precision,
+    tag_object_points,
+)
+from rwhec_ros.vision.intrinsics import CameraIntrinsics  # noqa: E402
+from rwhec_ros.vision.render import RenderedTag, look_at, render_tags  # noqa: E402
+
+SIZE = 0.16  # tag edge (m)
+NOISE_STD = 2.0  # grey levels
+BLUR_SIGMA = 0.6  # px
+CAM_HD = CameraIntrinsics.pinhole(1280, 1024, 1000.0)
+CAM_VGA = CameraIntrinsics.pinhole(640, 480, 500.0)
+
+
+def random_view(rng: np.random.Generator, distance: float, max_obliquity_deg: float = 45.0):
+    """T_cam_tag: camera at ``distance`` within ``max_obliquity_deg`` of the tag normal, aimed
+    near the tag centre (so the tag lands anywhere in the central part of the image)."""
+    th = np.deg2rad(rng.uniform(0.0, max_obliquity_deg))
+    ph = rng.uniform(0.0, 2 * np.pi)
+    pos = distance * np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+    aim = np.r_[rng.normal(0.0, 0.15 * distance, 2), 0.0]
+    return invert_transform(look_at(pos, aim, up=[0.0, 1.0, 0.0]))
+
+
+def errors(T_est: np.ndarray, T_true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Translation error vector (m, camera frame) and rotation error vector (rad, tag frame)."""
+    return T_est[:3, 3] - T_true[:3, 3], so3_log(T_true[:3, :3].T @ T_est[:3, :3])
+
+
+def fmt(x: float, digits: int = 3) -> str:
+    return f"{x:.{digits}f}"
+
+
+# --------------------------------------------------------------------------- refinement modes
+def refinement_table(n_views: int = 16) -> list[str]:
+    rng = np.random.default_rng(1)
+    views = [random_view(rng, 1.0) for _ in range(n_views)]
+    images = [
+        render_tags(
+            CAM_HD, [RenderedTag(0, T, SIZE)], noise_std=NOISE_STD, blur_sigma=BLUR_SIGMA, rng=rng
+        )
+        for T in views
+    ]
+    truths = [CAM_HD.project_points(tag_object_points(SIZE), T) for T in views]
+    rows = [
+        "| corner refinement | LM pose refine | detected | corner RMS (px) | corner bias (px) "
+        "| t mean / max (mm) | R mean / max (deg) | time per image (ms) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    modes = ["none", "subpix", "contour", "apriltag", "apriltag -0.5 px", "edge"]
+    for mode in modes:
+        for refine in (False, True):
+            aruco_mode = "apriltag" if mode.startswith("apriltag") else mode
+            det = TagDetector(
+                DetectorConfig(
+                    default_tag_size=SIZE, corner_refinement=aruco_mode, refine_pose=refine
+                )
+            )
+            corner_err, t_err, r_err, n_det = [], [], [], 0
+            t0 = time.perf_counter()
+            results = [det.detect(img, CAM_HD) for img in images]
+            dt = (time.perf_counter() - t0) / len(images)
+            for res, T, truth in zip(results, views, truths, strict=True):
+                if not res.observations:
+                    continue
+                obs = res.observations[0]
+                n_det += 1
+                T_est, corners = obs.T_cam_tag, obs.corners
+                if mode == "apriltag -0.5 px":
+                    # The AprilTag library's pixel-corner convention, undone by hand.
+                    corners = corners - 0.5
+                    T_est = det.solve_pose(corners, SIZE, CAM_HD)
+                corner_err.append(corners - truth)
+                et, er = errors(T_est, T)
+                t_err.append(1000 * np.linalg.norm(et))
+                r_err.append(np.degrees(np.linalg.norm(er)))
+            ce = np.concatenate(corner_err)
+            rows.append(
+                f"| {mode} | {'yes' if refine else 'no'} | {n_det}/{len(views)} "
+                f"| {fmt(np.sqrt(np.mean(np.sum(ce**2, axis=1))))} "
+                f"| ({fmt(ce[:, 0].mean())}, {fmt(ce[:, 1].mean())}) "
+                f"| {fmt(np.mean(t_err), 2)} / {fmt(np.max(t_err), 2)} "
+                f"| {fmt(np.mean(r_err))} / {fmt(np.max(r_err))} | {dt * 1000:.1f} |"
+            )
+    return rows
+
+
+# --------------------------------------------------------------------------- accuracy vs distance
+def distance_table(distances=(0.5, 1.0, 1.5, 2.0, 3.0), n_views: int = 12) -> list[str]:
+    det = TagDetector(DetectorConfig(default_tag_size=SIZE))
+    rows = [
+        "| distance (m) | side (px) | detected | t mean / max (mm) | R mean / max (deg) "
+        "| RMS depth err (mm) | model sigma, no floor (mm) | RMS rot err per axis (deg) "
+        "| model sigma_rot, no floor (deg) | reported sigma (mm) / kappa |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for d in distances:
+        rng = np.random.default_rng(int(100 * d))
+        t_err, r_err, z_err, r_vec, sig, sig_rot, sides, rep = [], [], [], [], [], [], [], []
+        n_det = 0
+        for _ in range(n_views):
+            T = random_view(rng, d)
+            img = render_tags(
+                CAM_HD,
+                [RenderedTag(0, T, SIZE)],
+                noise_std=NOISE_STD,
+                blur_sigma=BLUR_SIGMA,
+                rng=rng,
+            )
+            res = det.detect(img, CAM_HD)
+            if not res.observations:
+                continue
+            obs = res.observations[0]
+            n_det += 1
+            et, er = errors(obs.T_cam_tag, T)
+            t_err.append(1000 * np.linalg.norm(et))
+            r_err.append(np.degrees(np.linalg.norm(er)))
+            ray = T[:3, 3] / np.linalg.norm(T[:3, 3])
+            z_err.append(1000 * float(et @ ray))
+            r_vec.append(np.degrees(er))
+            s, k = pose_precision(
+                obs.reprojection_rms_px,
+                np.linalg.norm(obs.T_cam_tag[:3, 3]),
+                CAM_HD.focal_px,
+                SIZE,
+                pixel_noise_floor_px=1e-12,
+                sigma_floor_m=1e-12,
+                rotation_std_floor_deg=1e-12,
+            )
+            sig.append(1000 * s)
+            sig_rot.append(np.degrees(1.0 / np.sqrt(2.0 * k)))
+            sides.append(obs.side_px)
+            rep.append((obs.sigma, obs.kappa))
+        rv = np.array(r_vec)
+        rows.append(
+            f"| {d:.1f} | {np.mean(sides):.0f} | {n_det}/{n_views} "
+            f"| {fmt(np.mean(t_err), 2)} / {fmt(np.max(t_err), 2)} "
+            f"| {fmt(np.mean(r_err))} / {fmt(np.max(r_err))} "
+            f"| {fmt(np.sqrt(np.mean(np.square(z_err))), 2)} | {fmt(np.mean(sig), 2)} "
+            f"| {fmt(np.sqrt(np.mean(rv**2)))} | {fmt(np.mean(sig_rot))} "
+            f"| {1000 * np.mean([r[0] for r in rep]):.2f} / {np.mean([r[1] for r in rep]):.0f} |"
+        )
+    return rows
+
+
+# --------------------------------------------------------------------------- obliquity
+def obliquity_table(angles=(0, 30, 50, 60, 70, 75, 80), n_views: int = 8) -> list[str]:
+    det = TagDetector(DetectorConfig(default_tag_size=SIZE, max_obliquity_deg=90.0))
+    rows = [
+        "| obliquity (deg) | shortest side (px) | detected | t mean / max (mm) "
+        "| R mean / max (deg) | reprojection RMS (px) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for angle in angles:
+        rng = np.random.default_rng(1000 + angle)
+        t_err, r_err, sides, rms, n_det = [], [], [], [], 0
+        for _ in range(n_views):
+            th, ph = np.deg2rad(angle), rng.uniform(0, 2 * np.pi)
+            pos = 1.5 * np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+            T = invert_transform(look_at(pos, np.r_[rng.normal(0, 0.05, 2), 0.0], [0, 1, 0]))
+            img = render_tags(
+                CAM_HD,
+                [RenderedTag(0, T, SIZE)],
+                noise_std=NOISE_STD,
+                blur_sigma=BLUR_SIGMA,
+                rng=rng,
+            )
+            res = det.detect(img, CAM_HD)
+            if not res.observations:
+                continue
+            obs = res.observations[0]
+            n_det += 1
+            et, er = errors(obs.T_cam_tag, T)
+            t_err.append(1000 * np.linalg.norm(et))
+            r_err.append(np.degrees(np.linalg.norm(er)))
+            sides.append(obs.side_px)
+            rms.append(obs.reprojection_rms_px)
+        if n_det == 0:
+            rows.append(f"| {angle} | - | 0/{n_views} | - | - | - |")
+            continue
+        rows.append(
+            f"| {angle} | {np.mean(sides):.0f} | {n_det}/{n_views} "
+            f"| {fmt(np.mean(t_err), 2)} / {fmt(np.max(t_err), 2)} "
+            f"| {fmt(np.mean(r_err))} / {fmt(np.max(r_err))} | {fmt(np.mean(rms))} |"
+        )
+    return rows
+
+
+# --------------------------------------------------------------------------- distortion
+def distortion_table(n_views: int = 6) -> list[str]:
+    models = {
+        "none (pinhole)": ([], "plumb_bob"),
+        "plumb_bob": ([-0.28, 0.09, 0.0008, -0.0005, -0.015], "plumb_bob"),
+        "rational_polynomial": (
+            [0.6, -0.2, 0.001, -0.001, 0.05, 0.9, -0.1, 0.08],
+            "rational_polynomial",
+        ),
+        "equidistant": ([0.08, -0.02, 0.004, -0.001], "equidistant"),
+    }
+    det = TagDetector(DetectorConfig(default_tag_size=SIZE))
+    rows = [
+        "| distortion model | max corner shift by distortion (px) | detected "
+        "| t mean / max (mm) | R mean / max (deg) |",
+        "|---|---|---|---|---|",
+    ]
+    for name, (D, model) in models.items():
+        cam = CAM_HD.with_distortion(D, model)
+        rng = np.random.default_rng(7)
+        t_err, r_err, shift, n_det = [], [], [], 0
+        for _ in range(n_views):
+            T = random_view(rng, 1.0, 30.0)
+            T[:3, 3] += [rng.uniform(-0.4, 0.4), rng.uniform(-0.3, 0.3), 0.0]  # off axis
+            obj = tag_object_points(SIZE)
+            shift.append(
+                np.max(
+                    np.linalg.norm(
+                        cam.project_points(obj, T) - CAM_HD.project_points(obj, T), axis=1
+                    )
+                )
+            )
+            img = render_tags(
+                cam, [RenderedTag(0, T, SIZE)], noise_std=NOISE_STD, blur_sigma=BLUR_SIGMA, rng=rng
+            )
+            res = det.detect(img, cam)
+            if not res.observations:
+                continue
+            n_det += 1
+            et, er = errors(res.observations[0].T_cam_tag, T)
+            t_err.append(1000 * np.linalg.norm(et))
+            r_err.append(np.degrees(np.linalg.norm(er)))
+        rows.append(
+            f"| {name} | {np.max(shift):.1f} | {n_det}/{n_views} "
+            f"| {fmt(np.mean(t_err), 2)} / {fmt(np.max(t_err), 2)} "
+            f"| {fmt(np.mean(r_err))} / {fmt(np.max(r_err))} |"
+        )
+    return rows
+
+
+# --------------------------------------------------------------------------- throughput
+def grid_scene(cam: CameraIntrinsics, n_tags: int, rng: np.random.Generator) -> list[RenderedTag]:
+    """``n_tags`` tags on a 5 x 2 grid (or one tag) filling much of the view, tilted <= 25 deg."""
+    f = cam.focal_px
+    z = 1.5 if cam.width > 1000 else 1.2
+    size = SIZE if cam.width > 1000 else 0.12
+    tags = []
+    for i in range(n_tags):
+        if n_tags == 1:
+            x = y = 0.0
+        else:
+            x = (i % 5 - 2) * 0.22 * cam.width / f * z / 1.4
+            y = (i // 5 - 0.5) * 0.35 * cam.height / f * z / 1.4
+        tilt = cv2.Rodrigues(rng.normal(0.0, 0.25, 3))[0]
+        tags.append(
+            RenderedTag(i, make_transform(tilt @ np.diag([1.0, -1.0, -1.0]), [x, y, z]), size)
+        )
+    return tags
+
+
+def time_detection(
+    det: TagDetector, images: list[np.ndarray], cam: CameraIntrinsics, min_time_s: float = 1.0
+) -> tuple[float, float, int]:
+    """(images/s of detect(), ms per image inside aruco's detectMarkers, observations/image)."""
+    n_obs = len(det.detect(images[0], cam).observations)
+    best = np.inf
+    for _ in range(3):  # best of three runs: other processes share this machine
+        count, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < min_time_s / 3:
+            det.detect(images[count % len(images)], cam)
+            count += 1
+        best = min(best, (time.perf_counter() - t0) / count)
+    aruco = np.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        for img in images:
+            det.detect_markers(img)
+        aruco = min(aruco, (time.perf_counter() - t0) / len(images))
+    return 1.0 / best, 1000 * aruco, n_obs
+
+
+def throughput_table() -> tuple[list[str], str]:
+    """Rows, and a sentence on the target case (1280x1024, 10 tags, default detector)."""
+    cv2.setNumThreads(1)
+    verdict = ""
+    rows = [
+        "| image | tags in view | corner refinement | detected | images/s | ms/image "
+        "| of which aruco detectMarkers (ms) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for cam in (CAM_VGA, CAM_HD):
+        for n_tags in (1, 10):
+            rng = np.random.default_rng(n_tags)
+            images = [
+                render_tags(
+                    cam,
+                    grid_scene(cam, n_tags, rng),
+                    noise_std=NOISE_STD,
+                    blur_sigma=BLUR_SIGMA,
+                    rng=rng,
+                )
+                for _ in range(3)
+            ]
+            for mode in ("edge", "subpix", "apriltag"):
+                if mode == "apriltag" and not (cam is CAM_HD and n_tags == 10):
+                    continue
+                det = TagDetector(
+                    DetectorConfig(
+                        default_tag_size=SIZE if cam is CAM_HD else 0.12, corner_refinement=mode
+                    )
+                )
+                rate, aruco_ms, n_obs = time_detection(det, images, cam)
+                rows.append(
+                    f"| {cam.width}x{cam.height} | {n_tags} | {mode} | {n_obs} | {rate:.1f} "
+                    f"| {1000 / rate:.1f} | {aruco_ms:.1f} |"
+                )
+                if cam is CAM_HD and n_tags == 10 and mode == "edge":
+                    per_tag = (1000 / rate - aruco_ms) / max(n_obs, 1)
+                    verdict = (
+                        f"Target 30 images/s at 1280x1024 with 10 tags (default detector): "
+                        f"{rate:.1f} images/s, {'met' if rate >= 30 else 'MISSED'}. Besides "
+                        f"aruco's detectMarkers ({aruco_ms:.1f} ms) the time goes into the edge "
+                        f"fits and the pose, {per_tag:.1f} ms per tag."
+                    )
+    return rows, verdict
+
+
+def main() -> None:
+    t_start = time.perf_counter()
+    cv2.setNumThreads(1)
+    print("# Perception benchmark (AprilTag detection + IPPE pose on rendered images)\n")
+    print(f"- date: {_dt.date.today().isoformat()}")
+    print(
+        f"- machine: {os.cpu_count()} cores ({platform.machine()}, {platform.system()}), "
+        f"Python {platform.python_version()}, OpenCV {cv2.__version__}, numpy {np.__version__}"
+    )
+    print("- generated by `python benchmarks/perception.py > benchmarks/perception.md`")
+    print(
+        f"- images: `rwhec_ros.vision.render` (16 samples/pixel), Gaussian blur sigma "
+        f"{BLUR_SIGMA} px, Gaussian noise {NOISE_STD} grey levels (tag contrast 30/225); "
+        f"tag36h11, {1000 * SIZE:.0f} mm; 1280x1024 with f = 1000 px unless stated. Errors are "
+        f"against the rendered truth; t = translation error norm, R = geodesic rotation error."
+    )
+    print("\n## Corner refinement and pose refinement (1 m, 16 views, obliquity 0-45 deg)\n")
+    print("\n".join(refinement_table()))
+    print(
+        "\n`edge` is `rwhec_ros.vision.edges` (area-based edge positions along the normals, line "
+        "fits in the undistorted image, intersections), seeded by aruco's SUBPIX corners. "
+        "`apriltag -0.5 px` subtracts half a pixel from aruco's APRILTAG corners (the AprilTag "
+        "library's pixel-corner convention) before the same IPPE + LM pose. Corner bias is the "
+        'mean (u, v) error over all corners. The defaults (`corner_refinement="edge"`, '
+        "`refine_pose=True`) are the best row of this table."
+    )
+    print("\n## Pose accuracy vs distance (default detector, 12 views each, obliquity 0-45 deg)\n")
+    print("\n".join(distance_table()))
+    print(
+        "\nModel columns: the precision model of `rwhec_ros.vision.detection` evaluated without "
+        "its floors (depth std `z^2 sigma_px / (f s)`, tilt std `2 z^2 sigma_px / (f s^2)`, "
+        "`sigma_px = sqrt(2) rms`), next to the measured RMS depth error (along the viewing ray) "
+        "and per-axis RMS rotation error. The reported `sigma`/`kappa` use the default floors "
+        "(0.1 px corner noise, 1 mm, 0.05 deg)."
+    )
+    print("\n## Pose accuracy vs obliquity (1.5 m, obliquity gate disabled, 8 views each)\n")
+    print("\n".join(obliquity_table()))
+    print(
+        "\nThe default gate `max_obliquity_deg = 70` keeps the range where detection is reliable "
+        "and the error stays small (compare the 75 and 80 degree rows). Face-on views have the "
+        "largest rotation error of the reliable range: the tilt of a planar square is least "
+        "constrained there (first-order perspective effect only)."
+    )
+    print("\n## Distortion round trip (render with distortion, detect, 1 m, 6 views off axis)\n")
+    print("\n".join(distortion_table()))
+    print("\n## Throughput (one core: `cv2.setNumThreads(1)`, best of 3 runs)\n")
+    rows, verdict = throughput_table()
+    print("\n".join(rows))
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(
+        f"\n{verdict} The `apriltag` refinement is slow in OpenCV's implementation (and biased, "
+        f"see above). The 1-minute load average at the end was {load:.1f} on "
+        f"{os.cpu_count()} cores (other jobs share this machine): the rates are lower bounds "
+        "for an idle core."
+    )
+    print(f"\n_Total benchmark time: {time.perf_counter() - t_start:.0f} s._")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,272 @@
+"""Synthetic images of AprilTags seen by a calibrated camera (for tests, benchmarks and the demo).
+
+Tag frame (the one :mod:`rwhec_ros.vision.detection` estimates, OpenCV's ``SOLVEPNP_IPPE_SQUARE``
+/ ``cv2.aruco`` convention): origin at the centre of the black square, ``x`` to the right and ``y``
+up on the printed tag, ``z = x cross y`` out of the tag face toward a viewer. The black square
+spans ``[-size/2, size/2]^2`` in ``(x, y)``; the white quiet zone surrounds it.
+
+Rendering is an exact inverse lookup: every (sub-)sample of the output image is undistorted to
+its ray, intersected with the tag plane and given the colour of the cell it hits (point sampling
+of the ideal piecewise-constant scene); ``supersample**2`` samples per pixel on a rank-1 lattice
+(:func:`sample_offsets`) are averaged (box filter), which anti-aliases the edges. The lookup is
+restricted to the bounding box of the tag's projected outline.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .families import marker_bitmap, marker_cells
+from .intrinsics import CameraIntrinsics
+
+__all__ = ["RenderedTag", "render_tags", "look_at", "tag_outline", "sample_offsets"]
+
+
+@dataclass(frozen=True, eq=False)
+class RenderedTag:
+    """A tag to render.
+
+    Attributes
+    ----------
+    tag_id : int
+        Marker id in the family.
+    T_cam_tag : ndarray, shape (4, 4)
+        Pose of the tag frame in the camera frame (maps tag coordinates to camera coordinates).
+    size : float
+        Edge length of the black square in metres (AprilTag convention).
+    """
+
+    tag_id: int
+    T_cam_tag: np.ndarray
+    size: float
+
+    def __post_init__(self) -> None:
+        T = np.array(self.T_cam_tag, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError(
+                f"T_cam_tag of tag {self.tag_id} must be a finite (4, 4) array, got shape {T.shape}"
+            )
+        if not (np.isfinite(self.size) and self.size > 0):
+            raise ValueError(f"size of tag {self.tag_id} must be positive, got {self.size!r}")
+        T.setflags(write=False)
+        object.__setattr__(self, "T_cam_tag", T)
+
+
+def look_at(
+    camera_position: np.ndarray,
+    target_point: np.ndarray,
+    up: np.ndarray = (0.0, 0.0, 1.0),
+) -> np.ndarray:
+    """Pose ``T_world_cam`` of an optical camera frame at ``camera_position`` aimed at a point.
+
+    The camera ``z`` axis points at ``target_point``, ``x`` to the right and ``y`` down in the
+    image, with the world direction ``up`` appearing up in the image.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+
+    Raises
+    ------
+    ValueError
+        If the two points coincide or ``up`` is parallel to the viewing direction.
+    """
+    p = np.asarray(camera_position, dtype=float).reshape(3)
+    q = np.asarray(target_point, dtype=float).reshape(3)
+    u = np.asarray(up, dtype=float).reshape(3)
+    forward = q - p
+    dist = np.linalg.norm(forward)
+    if not dist > 1e-12:
+        raise ValueError(f"target_point must differ from camera_position, got {p.tolist()}")
+    z = forward / dist
+    x = np.cross(z, u)
+    nx = np.linalg.norm(x)
+    if not nx > 1e-9 * max(np.linalg.norm(u), 1e-300):
+        raise ValueError(f"up must not be parallel to the viewing direction, got {u.tolist()}")
+    x /= nx
+    y = np.cross(z, x)
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, z, p
+    return T
+
+
+def tag_outline(size: float, extent_cells: float, cells: int, per_edge: int = 16) -> np.ndarray:
+    """Points along the square ``[-h, h]^2`` (tag frame, ``z = 0``), ``h = size extent/(2 cells)``.
+
+    Returns shape (4 * per_edge, 3).
+    """
+    h = 0.5 * size * extent_cells / cells
+    s = np.linspace(-h, h, per_edge, endpoint=False)
+    edges = [
+        np.c_[s, np.full_like(s, h)],
+        np.c_[np.full_like(s, h), -s],
+        np.c_[-s, np.full_like(s, -h)],
+        np.c_[np.full_like(s, -h), s],
+    ]
+    xy = np.concatenate(edges)
+    return np.c_[xy, np.zeros(len(xy))]
+
+
+def _bounding_box(
+    intrinsics: CameraIntrinsics, T_cam_tag: np.ndarray, outline: np.ndarray
+) -> tuple[int, int, int, int] | None:
+    """Pixel box ``(u0, v0, u1, v1)`` (exclusive end) holding the tag, or None if off-image."""
+    W, H = intrinsics.width, intrinsics.height
+    pts_cam = outline @ T_cam_tag[:3, :3].T + T_cam_tag[:3, 3]
+    if np.any(pts_cam[:, 2] <= 1e-6 * np.linalg.norm(pts_cam, axis=1)):
+        return 0, 0, W, H  # partly behind the camera: search the whole image
+    if intrinsics.is_fisheye:
+        # cv2.fisheye is only valid up to 90 degrees from the axis; stay conservative there.
+        angle = np.arctan2(np.linalg.norm(pts_cam[:, :2], axis=1), pts_cam[:, 2])
+        if np.any(angle > np.deg2rad(80.0)):
+            return 0, 0, W, H
+    uv = intrinsics.project_points(pts_cam)
+    if not np.all(np.isfinite(uv)):
+        return 0, 0, W, H
+    margin = 2
+    u0 = max(int(np.floor(uv[:, 0].min())) - margin, 0)
+    v0 = max(int(np.floor(uv[:, 1].min())) - margin, 0)
+    u1 = min(int(np.ceil(uv[:, 0].max())) + margin + 1, W)
+    v1 = min(int(np.ceil(uv[:, 1].max())) + margin + 1, H)
+    if u1 <= u0 or v1 <= v0:
+        return None
+    return u0, v0, u1, v1
+
+
+def sample_offsets(supersample: int) -> np.ndarray:
+    """Sub-pixel sample offsets (n, 2), ``n = supersample**2``, in ``(-0.5, 0.5)^2``.
+
+    A rank-1 lattice: sample ``k`` sits at ``x = (k + 1/2)/n``, ``y = ((k (s + 1)) mod n + 1/2)/n``
+    (minus 1/2). Every sample has its own ``x`` and its own ``y``, so the coverage of a nearly
+    axis-aligned edge is resolved in steps of ``1/n`` pixel instead of ``1/s`` for a regular
+    ``s x s`` grid.
+    """
+    s = int(supersample)
+    n = s * s
+    k = np.arange(n)
+    return np.stack([(k + 0.5) / n - 0.5, ((k * (s + 1)) % n + 0.5) / n - 0.5], axis=1)
+
+
+def _rays(
+    intrinsics: CameraIntrinsics, box: tuple[int, int, int, int], offsets: np.ndarray
+) -> np.ndarray:
+    """Normalized rays (h, w, n, 2) of the sub-samples of the pixels in ``box``."""
+    u0, v0, u1, v1 = box
+    vv, uu = np.mgrid[v0:v1, u0:u1]
+    pix = np.stack([uu, vv], axis=-1).astype(float)[:, :, None, :] + offsets[None, None, :, :]
+    xy = intrinsics.normalize_points(pix.reshape(-1, 2))
+    return xy.reshape(pix.shape)
+
+
+def render_tags(
+    intrinsics: CameraIntrinsics,
+    tags: Sequence[RenderedTag],
+    family: str = "tag36h11",
+    *,
+    image: np.ndarray | float | None = None,
+    blur_sigma: float = 0.0,
+    noise_std: float = 0.0,
+    rng: np.random.Generator | None = None,
+    supersample: int = 4,
+    black_level: float = 30.0,
+    white_level: float = 225.0,
+    quiet_zone_cells: int = 1,
+) -> np.ndarray:
+    """Render AprilTags into a grayscale image of the camera ``intrinsics``.
+
+    Parameters
+    ----------
+    intrinsics : CameraIntrinsics
+        Camera (any supported distortion model).
+    tags : sequence of RenderedTag
+        Tags with their poses ``T_cam_tag``; drawn far to near (painter's order: occlusion is
+        exact per sample, except that a nearer tag's boundary pixels mix with the farther
+        content already averaged over the pixel). Tags whose centre is behind the camera, or
+        whose face points away from it, are skipped; the part of a tag behind the camera is
+        not drawn.
+    family : str
+        AprilTag family of all tags.
+    image : ndarray (H, W) or float, optional
+        Background: an image of the camera's size (any real dtype, 0..255) or a uniform level;
+        default uniform 128.
+    blur_sigma : float
+        Standard deviation (pixels) of a Gaussian blur applied after rendering (0: none).
+    noise_std : float
+        Standard deviation of additive Gaussian noise (grey levels) applied after the blur;
+        requires ``rng``.
+    rng : numpy.random.Generator, optional
+        The only source of randomness.
+    supersample : int
+        Samples per pixel along each axis (>= 1); ``supersample**2`` point samples are averaged.
+    black_level, white_level : float
+        Grey levels of the black and white tag cells.
+    quiet_zone_cells : int
+        Width of the white border around the black square, in cells.
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8
+    """
+    W, H = intrinsics.width, intrinsics.height
+    if int(supersample) != supersample or supersample < 1:
+        raise ValueError(f"supersample must be a positive integer, got {supersample!r}")
+    offsets = sample_offsets(int(supersample))
+    if not (np.isfinite(blur_sigma) and blur_sigma >= 0):
+        raise ValueError(f"blur_sigma must be >= 0, got {blur_sigma!r}")
+    if not (np.isfinite(noise_std) and noise_std >= 0):
+        raise ValueError(f"noise_std must be >= 0, got {noise_std!r}")
+    if noise_std > 0 and rng is None:
+        raise ValueError("rng must be given when noise_std > 0")
+    if image is None:
+        canvas = np.full((H, W), 128.0)
+    elif np.ndim(image) == 0:
+        canvas = np.full((H, W), float(image))
+    else:
+        canvas = np.array(image, dtype=float)
+        if canvas.shape != (H, W):
+            raise ValueError(f"image must have shape {(H, W)}, got {canvas.shape}")
+
+    cells = marker_cells(family)
+    extent = cells + 2 * int(quiet_zone_cells)
+    order = sorted(tags, key=lambda tag: -float(np.linalg.norm(tag.T_cam_tag[:3, 3])))
+    for tag in order:
+        T = tag.T_cam_tag
+        t = T[:3, 3]
+        normal = T[:3, 2]
+        if t[2] <= 0 or float(normal @ t) >= 0:
+            continue  # centre behind the camera, or back face toward the camera
+        bitmap = marker_bitmap(family, tag.tag_id, quiet_zone_cells)
+        levels = np.where(bitmap > 127, white_level, black_level)
+        box = _bounding_box(intrinsics, T, tag_outline(tag.size, extent, cells))
+        if box is None:
+            continue
+        u0, v0, u1, v1 = box
+        xy = _rays(intrinsics, box, offsets)
+        # Ray (x, y, 1) meets the plane {R [a, b, 0] + t}: [a, b, 1] ~ H^-1 [x, y, 1],
+        # H = [r1 r2 t]; the third component is positive in front of the camera.
+        Hinv = np.linalg.inv(np.c_[T[:3, 0], T[:3, 1], t])
+        rays = np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1)
+        abw = rays @ Hinv.T
+        w = abw[..., 2]
+        front = w > 0
+        w_safe = np.where(front, w, 1.0)
+        cell = tag.size / cells
+        half = 0.5 * extent * cell
+        col = np.floor((abw[..., 0] / w_safe + half) / cell)
+        row = np.floor((half - abw[..., 1] / w_safe) / cell)
+        inside = front & (col >= 0) & (col < extent) & (row >= 0) & (row < extent)
+        inside &= np.all(np.isfinite(xy), axis=-1)
+        ci = np.where(inside, col, 0).astype(np.intp)
+        ri = np.where(inside, row, 0).astype(np.intp)
+        samples = np.where(inside, levels[ri, ci], canvas[v0:v1, u0:u1, None])
+        canvas[v0:v1, u0:u1] = samples.mean(axis=-1)
+
+    if blur_sigma > 0:
+        canvas = cv2.GaussianBlur(canvas, (0, 0), sigmaX=float(blur_sigma))
+    if noise_std > 0:
+        canvas = canvas + rng.normal(0.0, float(noise_std), size=canvas.shape)
+    return np.clip(np.rint(canvas), 0, 255).astype(np.uint8)
