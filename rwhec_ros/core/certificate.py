@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from .result import Certificate, Status
 
@@ -43,6 +44,15 @@ class CertificateOptions:
     rho_tol: float = 1e-6
     null_tol: float = 1e-6
     n_eigenvalues: int = 6
+
+
+def _smallest_eigenvalues(Z: np.ndarray, k: int) -> np.ndarray:
+    """The ``k`` smallest eigenvalues (ascending) of symmetric ``Z``; for large matrices only those
+    are computed (LAPACK ``syevr`` with an index range)."""
+    d = Z.shape[0]
+    if d <= 300 or k >= d:
+        return np.linalg.eigvalsh(Z)[:k]
+    return scipy.linalg.eigh(Z, eigvals_only=True, subset_by_index=[0, k - 1], driver="evr")
 
 
 def certify_from_Z(
@@ -85,13 +95,14 @@ def certify_from_Z(
         eq. (73) is undefined): ``rho_hat = (p - d) / max(d, cost_floor)``.
     """
     opts = options or CertificateOptions()
-    w = np.linalg.eigvalsh(0.5 * (Z_scaled + Z_scaled.T))
+    w = _smallest_eigenvalues(0.5 * (Z_scaled + Z_scaled.T), opts.n_eigenvalues)
     lam_min = float(w[0])
     null_dim = int(np.sum(w <= opts.null_tol))
     trivial_s = False
     if homogeneous and np.linalg.norm(Z_scaled[:-1, -1]) <= opts.null_tol and \
             abs(Z_scaled[-1, -1]) <= opts.null_tol:
-        w_r = np.linalg.eigvalsh(0.5 * (Z_scaled[:-1, :-1] + Z_scaled[:-1, :-1].T))
+        w_r = _smallest_eigenvalues(0.5 * (Z_scaled[:-1, :-1] + Z_scaled[:-1, :-1].T),
+                                    opts.n_eigenvalues)
         null_dim = int(np.sum(w_r <= opts.null_tol))
         trivial_s = True
     bound_scaled = lambda_s_scaled + min(0.0, lam_min) * (3 * n_rotations + 1)

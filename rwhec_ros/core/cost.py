@@ -31,6 +31,7 @@ from .problem import Problem
 __all__ = [
     "StateLayout",
     "build_cost_matrix",
+    "build_cost_matrices",
     "direct_cost",
     "ReducedCost",
     "reduce_cost",
@@ -83,28 +84,39 @@ def _edge_blocks(
     """Summed 25x25 blocks of one edge: ``1/2 sum_i (M_t^T M_t / sigma_i^2 + kappa_i M_R^T M_R)``
     and its rotation-only part ``1/2 sum_i kappa_i M_R^T M_R``.
 
-    Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``; the per-pair
-    rows are stacked with their square-root weights and reduced by one matrix product each.
+    Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``. With
+    ``M_R = [I (x) R_A, -(R_B^T (x) I)]`` on ``(r_X, r_Y)``, ``M_R^T M_R`` has identity diagonal
+    blocks and off-diagonal ``-(R_B^T (x) R_A^T)`` (cf. eq. (36)); the translation rows
+    ``M_t = [R_A, -I, t_A, 0, -(t_B^T (x) I)]`` (cf. eq. (28)) are weighted and reduced by one
+    matrix product.
     """
     N = A.shape[0]
     RA, tA = A[:, :3, :3], A[:, :3, 3]
     RB, tB = B[:, :3, :3], B[:, :3, 3]
-    I3 = np.eye(3)
-    Mt = np.zeros((N, 3, 25))
+    rot = np.zeros((25, 25))
+    half_k = 0.5 * kappa
+    ksum = float(half_k.sum())
+    C = np.einsum("n,nba,nji->aibj", half_k, RB, RA).reshape(9, 9)  # sum k/2 R_B^T (x) R_A^T
+    rot[7:16, 7:16] = ksum * np.eye(9)
+    rot[16:25, 16:25] = ksum * np.eye(9)
+    rot[7:16, 16:25] = -C
+    rot[16:25, 7:16] = -C.T
+    # translation rows on the 16 columns [t_X, t_Y, alpha, r_Y]
+    Mt = np.zeros((N, 3, 16))
     Mt[:, :, 0:3] = RA
-    Mt[:, :, 3:6] = -I3
+    Mt[:, 0, 3] = Mt[:, 1, 4] = Mt[:, 2, 5] = -1.0
     Mt[:, :, 6] = tA
-    # -(t_B^T (x) I): column block c of vec(R_Y) multiplies t_B[c]
-    Mt[:, :, 16:25] = -np.einsum("nc,ij->nicj", tB, I3).reshape(N, 3, 9)
-    MR = np.zeros((N, 9, 25))
-    MR[:, :, 7:16] = np.einsum("ab,nij->naibj", I3, RA).reshape(N, 9, 9)  # I (x) R_A
-    MR[:, :, 16:25] = -np.einsum("nba,ij->naibj", RB, I3).reshape(N, 9, 9)  # -(R_B^T (x) I)
+    for c in range(3):  # -(t_B^T (x) I): column block c of vec(R_Y) multiplies t_B[c]
+        Mt[:, 0, 7 + 3 * c] = -tB[:, c]
+        Mt[:, 1, 8 + 3 * c] = -tB[:, c]
+        Mt[:, 2, 9 + 3 * c] = -tB[:, c]
     Mt *= np.sqrt(0.5 / sigma**2)[:, None, None]
-    MR *= np.sqrt(0.5 * kappa)[:, None, None]
-    Mt2 = Mt.reshape(3 * N, 25)
-    MR2 = MR.reshape(9 * N, 25)
-    rot = MR2.T @ MR2
-    return rot + Mt2.T @ Mt2, rot
+    Mt2 = Mt.reshape(3 * N, 16)
+    G = Mt2.T @ Mt2
+    cols = np.r_[0:7, 16:25]
+    full = rot.copy()
+    full[np.ix_(cols, cols)] += G
+    return full, rot
 
 
 def _local_to_global(layout: StateLayout, xi: np.ndarray, yi: np.ndarray) -> np.ndarray:
@@ -122,25 +134,51 @@ def _local_to_global(layout: StateLayout, xi: np.ndarray, yi: np.ndarray) -> np.
     return idx
 
 
-def build_cost_matrix(problem: Problem, *, with_translation: bool = True) -> sp.csr_matrix:
-    """Sparse symmetric ``Q`` of Problem 5 (eq. (42)), size ``12 (M + P) + 1``.
+#: Problems whose state has at most this many entries get dense cost matrices (faster to build
+#: and use than scipy.sparse at that size); larger ones sparse CSR.
+DENSE_MAX_SIZE = 601
 
-    Built in time linear in the number of pairs: per-pair blocks are computed vectorised, summed
-    per edge, and scattered once per edge. ``with_translation=False`` keeps only the rotation
-    terms ``J_R`` (the rotation-only Problem 8 weighted by kappa).
+
+def build_cost_matrices(
+    problem: Problem, *, dense: bool | None = None
+) -> tuple[np.ndarray | sp.csr_matrix, np.ndarray | sp.csr_matrix]:
+    """``Q`` of Problem 5 (eq. (42)) and its rotation-only part, size ``12 (M + P) + 1``.
+
+    Built in time linear in the number of pairs: per-pair rows are weighted and reduced by one
+    matrix product per edge, and the 25x25 edge blocks are scattered once. The rotation-only
+    part keeps the ``J_R`` terms alone (the kappa-weighted rotation-only Problem 8).
+    ``dense=None`` chooses dense arrays up to :data:`DENSE_MAX_SIZE` and sparse CSR above.
     """
     layout = StateLayout(problem.M, problem.P)
-    blocks = [_edge_blocks(e.A, e.B, e.sigma, e.kappa)[0 if with_translation else 1]
-              for e in problem.edges]
-    blocks_arr = np.stack(blocks)  # (E, 25, 25)
+    pairs = [_edge_blocks(e.A, e.B, e.sigma, e.kappa) for e in problem.edges]
+    full = np.stack([p[0] for p in pairs])  # (E, 25, 25)
+    rot = np.stack([p[1] for p in pairs])
+    full = 0.5 * (full + np.swapaxes(full, 1, 2))  # exact symmetry
+    rot = 0.5 * (rot + np.swapaxes(rot, 1, 2))
     idx = _local_to_global(layout, problem.edge_x, problem.edge_y)
-    rows = np.repeat(idx[:, :, None], 25, axis=2)
-    cols = np.repeat(idx[:, None, :], 25, axis=1)
-    Q = sp.coo_matrix(
-        (blocks_arr.ravel(), (rows.ravel(), cols.ravel())), shape=(layout.size, layout.size)
-    ).tocsr()
-    Q.sum_duplicates()
-    return ((Q + Q.T) * 0.5).tocsr()  # exact symmetry (einsum round-off differs by order)
+    if dense is None:
+        dense = layout.size <= DENSE_MAX_SIZE
+    n = layout.size
+    if dense:
+        Q = np.zeros((n, n))
+        Qr = np.zeros((n, n))
+        for e_idx in range(idx.shape[0]):
+            ix = np.ix_(idx[e_idx], idx[e_idx])
+            Q[ix] += full[e_idx]
+            Qr[ix] += rot[e_idx]
+        return Q, Qr
+    rows = np.repeat(idx[:, :, None], 25, axis=2).ravel()
+    cols = np.repeat(idx[:, None, :], 25, axis=1).ravel()
+    Q = sp.coo_matrix((full.ravel(), (rows, cols)), shape=(n, n)).tocsr()
+    Qr = sp.coo_matrix((rot.ravel(), (rows, cols)), shape=(n, n)).tocsr()
+    return Q, Qr
+
+
+def build_cost_matrix(problem: Problem, *, with_translation: bool = True) -> sp.csr_matrix:
+    """Sparse symmetric ``Q`` of Problem 5 (eq. (42)), size ``12 (M + P) + 1``; with
+    ``with_translation=False`` only its rotation terms (see :func:`build_cost_matrices`)."""
+    Q, Q_rot = build_cost_matrices(problem, dense=False)
+    return Q if with_translation else Q_rot
 
 
 def pack_state(
@@ -207,7 +245,7 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> Red
     complement), so rank-deficient translation blocks (unidentifiable translations) still give
     the minimum-norm recovery.
     """
-    Qd = Q.toarray() if sp.issparse(Q) else np.asarray(Q)
+    Qd = Q.toarray() if sp.issparse(Q) else np.asarray(Q, dtype=float)
     nt = layout.n_t
     a = layout.alpha
     r = np.arange(layout.r0, layout.size)

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .cost import ReducedCost, StateLayout, build_cost_matrix
+from .cost import ReducedCost, StateLayout, build_cost_matrices
 from .lie import make_transform, project_to_so3, unvec
 from .problem import Problem
 
@@ -72,19 +72,24 @@ def estimate_from_rotations(
     return Estimate(R=R, t=t, alpha=alpha, cost=cost)
 
 
-def closed_form_estimate(problem: Problem, reduced: ReducedCost) -> Estimate:
-    """Closed-form (uncertified) estimate; see the module docstring."""
+def closed_form_estimate(
+    problem: Problem, reduced: ReducedCost, Q_rot: np.ndarray | sp.spmatrix | None = None
+) -> Estimate:
+    """Closed-form (uncertified) estimate; see the module docstring. ``Q_rot`` is the rotation-only
+    cost matrix of :func:`~rwhec_ros.core.cost.build_cost_matrices` (built if not given)."""
     n = problem.n_frames
     layout = StateLayout(problem.M, problem.P)
-    Qrot = build_cost_matrix(problem, with_translation=False)
+    if Q_rot is None:
+        Q_rot = build_cost_matrices(problem)[1]
     rr = slice(layout.r0, layout.size)
-    L = Qrot[rr, rr]
-    L = 0.5 * (L + L.T)
+    L = Q_rot[rr, rr]
     d = L.shape[0]
-    if d <= 400:
-        w, V = np.linalg.eigh(L.toarray())
+    if d <= 1000:
+        L = L.toarray() if sp.issparse(L) else np.asarray(L)
+        w, V = np.linalg.eigh(L)
         v = V[:, 0]
     else:
+        L = sp.csr_matrix(L)
         shift = 1e-9 * abs(L).max()
         w, V = spla.eigsh(L + shift * sp.eye(d), k=1, sigma=0, which="LM")
         v = V[:, 0]

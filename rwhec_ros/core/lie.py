@@ -59,11 +59,20 @@ def vee(S: np.ndarray) -> np.ndarray:
 
 
 def so3_exp(phi: np.ndarray) -> np.ndarray:
-    """Exponential map so(3) -> SO(3); rotation vector(s) (..., 3) -> (..., 3, 3)."""
+    """Exponential map so(3) -> SO(3) (Rodrigues); rotation vector(s) (..., 3) -> (..., 3, 3).
+
+    Plain numpy (no per-call object construction) because the local solvers call it in their
+    inner loop; Taylor coefficients below 1e-4 rad keep it accurate to machine precision.
+    """
     phi = np.asarray(phi, dtype=float)
-    flat = phi.reshape(-1, 3)
-    R = Rotation.from_rotvec(flat).as_matrix()
-    return R.reshape(phi.shape[:-1] + (3, 3))
+    theta2 = np.sum(phi * phi, axis=-1)[..., None, None]
+    theta = np.sqrt(theta2)
+    small = theta2 < 1e-8
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    K = hat(phi)
+    return np.eye(3) + a * K + b * (K @ K)
 
 
 def so3_log(R: np.ndarray) -> np.ndarray:

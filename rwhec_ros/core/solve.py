@@ -14,14 +14,15 @@ estimate) before any numerical work, so that tolerances are relative to the opti
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from .certificate import CertificateOptions, certify_from_Z
-from .cost import StateLayout, build_cost_matrix, reduce_cost
+from .cost import StateLayout, build_cost_matrices, reduce_cost
 from .initialization import closed_form_estimate, estimate_from_rotations, rotations_from_vector
 from .lie import make_transform
 from .local_solver import LocalSolverOptions, fast_certificate_matrix, refine_rotations
@@ -91,7 +92,7 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
     layout = StateLayout(problem.M, problem.P)
-    Q = build_cost_matrix(problem)
+    Q, Q_rot = build_cost_matrices(problem)
     reduced = reduce_cost(Q, layout, problem.unknown_scale)
     timing["build"] = time.perf_counter() - t0
     t1 = time.perf_counter()
@@ -103,7 +104,7 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
                              f"got {R0.shape[0]} in total")
         init = estimate_from_rotations(problem, reduced, R0)
     else:
-        init = closed_form_estimate(problem, reduced)
+        init = closed_form_estimate(problem, reduced, Q_rot)
     timing["initialise"] = time.perf_counter() - t1
     # Scale by an upper bound on the optimum (cost at a feasible point), floored relative to the
     # data (1e-4 of the largest entry of Q') so that noise-free problems (optimum 0) stay well
@@ -199,8 +200,14 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
         threads = 1
     if threads is None:
         return _solve(problem, options)
-    with threadpool_limits(limits=threads, user_api="blas"):
+    with _blas_controller().limit(limits=threads, user_api="blas"):
         return _solve(problem, options)
+
+
+@functools.lru_cache(maxsize=1)
+def _blas_controller() -> ThreadpoolController:
+    """One controller per process: scanning the loaded libraries costs ~3 ms, limiting is cheap."""
+    return ThreadpoolController()
 
 
 def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
