@@ -165,3 +165,60 @@ def fast_certificate_matrix(Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, f
         Z[sl, sl] -= np.kron(Gamma[l], I3)
     Z[-1, -1] += float(np.trace(Gamma, axis1=1, axis2=2).sum()) - lambda_s
     return 0.5 * (Z + Z.T), lambda_s
+
+
+def handedness_direction(R: np.ndarray) -> np.ndarray:
+    """A multiplier direction ``D`` with ``D z = 0`` that couples ``s`` to the rotations.
+
+    For each rotation ``l`` it is the quadratic form of
+    ``g_l(z) = sum_cyc R*_c . (R_a x R_b - s R_c) - 1/2 (|R|_F^2 - 3 s^2)``: a combination of the
+    handedness constraints (50c), weighted by the current columns ``R*_c``, and of the column
+    norm constraints (50b). At the feasible ``z*`` its gradient vanishes (the handedness part
+    contributes ``R*_a`` per column and ``-3`` on ``s``, the norm part cancels both), so
+    ``Z - t D`` satisfies the stationarity ``Z z* = 0`` for every ``t``.
+    Returns a dense (9 n + 1, 9 n + 1) matrix.
+    """
+    from .relaxation import so3_constraint_matrices
+
+    n = R.shape[0]
+    d = 9 * n + 1
+    cons = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
+    lam = np.zeros(cons.m)
+    cyclic = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
+    for l in range(n):
+        base = 21 * l
+        for a_col in (0, 3, 5):  # the diagonal column constraints |R_a|^2 - s^2
+            lam[base + 6 + a_col] = -0.5
+        for ci, (_, _, c) in enumerate(cyclic):
+            for k in range(3):
+                lam[base + 12 + 3 * ci + k] = R[l, k, c]
+    return cons.apply(lam)
+
+
+def strengthen_certificate(Z: np.ndarray, R: np.ndarray, *, null_tol: float = 1e-6
+                           ) -> tuple[np.ndarray, float]:
+    """Move the fast certificate along :func:`handedness_direction` to lift spurious null
+    directions, keeping ``Z z* = 0``.
+
+    The orthogonality-only multipliers leave ``e_s`` in the null space whenever the cost does not
+    couple ``s`` to the rotations at the optimum (e.g. single-sphere trajectories, where eq. (63)
+    fails); the handedness constraints can. ``t`` maximises the smallest eigenvalue of
+    ``Z - t D`` on the complement of ``z*`` -- a concave function of ``t`` (minimum of affine
+    functions), maximised by a bounded scalar search. Returns the best ``Z`` and that eigenvalue.
+    """
+    from scipy.optimize import minimize_scalar
+
+    z = _z_of(R)
+    z = z / np.linalg.norm(z)
+    D = handedness_direction(R)
+    big = float(np.abs(Z).max()) + 1.0
+    Zp = Z + big * np.outer(z, z)
+
+    def lam_perp(t: float) -> float:
+        return float(np.linalg.eigvalsh(Zp - t * D)[0])
+
+    scale = float(np.abs(Z).max()) / max(float(np.abs(D).max()), 1e-300)
+    res = minimize_scalar(lambda t: -lam_perp(t), bounds=(-scale, scale), method="bounded",
+                          options={"xatol": 1e-6 * scale})
+    t_best = float(res.x) if lam_perp(float(res.x)) > lam_perp(0.0) else 0.0
+    return Z - t_best * D, lam_perp(t_best)

@@ -25,7 +25,12 @@ from .certificate import CertificateOptions, certify_from_Z
 from .cost import StateLayout, build_cost_matrices, reduce_cost
 from .initialization import closed_form_estimate, estimate_from_rotations, rotations_from_vector
 from .lie import make_transform
-from .local_solver import LocalSolverOptions, fast_certificate_matrix, refine_rotations
+from .local_solver import (
+    LocalSolverOptions,
+    fast_certificate_matrix,
+    refine_rotations,
+    strengthen_certificate,
+)
 from .problem import Problem
 from .relaxation import SdpOptions, evaluate_Z, so3_constraint_matrices, solve_dual_sdp
 from .result import CalibrationResult, Certificate, Status
@@ -235,6 +240,19 @@ def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
                                   cost_floor=prep.cost_floor,
                                   options=options.certificate)
             prep.timing["certify"] = time.perf_counter() - t0
+            if not cert.certified and cert.lambda_min >= -options.certificate.null_tol:
+                # PSD but a larger null space: try the handedness multipliers (cheap 1-D search)
+                t1 = time.perf_counter()
+                Z2, _ = strengthen_certificate(Z, R, null_tol=options.certificate.null_tol)
+                cert2 = certify_from_Z(Z2, lam_s, est.cost, prep.scale, problem.n_frames,
+                                       solver_ok=True, solver_status="local",
+                                       homogeneous=problem.unknown_scale,
+                                       cost_floor=prep.cost_floor,
+                                       options=options.certificate)
+                prep.timing["strengthen"] = time.perf_counter() - t1
+                if cert2.certified:
+                    cert = cert2
+                    notes.append("fast certificate strengthened with handedness multipliers")
             if cert.certified or not options.fallback_to_sdp:
                 res = _result(prep, R, cert, "fast",
                               "converged" if loc.converged else "not converged", 0.0, notes)

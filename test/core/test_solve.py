@@ -164,3 +164,20 @@ def test_real_data_fast_certified(unknown_scale):
     if unknown_scale:
         # the paper: tags ~2.5 % smaller than hand-measured, i.e. alpha ~1.025
         assert 1.0 < res.scale < 1.05
+
+
+def test_fast_certificate_strengthened_on_single_sphere():
+    """Single-sphere trajectories (paper Sec. 8.1) violate eq. (63): the orthogonality-only
+    multipliers then leave e_s in the null space of Z; the handedness direction lifts it and the
+    fast path certifies without the SDP, with the same optimum as the SDP."""
+    from rwhec_ros.core.scenarios import hand_camera_sphere
+
+    rng = np.random.default_rng(0)
+    problem, _ = hand_camera_sphere(rng, sigma=0.01, kappa=125)
+    fast = solve(problem, SolveOptions(mode="fast", fallback_to_sdp=False))
+    assert fast.certified, fast.certificate.message
+    assert "strengthened" in fast.notes[0]
+    assert fast.certificate.eigenvalues[1] > 1e-3  # a clear gap after the single zero
+    sdp = solve(problem, SolveOptions(mode="sdp"))
+    assert sdp.certified
+    assert fast.certificate.primal_cost == pytest.approx(sdp.certificate.primal_cost, rel=1e-9)
