@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -84,9 +85,13 @@ def closed_form_estimate(
     rr = slice(layout.r0, layout.size)
     L = Q_rot[rr, rr]
     d = L.shape[0]
-    if d <= 1000:
+    if d <= 200:
         L = L.toarray() if sp.issparse(L) else np.asarray(L)
         w, V = np.linalg.eigh(L)
+        v = V[:, 0]
+    elif d <= 3000:
+        L = L.toarray() if sp.issparse(L) else np.asarray(L)
+        w, V = scipy.linalg.eigh(L, subset_by_index=[0, 0], driver="evr")
         v = V[:, 0]
     else:
         L = sp.csr_matrix(L)
