@@ -69,10 +69,19 @@ def _z_of(R: np.ndarray) -> np.ndarray:
 
 
 def _basis_jacobian(R: np.ndarray) -> np.ndarray:
-    """``J_l[:, i] = vec(R_l hat(e_i))``, shape (n, 9, 3)."""
-    E = hat(np.eye(3))  # (3, 3, 3): E[i] = hat(e_i)
-    RE = np.einsum("nab,ibc->niac", R, E)  # (n, 3 basis, 3, 3)
-    return np.swapaxes(RE, 2, 3).reshape(R.shape[0], 3, 9).transpose(0, 2, 1)
+    """``J_l[:, i] = vec(R_l hat(e_i))``, shape (n, 9, 3); written out column by column:
+    ``vec(R e1^) = [0, R_3, -R_2]``, ``vec(R e2^) = [-R_3, 0, R_1]``, ``vec(R e3^) = [R_2, -R_1, 0]``
+    with ``R_c`` the columns of ``R``."""
+    n = R.shape[0]
+    J = np.zeros((n, 9, 3))
+    c1, c2, c3 = R[:, :, 0], R[:, :, 1], R[:, :, 2]
+    J[:, 3:6, 0] = c3
+    J[:, 6:9, 0] = -c2
+    J[:, 0:3, 1] = -c3
+    J[:, 6:9, 1] = c1
+    J[:, 0:3, 2] = c2
+    J[:, 3:6, 2] = -c1
+    return J
 
 
 def _grad_hess(Q: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -159,10 +168,11 @@ def fast_certificate_matrix(Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, f
     Gamma = 0.5 * (RtG + np.swapaxes(RtG, 1, 2))
     lambda_s = float(z @ Qz)
     Z = np.array(Q, dtype=float, copy=True)
-    I3 = np.eye(3)
+    # Gamma_l (x) I_3, all l at once: block (a, b) of rotation l is Gamma_l[a, b] I_3
+    kron = np.einsum("lab,ij->laibj", Gamma, np.eye(3)).reshape(n, 9, 9)
     for l in range(n):
         sl = slice(9 * l, 9 * l + 9)
-        Z[sl, sl] -= np.kron(Gamma[l], I3)
+        Z[sl, sl] -= kron[l]
     Z[-1, -1] += float(np.trace(Gamma, axis1=1, axis2=2).sum()) - lambda_s
     return 0.5 * (Z + Z.T), lambda_s
 
