@@ -189,7 +189,8 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),
     ParamSpec("solver.min_pairs", "int", 3, doc="edges with fewer pairs are left out"),
     ParamSpec("solver.reject_outliers", "bool", False,
-              doc="robust pre-pass that drops inconsistent pairs before the solve"),
+              doc="outlier rejection: per-edge RANSAC on eq. (70) (paper Sec. 9.1), then a "
+                  "GNC-TLS robust solve, re-certified on the inlier set"),
     ParamSpec("output.directory", "string", "rwhec_output",
               doc="results, data sets and static-tf launch files go here (never overwritten)"),
     ParamSpec("output.frame_suffix", "string", "_calibrated",

@@ -144,9 +144,14 @@ class SdpOptions:
         Settings passed to Clarabel through cvxpy (e.g. ``tol_gap_abs``, ``tol_gap_rel``,
         ``tol_feas``, ``max_iter``, ``chordal_decomposition_*``). Defaults are Clarabel's 1e-8
         tolerances, which on the scaled problem (optimum ~1) resolve ``rho_hat`` to ~1e-8.
+    form : str
+        ``"reduced"`` (``Q'`` on the rotations), ``"full"`` (``Q`` with the translations kept;
+        sparse, for Clarabel's chordal decomposition) or ``"auto"`` (see
+        :func:`rwhec_ros.core.solve.choose_sdp_form`). Same optimum and multipliers.
     verbose : bool
     """
 
+    form: str = "auto"
     clarabel: dict = field(
         default_factory=lambda: {
             "tol_gap_abs": 1e-8,
@@ -156,6 +161,10 @@ class SdpOptions:
         }
     )
     verbose: bool = False
+
+    def __post_init__(self) -> None:
+        if self.form not in ("auto", "reduced", "full"):
+            raise ValueError(f"form: expected 'auto', 'reduced' or 'full', got {self.form!r}")
 
 
 @dataclass

@@ -19,6 +19,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 from threadpoolctl import ThreadpoolController
 
 from .certificate import CertificateOptions, certify_from_Z
@@ -91,6 +92,7 @@ class _Prepared:
     init_R: np.ndarray
     timing: dict
     cost_floor: float
+    Q: object = None
 
 
 def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
@@ -116,7 +118,8 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
     # conditioned; the same floor is the "zero cost" of the certificate.
     floor = COST_FLOOR_REL * max(float(np.abs(reduced.Qr).max()), 1e-300)
     scale = max(float(init.cost), floor)
-    return _Prepared(problem, layout, reduced, scale, reduced.Qr / scale, init.R, timing, floor)
+    return _Prepared(problem, layout, reduced, scale, reduced.Qr / scale, init.R, timing, floor,
+                     Q)
 
 
 def _result(prep: _Prepared, R: np.ndarray, cert: Certificate, mode: str, solver_status: str,
@@ -139,13 +142,51 @@ def _result(prep: _Prepared, R: np.ndarray, cert: Certificate, mode: str, solver
     )
 
 
+def _full_form(prep: _Prepared) -> tuple[sp.csr_matrix, np.ndarray, int]:
+    """The unreduced SDP data: ``Q`` of eq. (42) on ``z = [t; (alpha); vec R; s]`` (scaled), the
+    offsets of the rotations in ``z`` and its size. For known scale ``alpha`` is ``s``."""
+    layout = prep.layout
+    Q = sp.csr_matrix(prep.Q) / prep.scale
+    n_t, n = layout.n_t, layout.n_frames
+    rot = np.arange(layout.r0, layout.size)
+    if prep.problem.unknown_scale:
+        perm = np.concatenate([np.arange(n_t + 1), rot])
+        Qf = sp.block_diag([Q[perm][:, perm], sp.csr_matrix((1, 1))]).tocsr()
+        offsets = n_t + 1 + 9 * np.arange(n)
+    else:
+        perm = np.concatenate([np.arange(n_t), rot, [layout.alpha]])
+        Qf = Q[perm][:, perm].tocsr()
+        offsets = n_t + 9 * np.arange(n)
+    return Qf, offsets, Qf.shape[0]
+
+
+def choose_sdp_form(prep: _Prepared) -> str:
+    """``auto`` rule: the reduced form unless its rotation block is dense (several Y sharing
+    targets, paper Fig. 4a) while the unreduced ``Q`` is sparse -- then the unreduced form, whose
+    chordal cliques stay small. Measured in ``benchmarks/solver_speed.py``."""
+    n = prep.problem.n_frames
+    if n <= 3:
+        return "reduced"
+    rr = prep.reduced.Qr[: 9 * n, : 9 * n]
+    density = float(np.count_nonzero(rr)) / rr.size
+    return "full" if density > 0.5 else "reduced"
+
+
 def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> CalibrationResult:
     n = prep.problem.n_frames
     d = 9 * n + 1
     t0 = time.perf_counter()
     cons = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
+    form = options.sdp.form if options.sdp.form != "auto" else choose_sdp_form(prep)
+    if form == "full":
+        Qf, offsets, df = _full_form(prep)
+        cons_f = so3_constraint_matrices(offsets, df, df - 1)
     prep.timing["constraints"] = time.perf_counter() - t0
-    sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
+    if form == "full":
+        sol = solve_dual_sdp(Qf, cons_f, options.sdp)
+    else:
+        sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
+    notes.append(f"SDP form: {form}")
     prep.timing["compile"] = sol.compile_s
     prep.timing["solve"] = sol.solve_s
     t1 = time.perf_counter()
