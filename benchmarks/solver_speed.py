@@ -84,7 +84,8 @@ def phase_table(cases, repeats, sdp_limit):
 
 
 def agreement(a, b) -> tuple[float, float]:
-    dt = max(np.abs(a.X[:, :3, 3] - b.X[:, :3, 3]).max(), np.abs(a.Y[:, :3, 3] - b.Y[:, :3, 3]).max())
+    dt = max(np.abs(a.X[:, :3, 3] - b.X[:, :3, 3]).max(),
+             np.abs(a.Y[:, :3, 3] - b.Y[:, :3, 3]).max())
     dr = max(rotation_distance(a.X[:, :3, :3], b.X[:, :3, :3]).max(),
              rotation_distance(a.Y[:, :3, :3], b.Y[:, :3, :3]).max())
     return float(dt), float(dr)
@@ -122,9 +123,11 @@ def versus_opencv(problem, repeats):
     print("|---|---|---|")
     print(f"| OpenCV calibrateRobotWorldHandEye (Shah), bare call on prepared lists | "
           f"{t_bare * 1e3:.2f} | no |")
-    print(f"| OpenCV Shah via our wrapper (frame conversion included) | {t_wrapped * 1e3:.2f} | no |")
+    print(f"| OpenCV Shah via our wrapper (frame conversion included) | "
+          f"{t_wrapped * 1e3:.2f} | no |")
     print(f"| ours, mode fast (closed form + local + certificate) | {t_fast * 1e3:.2f} | "
-          f"{'yes' if res.certified else 'NO'} (rho_hat {res.certificate.suboptimality_bound:.1e}) |")
+          f"{'yes' if res.certified else 'NO'} "
+          f"(rho_hat {res.certificate.suboptimality_bound:.1e}) |")
     verdict = "met" if t_fast <= t_bare else "MISSED"
     print(f"\nTarget 'certified 1X1Y no slower than OpenCV Shah': {verdict} "
           f"(ours {t_fast * 1e3:.2f} ms vs. {t_bare * 1e3:.2f} ms).\n")
@@ -176,8 +179,8 @@ def main(argv=None) -> int:
     ap.add_argument("--sdp-max-frames", type=int, default=11)
     args = ap.parse_args(argv)
 
-    import cvxpy
     import cv2
+    import cvxpy
 
     print("# Solver speed\n")
     print(f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python "

@@ -205,7 +205,7 @@ def direct_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1
     X = np.asarray(X, float)
     Y = np.asarray(Y, float)
     total = 0.0
-    for e, j, k in zip(problem.edges, problem.edge_x, problem.edge_y):
+    for e, j, k in zip(problem.edges, problem.edge_x, problem.edge_y, strict=False):
         RA, tA = e.A[:, :3, :3], e.A[:, :3, 3]
         RB, tB = e.B[:, :3, :3], e.B[:, :3, 3]
         RX, tX = X[j, :3, :3], X[j, :3, 3]

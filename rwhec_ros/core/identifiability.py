@@ -71,7 +71,7 @@ import scipy.sparse as sp
 
 from .cost import StateLayout, build_cost_matrix, reduce_cost
 from .lie import hat, project_to_so3, so3_exp, unvec, vec
-from .problem import Edge, Problem, check_transforms
+from .problem import Edge, Problem, check_precisions, check_transforms
 
 __all__ = [
     "IdentifiabilityStatus",
@@ -176,19 +176,6 @@ class IdentifiabilityThresholds:
 # ----------------------------------------------------------------------------------------------
 # Per-edge sufficient statistics
 # ----------------------------------------------------------------------------------------------
-def _precisions(values, n: int, what: str) -> np.ndarray:
-    arr = np.asarray(values, dtype=float)
-    if arr.ndim == 0:
-        arr = np.full(n, float(arr))
-    if arr.shape != (n,):
-        raise ValueError(f"{what}: expected a scalar or shape ({n},), got shape {arr.shape}")
-    bad = ~np.isfinite(arr) | (arr <= 0)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"{what}[{i}]: must be finite and > 0, got {arr[i]!r}")
-    return arr
-
-
 @dataclass
 class EdgeStatistics:
     """Sufficient statistics of edge ``(x, y)``: sums of per-pair terms, O(1) to update.
@@ -252,8 +239,8 @@ class EdgeStatistics:
             raise ValueError(f"edge ({x}, {y}): {A.shape[0]} A transforms but {B.shape[0]} B")
         n = A.shape[0]
         stats = EdgeStatistics(x=x, y=y)
-        stats.add(A, B, _precisions(sigma, n, f"edge ({x}, {y}) sigma"),
-                  _precisions(kappa, n, f"edge ({x}, {y}) kappa"))
+        stats.add(A, B, check_precisions(sigma, n, what=f"edge ({x}, {y}) sigma"),
+                  check_precisions(kappa, n, what=f"edge ({x}, {y}) kappa"))
         return stats
 
     @staticmethod
@@ -1162,8 +1149,8 @@ class IdentifiabilityTracker:
         if A.shape[0] != B.shape[0]:
             raise ValueError(f"{name}: {A.shape[0]} A transforms but {B.shape[0]} B transforms")
         n = A.shape[0]
-        s = _precisions(sigma, n, f"{name} sigma")
-        k = _precisions(kappa, n, f"{name} kappa")
+        s = check_precisions(sigma, n, what=f"{name} sigma")
+        k = check_precisions(kappa, n, what=f"{name} kappa")
         key = (x, y)
         stats = self._stats.get(key)
         if stats is None:

@@ -5,8 +5,8 @@ Conventions (see README):
 * ``T_a_b`` is a 4x4 homogeneous transform that maps coordinates in frame ``b`` to frame ``a``
   (the paper's ``T_ab``, eq. (2)).
 * Quaternions are ``(x, y, z, w)`` everywhere inside the package (ROS and scipy order). The paper's
-  CSV files store ``(w, x, y, z)``; :func:`quat_wxyz_to_xyzw` / :func:`quat_xyzw_to_wxyz` are the one
-  place where that order is converted.
+  CSV files store ``(w, x, y, z)``; :func:`quat_wxyz_to_xyzw` / :func:`quat_xyzw_to_wxyz` are the
+  one place where that order is converted.
 * ``vec`` is column-major (Fortran) vectorisation, as in the paper's eq. (26).
 
 All functions accept a single object or a stack along the leading axis where noted.

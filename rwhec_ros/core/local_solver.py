@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lie import hat, so3_exp, vee
+from .lie import so3_exp, vee
 
 __all__ = ["LocalSolverOptions", "LocalSolution", "refine_rotations", "fast_certificate_matrix"]
 
@@ -70,7 +70,8 @@ def _z_of(R: np.ndarray) -> np.ndarray:
 
 def _basis_jacobian(R: np.ndarray) -> np.ndarray:
     """``J_l[:, i] = vec(R_l hat(e_i))``, shape (n, 9, 3); written out column by column:
-    ``vec(R e1^) = [0, R_3, -R_2]``, ``vec(R e2^) = [-R_3, 0, R_1]``, ``vec(R e3^) = [R_2, -R_1, 0]``
+    ``vec(R e1^) = [0, R_3, -R_2]``, ``vec(R e2^) = [-R_3, 0, R_1]``,
+    ``vec(R e3^) = [R_2, -R_1, 0]``
     with ``R_c`` the columns of ``R``."""
     n = R.shape[0]
     J = np.zeros((n, 9, 3))

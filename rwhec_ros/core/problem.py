@@ -1,7 +1,7 @@
 """The generalized RWHEC problem model: a bipartite graph of X and Y frames (paper Section 4.5).
 
-Each edge ``e = (j, k)`` joins X-frame ``j`` and Y-frame ``k`` and holds ``N_e >= 1`` measurement pairs
-``(A_i, B_i)`` with ``A_i X_j = Y_k B_i`` (eq. (7)), where ``A`` is the noise-free pose-stream
+Each edge ``e = (j, k)`` joins X-frame ``j`` and Y-frame ``k`` and holds ``N_e >= 1`` measurement
+pairs ``(A_i, B_i)`` with ``A_i X_j = Y_k B_i`` (eq. (7)), where ``A`` is the noise-free pose-stream
 transform and ``B`` the noisy camera-target measurement, together with per-pair precisions
 ``sigma_i`` (translation standard deviation, metres) and ``kappa_i`` (Langevin rotation
 concentration), cf. eq. (32) and footnote 7.
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Edge", "Problem", "check_transforms"]
+__all__ = ["Edge", "Problem", "check_transforms", "check_precisions"]
 
 #: Default tolerance on ``max|R^T R - I|`` and ``|det R - 1|`` for measurement rotations.
 DEFAULT_ROTATION_TOL = 1e-6
@@ -66,7 +66,9 @@ def check_transforms(
     return T
 
 
-def _check_precisions(values, n: int, *, what: str) -> np.ndarray:
+def check_precisions(values, n: int, *, what: str) -> np.ndarray:
+    """Broadcast a scalar or validate an (n,) array of precisions: finite and > 0, else
+    ``ValueError`` naming ``what``, the index and the value."""
     arr = np.asarray(values, dtype=float)
     if arr.ndim == 0:
         arr = np.full(n, float(arr))
@@ -136,8 +138,8 @@ class Edge:
             y=y,
             A=A,
             B=B,
-            sigma=_check_precisions(sigma, n, what=f"{name} sigma"),
-            kappa=_check_precisions(kappa, n, what=f"{name} kappa"),
+            sigma=check_precisions(sigma, n, what=f"{name} sigma"),
+            kappa=check_precisions(kappa, n, what=f"{name} kappa"),
         )
 
 
@@ -246,7 +248,7 @@ class Problem:
                 a = parent[a]
             return a
 
-        for j, k in zip(self.edge_x, self.edge_y):
+        for j, k in zip(self.edge_x, self.edge_y, strict=False):
             ra, rb = find(int(j)), find(self.M + int(k))
             if ra != rb:
                 parent[ra] = rb

@@ -20,8 +20,8 @@ Two forms are supported:
 
 * ``reduced``: ``Q'`` of eq. (48) on ``[vec R; s]`` (translations eliminated): smallest PSD block,
   dense when several Y share targets (paper Fig. 4).
-* ``full``: ``Q`` of eq. (42) on ``[t; (alpha); vec R; s]``: larger but as sparse as the graph, which
-  Clarabel's chordal decomposition exploits.
+* ``full``: ``Q`` of eq. (42) on ``[t; (alpha); vec R; s]``: larger but as sparse as the graph,
+  which Clarabel's chordal decomposition exploits.
 
 Both give the same optimum; certification is always done on the reduced form (rotation
 constraints do not involve translations, so the Schur complement of ``Z_full`` over the

@@ -68,7 +68,9 @@ class Certificate:
         return self.status is Status.CERTIFIED_OPTIMAL
 
     @staticmethod
-    def local_only(primal_cost: float, message: str = "local solution, not certified") -> Certificate:
+    def local_only(
+        primal_cost: float, message: str = "local solution, not certified"
+    ) -> Certificate:
         return Certificate(
             status=Status.LOCAL_ONLY,
             primal_cost=float(primal_cost),
@@ -136,7 +138,7 @@ class CalibrationResult:
         """One mapping per frame: name, role (X or Y), matrix, translation, quaternion_xyzw."""
         out = []
         for role, names, Ts in (("X", self.x_names, self.X), ("Y", self.y_names, self.Y)):
-            for name, T in zip(names, Ts):
+            for name, T in zip(names, Ts, strict=False):
                 q, t = transform_to_quat_xyzw(T)
                 out.append(
                     {

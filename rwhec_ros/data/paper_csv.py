@@ -1,8 +1,8 @@
 """The paper's CSV data layout (``shared/data/paper_real_world/README.md``).
 
-One pair of files per observed edge, ``tag_<j>_cam_<k>_A.csv`` and ``tag_<j>_cam_<k>_B.csv``; row ``i``
-of both forms pair ``i``. Each row: a unit quaternion **w, x, y, z** (scalar first) then a translation
-x, y, z in metres. Tags are the X variables (``tag_<j>``), cameras the Y variables (``cam_<k>``):
+One pair of files per observed edge, ``tag_<j>_cam_<k>_A.csv`` and ``tag_<j>_cam_<k>_B.csv``;
+row ``i`` of both forms pair ``i``. Each row: a unit quaternion **w, x, y, z** (scalar first)
+then a translation x, y, z in metres. Tags are the X variables (``tag_<j>``), cameras the Y variables (``cam_<k>``):
 ``A = T_rig_world``, ``X_j = T_world_tag_j``, ``Y_k = T_rig_cam_k``, ``B = T_cam_k_tag_j``.
 
 The scalar-first order is converted by :func:`rwhec_ros.core.lie.quat_wxyz_to_xyzw` only.
@@ -15,8 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.lie import quat_wxyz_to_xyzw, quat_xyzw_to_wxyz, transform_from_quat_xyzw
-from ..core.lie import transform_to_quat_xyzw
+from ..core.lie import (
+    quat_wxyz_to_xyzw,
+    quat_xyzw_to_wxyz,
+    transform_from_quat_xyzw,
+    transform_to_quat_xyzw,
+)
 from ..core.problem import Edge, Problem
 
 __all__ = ["read_paper_csv", "write_paper_csv", "read_pose_csv", "PAPER_FILE_RE"]

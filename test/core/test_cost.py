@@ -82,7 +82,8 @@ def test_build_time_is_vectorised_linear():
     from rwhec_ros.core.problem import Edge, Problem
 
     e = problem.edges[0]
-    halves = [Problem(["x0"], ["y0"], [Edge.build("x0", "y0", e.A[s], e.B[s], e.sigma[s], e.kappa[s])])
+    halves = [Problem(["x0"], ["y0"],
+                      [Edge.build("x0", "y0", e.A[s], e.B[s], e.sigma[s], e.kappa[s])])
               for s in (slice(0, 25), slice(25, 50))]
     Qsum = build_cost_matrix(halves[0]) + build_cost_matrix(halves[1])
     assert abs(build_cost_matrix(problem) - Qsum).max() < 1e-9

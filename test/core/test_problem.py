@@ -1,4 +1,4 @@
-"""Validation of the problem model (issue: every failure is a ValueError naming edge, index, value)."""
+"""Validation of the problem model: every failure is a ValueError naming edge, index, value."""
 
 import numpy as np
 import pytest
