@@ -2,7 +2,8 @@
 
 One pair of files per observed edge, ``tag_<j>_cam_<k>_A.csv`` and ``tag_<j>_cam_<k>_B.csv``;
 row ``i`` of both forms pair ``i``. Each row: a unit quaternion **w, x, y, z** (scalar first)
-then a translation x, y, z in metres. Tags are the X variables (``tag_<j>``), cameras the Y variables (``cam_<k>``):
+then a translation x, y, z in metres. Tags are the X variables (``tag_<j>``), cameras the Y
+variables (``cam_<k>``):
 ``A = T_rig_world``, ``X_j = T_world_tag_j``, ``Y_k = T_rig_cam_k``, ``B = T_cam_k_tag_j``.
 
 The scalar-first order is converted by :func:`rwhec_ros.core.lie.quat_wxyz_to_xyzw` only.
