@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import collections
 import datetime as _dt
-import enum
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -39,6 +38,14 @@ import yaml
 from .config import CalibratorConfig
 from .core.lie import invert_transform, transform_to_quat_xyzw
 from .core.result import CalibrationResult
+from .data.results import (
+    FrameNaming,
+    new_output_dir,
+    plain,
+    result_document,
+    session_output_paths,
+    write_outputs,
+)
 from .sync.accumulator import PairAccumulator
 from .sync.buffer import LookupStatus, PoseBuffer
 from .vision.detection import DetectorConfig, RejectReason, TagDetector
@@ -517,19 +524,13 @@ class CalibrationSession:
             write_error = ""
         except OSError as exc:
             files, write_error = {}, f"; WRITING OUTPUTS FAILED: {exc}"
-        message = _summary(result, problem, excl, self.config) + write_error
+        message = summary(result, problem, excl, self.config) + write_error
         return SolveOutcome(True, message, result, excl, files, ident, text)
 
     # --- outputs -----------------------------------------------------------------------------
     def published_transforms(self, result: CalibrationResult) -> list[tuple[str, str, np.ndarray]]:
         """``(parent, child, T_parent_child)`` for every estimated frame of ``result``."""
-        frames = self.config.published_frames()
-        out = []
-        for names, Ts in ((result.y_names, result.Y), (result.x_names, result.X)):
-            for name, T in zip(names, Ts, strict=True):
-                parent, child = frames[name]
-                out.append((parent, child, np.asarray(T, dtype=float)))
-        return out
+        return FrameNaming.from_config(self.config).transforms(result)
 
     def result_document(
         self,
@@ -537,54 +538,28 @@ class CalibrationSession:
         excluded: dict[str, str] | None = None,
         identifiability: dict | None = None,
     ) -> dict[str, Any]:
-        """The result YAML as a mapping: ``CalibrationResult.to_dict()`` (``certified``,
-        ``suboptimality_bound``, ``scale``, ``frames``, ``timing_s``, ...) with each frame's
-        ``parent``/``child`` published frame names, plus ``identifiability``, ``excluded_edges``,
-        ``counters`` and ``config`` (the flat parameters)."""
-        doc = result.to_dict()
-        frames = self.config.published_frames()
-        for f in doc["frames"]:
-            parent, child = frames.get(f["name"], ("", ""))
-            f["parent"], f["child"] = parent, child
-        doc["excluded_edges"] = dict(excluded or {})
-        doc["identifiability"] = identifiability
-        doc["counters"] = self.counters()
-        doc["config"] = self.config.to_parameters()
-        return _plain(doc)
+        """The result YAML as a mapping (:func:`rwhec_ros.data.results.result_document`:
+        ``certified``, ``suboptimality_bound``, ``scale``, ``frames`` with published
+        ``parent``/``child``, ``timing_s``, ``identifiability``, ``excluded_edges``, ``config``)
+        plus this session's ``counters``."""
+        doc = result_document(result, FrameNaming.from_config(self.config), excluded=excluded,
+                              identifiability=identifiability,
+                              config=self.config.to_parameters(), source={"type": "session"})
+        doc["counters"] = plain(self.counters())
+        return doc
 
     def _output_dir(self, kind: str) -> Path:
         """A new directory ``<output.directory>/<kind>_<UTC stamp>[_n]`` (never reused)."""
-        root = Path(self.config.output.directory)
-        root.mkdir(parents=True, exist_ok=True)
-        stamp = self._now().astimezone(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S_%fZ")
-        base = f"{kind}_{stamp}"
-        for i in range(1000):
-            path = root / (base if i == 0 else f"{base}_{i}")
-            try:
-                path.mkdir()
-            except FileExistsError:
-                continue
-            return path
-        raise OSError(f"output.directory: could not create a new directory for {base!r}")
+        return new_output_dir(self.config.output.directory, kind, now=self._now())
 
     def _write_outputs(self, result: CalibrationResult, text: str, dataset) -> dict[str, str]:
         out = self._output_dir("calibration")
-        files: dict[str, str] = {}
-        path = out / "result.yaml"
-        with open(path, "x", encoding="utf-8") as fh:
-            fh.write(text)
-        files["result"] = str(path)
-        launch = out / "static_transforms.launch.py"
-        with open(launch, "x", encoding="utf-8") as fh:
-            fh.write(static_transforms_launch(self.published_transforms(result), header=(
-                f"certified: {result.certified}, suboptimality bound "
-                f"{result.certificate.suboptimality_bound:.3g}, created "
-                f"{out.name.split('_', 1)[1]}"
-            )))
-        files["launch"] = str(launch)
-        if dataset is not None:
-            files["dataset"] = _save_dataset(dataset, out / "dataset.yaml")
-        return files
+        launch = static_transforms_launch(self.published_transforms(result), header=(
+            f"certified: {result.certified}, suboptimality bound "
+            f"{result.certificate.suboptimality_bound:.3g}, created {out.name.split('_', 1)[1]}"
+        ))
+        return write_outputs(session_output_paths(out), result_yaml=text, launch_text=launch,
+                             dataset=dataset)
 
     def _dataset_locked(self):
         """A data-set object of the kept pairs (lock held), or None if unavailable."""
@@ -619,7 +594,8 @@ class CalibrationSession:
         if dataset is None or n == 0:
             raise ValueError(f"save_dataset: nothing to save ({n} pairs)")
         target = Path(path) if path is not None else self._output_dir("dataset") / "dataset.yaml"
-        return _save_dataset(dataset, target)
+        saved = dataset.save(target)
+        return str(saved if saved is not None else target)
 
     def reset(self) -> None:
         """Forget poses, pairs, pending images and counters (intrinsics are kept)."""
@@ -784,7 +760,7 @@ def _full_report(problem, result: CalibrationResult) -> dict | None:
 def _report_dict(report) -> dict | None:
     if report is None:
         return None
-    return _plain(report.to_dict())
+    return plain(report.to_dict())
 
 
 def _edge_statuses(report) -> dict[tuple[str, str], tuple[str, bool | None, list[str]]]:
@@ -829,17 +805,10 @@ def solve_problem(
     return robust.result, dropped, notes
 
 
-def _reject_outliers(problem, notes: list[str]):
-    """RANSAC pre-pass only (kept for the CLI until it calls :func:`solve_problem`)."""
-    from .core.outliers import ransac_filter
-
-    report = ransac_filter(problem, rng=np.random.default_rng(0))
-    notes.append(f"RANSAC rejected {report.n_rejected} of {problem.n_measurements} pairs")
-    dropped = {str(edge): f"RANSAC: {reason}" for edge, reason in report.dropped}
-    return report.filtered(problem), dropped
-
-
-def _summary(result: CalibrationResult, problem, excluded: dict, config) -> str:
+def summary(result: CalibrationResult, problem, excluded: dict, config) -> str:
+    """The short summary of the ``calibrate`` service and the CLI: certified?, rho_hat, each
+    frame's result, edges excluded and why. ``config`` names the published frames (a
+    :class:`CalibratorConfig` or :class:`~rwhec_ros.data.results.FrameNaming`)."""
     c = result.certificate
     head = (
         f"CERTIFIED globally optimal (rho_hat={c.suboptimality_bound:.2e})"
@@ -870,26 +839,6 @@ def _summary(result: CalibrationResult, problem, excluded: dict, config) -> str:
     if result.notes:
         parts.append("notes: " + " | ".join(result.notes))
     return "; ".join(parts)
-
-
-def _plain(obj: Any) -> Any:
-    """Plain Python (YAML-safe) copy of nested dicts/lists/tuples/numpy values."""
-    if isinstance(obj, dict):
-        return {str(k) if not isinstance(k, str) else k: _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _plain(obj.tolist())
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, enum.Enum):
-        return obj.value
-    return obj
-
-
-def _save_dataset(dataset, path: Path) -> str:
-    result = dataset.save(path)
-    return str(result if result is not None else path)
 
 
 def static_transforms_launch(

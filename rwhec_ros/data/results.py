@@ -1,0 +1,274 @@
+"""Calibration outputs: frame naming, the result YAML, output paths, writing and reading back.
+
+One module for every entry point: the live session (:class:`rwhec_ros.session.CalibrationSession`)
+writes into a new timestamped directory (``result.yaml``, ``static_transforms.launch.py``,
+``dataset.yaml``), and the offline CLI, which solves a :class:`~rwhec_ros.core.problem.Problem`
+read from files (the paper's CSV layout, a saved data set), writes the same files with the same
+keys, possibly beside an explicit result path. Nothing here knows a ROS message.
+
+* :class:`FrameNaming` says under which ``(parent, child)`` each estimated frame is published
+  (from a :class:`~rwhec_ros.config.CalibratorConfig` or from two carrier frame names).
+* :func:`result_document` is the result YAML mapping (``certified``, ``suboptimality_bound``,
+  ``scale``, ``frames`` with ``parent``/``child``, ``timing_s``, ``identifiability``,
+  ``excluded_edges``, ``config``, ...).
+* :class:`OutputPaths` / :func:`output_paths` name the files beside an explicit result path
+  (``OUT.yaml``, ``OUT.launch.py``, ``OUT.dataset.yaml``, ``OUT.report.png``,
+  ``OUT.report.html``); :func:`new_output_dir` makes a new timestamped directory like the
+  session's; :func:`write_outputs` writes them, refusing to overwrite unless ``force``.
+* :func:`load_result` reads a result YAML back (for ``rwhec-calibrate report``).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import enum
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ..core.result import CalibrationResult
+
+__all__ = [
+    "FrameNaming",
+    "result_document",
+    "OutputPaths",
+    "output_paths",
+    "session_output_paths",
+    "new_output_dir",
+    "write_outputs",
+    "load_result",
+    "plain",
+    "RESULT_KEYS",
+]
+
+#: Keys every result YAML has (the acceptance keys plus identifiability and configuration).
+RESULT_KEYS = ("certified", "suboptimality_bound", "scale", "frames", "timing_s",
+               "identifiability", "config")
+
+
+@dataclass(frozen=True)
+class FrameNaming:
+    """Where each estimated frame is published: variable name -> ``(parent, child)``.
+
+    It offers the three members of :class:`~rwhec_ros.config.CalibratorConfig` that the session's
+    summary and outputs use (``x_names``, ``y_names``, :meth:`published_frames`).
+
+    Attributes
+    ----------
+    x_names, y_names : tuple of str
+        X frames (tags) and Y frames (cameras).
+    frames : dict of str to (str, str)
+        ``name -> (parent, child)``: cameras ``(camera carrier, <name><suffix>)``, tags
+        ``(tag carrier, <name><suffix>)`` unless configured otherwise.
+    """
+
+    x_names: tuple[str, ...]
+    y_names: tuple[str, ...]
+    frames: dict[str, tuple[str, str]]
+
+    def published_frames(self) -> dict[str, tuple[str, str]]:
+        return dict(self.frames)
+
+    @staticmethod
+    def from_carriers(
+        x_names: Sequence[str],
+        y_names: Sequence[str],
+        *,
+        camera_carrier: str,
+        tag_carrier: str,
+        suffix: str = "_calibrated",
+        carriers: Mapping[str, str] | None = None,
+    ) -> FrameNaming:
+        """Cameras (Y) published under ``camera_carrier``, tags (X) under ``tag_carrier``, child
+        frame ``<name><suffix>``; ``carriers`` (frame -> carrier, e.g.
+        :attr:`rwhec_ros.data.dataset.Dataset.carriers`) overrides the parent per frame."""
+        carriers = dict(carriers or {})
+        frames = {}
+        for names, default in ((y_names, camera_carrier), (x_names, tag_carrier)):
+            for n in names:
+                frames[n] = (carriers.get(n, default), n + suffix)
+        return FrameNaming(tuple(x_names), tuple(y_names), frames)
+
+    @staticmethod
+    def from_config(config) -> FrameNaming:
+        """The naming of a :class:`~rwhec_ros.config.CalibratorConfig`."""
+        return FrameNaming(tuple(config.x_names), tuple(config.y_names),
+                           dict(config.published_frames()))
+
+    def transforms(self, result: CalibrationResult) -> list[tuple[str, str, np.ndarray]]:
+        """``(parent, child, T_parent_child)`` of every estimated frame, cameras first (the order
+        of :meth:`~rwhec_ros.session.CalibrationSession.published_transforms`)."""
+        out = []
+        for names, Ts in ((result.y_names, result.Y), (result.x_names, result.X)):
+            for name, T in zip(names, Ts, strict=True):
+                parent, child = self.frames.get(name, ("", name))
+                out.append((parent, child, np.asarray(T, dtype=float)))
+        return out
+
+
+def plain(obj: Any) -> Any:
+    """Plain YAML-safe Python of nested dicts/lists/tuples/numpy values/enums."""
+    if isinstance(obj, Mapping):
+        return {str(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return plain(obj.tolist())
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, enum.Enum):
+        return obj.value
+    return obj
+
+
+def result_document(
+    result: CalibrationResult,
+    naming: FrameNaming,
+    *,
+    excluded: Mapping[str, str] | None = None,
+    identifiability: Mapping[str, Any] | None = None,
+    config: Mapping[str, Any] | None = None,
+    source: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The result YAML mapping, with the keys of the session's
+    :meth:`~rwhec_ros.session.CalibrationSession.result_document`.
+
+    ``CalibrationResult.to_dict()`` (``certified``, ``suboptimality_bound``, ``scale``, ``mode``,
+    ``frames`` (name, role, matrix, translation, quaternion_xyzw), ``timing_s``, certificate
+    details), each frame's published ``parent``/``child``, ``excluded_edges`` (``"(x, y)"`` ->
+    reason), ``identifiability`` (``IdentifiabilityReport.to_dict()``), ``config`` (flat dotted
+    calibrator parameters, as far as they apply) and ``source`` (where the data came from).
+    """
+    doc = result.to_dict()
+    frames = naming.published_frames()
+    for f in doc["frames"]:
+        f["parent"], f["child"] = frames.get(f["name"], ("", f["name"]))
+    doc["excluded_edges"] = dict(excluded or {})
+    doc["identifiability"] = None if identifiability is None else dict(identifiability)
+    doc["config"] = dict(config or {})
+    doc["source"] = dict(source or {})
+    return plain(doc)
+
+
+@dataclass(frozen=True)
+class OutputPaths:
+    """The files of one calibration run (all in one directory)."""
+
+    result: Path
+    launch: Path
+    dataset: Path
+    report_png: Path
+    report_html: Path
+
+    def all(self) -> tuple[Path, ...]:
+        return (self.result, self.launch, self.dataset, self.report_png, self.report_html)
+
+
+def output_paths(result_path: str | Path) -> OutputPaths:
+    """Files beside an explicit result path ``OUT.yaml``: ``OUT.launch.py``,
+    ``OUT.dataset.yaml``, ``OUT.report.png`` and ``OUT.report.html`` (same stem)."""
+    p = Path(result_path)
+    stem = p.with_suffix("") if p.suffix in (".yaml", ".yml") else p
+    base = stem.name
+    return OutputPaths(
+        result=p,
+        launch=p.with_name(base + ".launch.py"),
+        dataset=p.with_name(base + ".dataset.yaml"),
+        report_png=p.with_name(base + ".report.png"),
+        report_html=p.with_name(base + ".report.html"),
+    )
+
+
+def session_output_paths(directory: str | Path) -> OutputPaths:
+    """The files of a session output directory (``result.yaml``,
+    ``static_transforms.launch.py``, ``dataset.yaml``) plus ``report.png``/``report.html``."""
+    d = Path(directory)
+    return OutputPaths(d / "result.yaml", d / "static_transforms.launch.py", d / "dataset.yaml",
+                       d / "report.png", d / "report.html")
+
+
+def new_output_dir(root: str | Path, kind: str = "calibration",
+                   now: _dt.datetime | None = None) -> Path:
+    """A new directory ``<root>/<kind>_<UTC stamp>[_n]`` (never reused), named like the
+    session's output directories."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    now = now if now is not None else _dt.datetime.now(_dt.timezone.utc)
+    base = f"{kind}_{now.astimezone(_dt.timezone.utc).strftime('%Y%m%dT%H%M%S_%fZ')}"
+    for i in range(1000):
+        path = root / (base if i == 0 else f"{base}_{i}")
+        try:
+            path.mkdir()
+        except FileExistsError:
+            continue
+        return path
+    raise OSError(f"{root}: could not create a new directory for {base!r}")
+
+
+def write_outputs(
+    paths: OutputPaths,
+    *,
+    result_yaml: str,
+    launch_text: str,
+    dataset=None,
+    force: bool = False,
+) -> dict[str, str]:
+    """Write the result YAML, the launch file and (optionally) the data set.
+
+    Nothing is written when any target exists and ``force`` is False: ``FileExistsError``
+    naming the existing files. Returns ``{"result", "launch"[, "dataset"]}`` -> path.
+    """
+    targets = [paths.result, paths.launch]
+    if dataset is not None:  # Dataset.save writes its arrays to <stem>.npz when large
+        targets += [paths.dataset, paths.dataset.with_suffix(".npz")]
+    existing = [str(p) for p in targets if p.exists()]
+    if existing and not force:
+        raise FileExistsError(
+            f"refusing to overwrite existing file(s) {existing} (use --force to overwrite)"
+        )
+    paths.result.parent.mkdir(parents=True, exist_ok=True)
+    mode = "w" if force else "x"
+    with open(paths.result, mode, encoding="utf-8") as fh:
+        fh.write(result_yaml)
+    with open(paths.launch, mode, encoding="utf-8") as fh:
+        fh.write(launch_text)
+    files = {"result": str(paths.result), "launch": str(paths.launch)}
+    if dataset is not None:
+        files["dataset"] = str(dataset.save(paths.dataset))
+    return files
+
+
+def load_result(path: str | Path) -> dict[str, Any]:
+    """Read a result YAML written by the session or the CLI.
+
+    Raises ``ValueError`` naming the file and the missing or malformed key.
+    """
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read ({exc})") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not valid YAML: {exc}") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: expected a YAML mapping, got {type(doc).__name__}")
+    for key in ("certified", "suboptimality_bound", "scale", "frames"):
+        if key not in doc:
+            raise ValueError(f"{path}: missing key {key!r} (not a calibration result)")
+    if not isinstance(doc["frames"], list):
+        raise ValueError(f"{path}: key 'frames': expected a list, got {doc['frames']!r}")
+    for i, f in enumerate(doc["frames"]):
+        if not isinstance(f, dict) or not {"name", "role", "matrix"} <= set(f):
+            raise ValueError(f"{path}: frames[{i}]: expected name, role and matrix, got {f!r}")
+        T = np.asarray(f["matrix"], dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError(f"{path}: frames[{i}] ({f['name']}): matrix must be a finite 4x4, "
+                             f"got {f['matrix']!r}")
+        if f["role"] not in ("X", "Y"):
+            raise ValueError(f"{path}: frames[{i}] ({f['name']}): role must be 'X' or 'Y', "
+                             f"got {f['role']!r}")
+    return doc

@@ -1,0 +1,528 @@
+"""rosbag2 recordings without ROS: read messages in log-time order, an offline tf tree, writing.
+
+Reading uses ``rosbags`` (:class:`rosbags.rosbag2.Reader`, sqlite3 or mcap storage) with the
+ROS 2 Jazzy type store (``Stores.ROS2_JAZZY``); the messages it returns are dataclasses with the
+same field names as rclpy's, so :mod:`rwhec_ros.ros.conversions` and
+:class:`rwhec_ros.ros.handlers.MessageHandlers` take them unchanged.
+
+* :func:`bag_topics` and :func:`read_messages` list the topics and yield
+  ``(topic, log_time_ns, msg)`` in log-time order (the order in which the node would have
+  received them), for the selected topics only, with an optional progress callback.
+* :class:`TfTree` answers ``lookup(parent, child, stamp_ns) = T_parent_child`` from the whole
+  recording's ``/tf`` and ``/tf_static``: chains of links, each dynamic link interpolated on
+  SE(3) by a :class:`~rwhec_ros.sync.buffer.PoseBuffer` (``max_gap_ns``, ``tolerance_ns``).
+* :func:`message_from_fields` and :func:`write_bag` write bags (used by the tests): messages
+  are described by the field dicts of :mod:`rwhec_ros.ros.conversions` and built as
+  ``rosbags`` messages. :func:`simulated_stream` is the sensor stream of the simulated rig
+  (poses and rendered images in stamp order, also used by ``rwhec-calibrate demo``);
+  :func:`simulation_messages` turns it into the messages ``rwhec_demo_sim`` publishes and
+  :func:`write_simulated_bag` records them.
+
+Frames: ``T_parent_child`` maps child coordinates to parent coordinates (tf2's convention, the
+transform of a ``TransformStamped`` with ``header.frame_id = parent``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..core.lie import invert_transform
+from ..sync.buffer import PoseBuffer
+
+__all__ = [
+    "BagMessage",
+    "jazzy_typestore",
+    "bag_topics",
+    "read_messages",
+    "TfTree",
+    "message_from_fields",
+    "write_bag",
+    "write_simulated_bag",
+    "SimulatedSample",
+    "simulated_stream",
+    "simulation_messages",
+    "POSE_STAMPED",
+    "TRANSFORM_STAMPED",
+    "TF_MESSAGE",
+    "IMAGE",
+    "CAMERA_INFO",
+]
+
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+IMAGE = "sensor_msgs/msg/Image"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+
+_STORAGES = ("sqlite3", "mcap")
+_NS = 1_000_000_000
+
+
+class BagMessage(NamedTuple):
+    """One deserialised message: ``topic``, bag log time ``log_time_ns`` [ns], ``msgtype``
+    (e.g. ``sensor_msgs/msg/Image``) and the ``rosbags`` message ``msg``."""
+
+    topic: str
+    log_time_ns: int
+    msgtype: str
+    msg: Any
+
+
+def jazzy_typestore():
+    """The ``rosbags`` type store of ROS 2 Jazzy's message definitions."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _open_reader(path: str | Path):
+    from rosbags.rosbag2 import Reader
+
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"bag {str(path)!r}: no such file or directory")
+    try:
+        reader = Reader(path)
+        reader.open()
+    except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag
+        raise ValueError(
+            f"bag {str(path)!r}: cannot open as a rosbag2 recording ({type(exc).__name__}: {exc})"
+        ) from None
+    return reader
+
+
+def bag_topics(path: str | Path) -> dict[str, tuple[str, int]]:
+    """Topics of a rosbag2 recording: ``topic -> (msgtype, message count)``.
+
+    Raises ``ValueError`` naming the path when it is not a readable rosbag2 directory/file.
+    """
+    reader = _open_reader(path)
+    try:
+        out: dict[str, tuple[str, int]] = {}
+        for c in reader.connections:
+            msgtype, n = out.get(c.topic, (c.msgtype, 0))
+            out[c.topic] = (msgtype, n + int(c.msgcount))
+        return out
+    finally:
+        reader.close()
+
+
+def read_messages(
+    path: str | Path,
+    topics: Iterable[str],
+    *,
+    typestore=None,
+    on_progress: Callable[[int, int], None] | None = None,
+) -> Iterator[BagMessage]:
+    """Yield the messages of ``topics`` in log-time order, deserialised.
+
+    Parameters
+    ----------
+    path : str or Path
+        The rosbag2 directory (or a single ``.mcap``/``.db3`` file, as ``rosbags`` allows).
+    topics : iterable of str
+        Topics to read; others are skipped without being deserialised. Topics absent from the
+        bag are ignored (check with :func:`bag_topics`).
+    typestore : rosbags Typestore, optional
+        Default :func:`jazzy_typestore`.
+    on_progress : callable(done, total), optional
+        Called after every message with the number yielded so far and the total of the selected
+        connections.
+
+    Raises
+    ------
+    ValueError
+        Unreadable bag, or a message that cannot be deserialised (naming topic and log time).
+    """
+    wanted = set(topics)
+    store = typestore if typestore is not None else jazzy_typestore()
+    reader = _open_reader(path)
+    try:
+        conns = [c for c in reader.connections if c.topic in wanted]
+        total = sum(int(c.msgcount) for c in conns)
+        done = 0
+        if not conns:
+            return
+        for conn, log_time, raw in reader.messages(connections=conns):
+            try:
+                msg = store.deserialize_cdr(raw, conn.msgtype)
+            except Exception as exc:  # noqa: BLE001 - unknown type or corrupt payload
+                raise ValueError(
+                    f"bag {str(path)!r}: cannot deserialise a {conn.msgtype} message on "
+                    f"{conn.topic} at log time {log_time} ns ({type(exc).__name__}: {exc})"
+                ) from None
+            done += 1
+            yield BagMessage(conn.topic, int(log_time), conn.msgtype, msg)
+            if on_progress is not None:
+                on_progress(done, total)
+    finally:
+        reader.close()
+
+
+# ------------------------------------------------------------------------------------------------
+# offline tf
+
+
+class TfTree:
+    """tf over a whole recording: ``T_parent_child`` at any stamp, through chains of links.
+
+    Each frame has one parent (the latest one declared wins, as in tf2). A static link
+    (``/tf_static``) holds at every stamp; a dynamic link (``/tf``) is held in a
+    :class:`~rwhec_ros.sync.buffer.PoseBuffer` and interpolated on SE(3) between samples at
+    most ``max_gap_ns`` apart, or served from a sample within ``tolerance_ns`` (zero-order
+    hold; no extrapolation of motion).
+
+    Parameters
+    ----------
+    max_gap_ns : int
+        Largest gap [ns] between two samples of a link that is interpolated
+        (``sync.max_gap_s`` of the configuration).
+    tolerance_ns : int
+        A stamp this close [ns] to a sample it cannot be interpolated around gets that sample
+        (``sync.extrapolation_tolerance_s``).
+    """
+
+    def __init__(self, *, max_gap_ns: int, tolerance_ns: int = 0) -> None:
+        self.max_gap_ns = int(max_gap_ns)
+        self.tolerance_ns = int(tolerance_ns)
+        if self.max_gap_ns < 1:
+            raise ValueError(f"max_gap_ns: must be >= 1, got {max_gap_ns!r}")
+        if self.tolerance_ns < 0:
+            raise ValueError(f"tolerance_ns: must be >= 0, got {tolerance_ns!r}")
+        self._parent: dict[str, str] = {}
+        self._static: dict[str, np.ndarray] = {}
+        self._dynamic: dict[str, PoseBuffer] = {}
+        self.rejected = 0
+
+    def add(self, parent: str, child: str, stamp_ns: int, T_parent_child: np.ndarray,
+            *, static: bool) -> bool:
+        """Add one link sample; returns False (counted in ``rejected``) for an invalid one."""
+        if not parent or not child or parent == child:
+            self.rejected += 1
+            return False
+        if self._parent.get(child) != parent:  # new or re-parented frame: start afresh
+            self._static.pop(child, None)
+            self._dynamic.pop(child, None)
+            self._parent[child] = parent
+        if static:
+            T = np.asarray(T_parent_child, dtype=float)
+            if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+                self.rejected += 1
+                return False
+            self._static[child] = T.copy()
+            self._dynamic.pop(child, None)
+            return True
+        buf = self._dynamic.get(child)
+        if buf is None:
+            buf = self._dynamic[child] = PoseBuffer(
+                capacity=2**62, max_gap_ns=self.max_gap_ns,
+                extrapolation_tol_ns=self.tolerance_ns, backwards_jump_ns=2**62,
+            )
+        ok = buf.add(int(stamp_ns), T_parent_child)
+        self.rejected += not ok
+        return bool(ok)
+
+    def add_message(self, msg: Any, *, static: bool) -> int:
+        """Add every ``TransformStamped`` of a ``tf2_msgs/TFMessage``; returns how many were
+        stored (bad ones are counted in ``rejected``, never raised)."""
+        from ..ros.conversions import transform_stamped_to_transform
+
+        n = 0
+        for tfm in msg.transforms:
+            try:
+                stamp, parent, child, T = transform_stamped_to_transform(tfm)
+            except (ValueError, TypeError, AttributeError):
+                self.rejected += 1
+                continue
+            n += self.add(parent, child, stamp, T, static=static)
+        return n
+
+    @property
+    def frames(self) -> set[str]:
+        """Every frame that appears as a parent or a child."""
+        return set(self._parent) | set(self._parent.values())
+
+    def _to_root(self, frame: str, stamp_ns: int) -> tuple[str, np.ndarray]:
+        """``(root, T_root_frame)`` at ``stamp_ns``; ``LookupError`` naming the failing link."""
+        T = np.eye(4)
+        seen = {frame}
+        while frame in self._parent:
+            parent = self._parent[frame]
+            if frame in self._static:
+                link = self._static[frame]
+            else:
+                buf = self._dynamic[frame]
+                link = buf.lookup(stamp_ns)
+                if link is None:
+                    status = buf.lookup_status(stamp_ns).value
+                    raise LookupError(
+                        f"no transform {parent} -> {frame} at {stamp_ns} ns ({status}; "
+                        f"{len(buf)} samples)"
+                    )
+            T = link @ T
+            frame = parent
+            if frame in seen:
+                raise LookupError(f"tf loop through frame {frame!r}")
+            seen.add(frame)
+        return frame, T
+
+    def lookup(self, parent: str, child: str, stamp_ns: int) -> np.ndarray:
+        """``T_parent_child`` (4, 4) at ``stamp_ns``.
+
+        Raises ``LookupError`` when a frame is unknown, the two frames are not connected, or a
+        dynamic link has no sample close enough to the stamp.
+        """
+        for f in (parent, child):
+            if f not in self.frames:
+                raise LookupError(f"frame {f!r} does not appear on /tf or /tf_static")
+        root_p, T_root_parent = self._to_root(parent, stamp_ns)
+        root_c, T_root_child = self._to_root(child, stamp_ns)
+        if root_p != root_c:
+            raise LookupError(
+                f"frames {parent!r} and {child!r} are not connected (trees rooted at "
+                f"{root_p!r} and {root_c!r})"
+            )
+        return invert_transform(T_root_parent) @ T_root_child
+
+
+# ------------------------------------------------------------------------------------------------
+# writing
+
+_BASE_DTYPES = {
+    "bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8,
+    "int8": np.int8, "uint8": np.uint8, "int16": np.int16, "uint16": np.uint16,
+    "int32": np.int32, "uint32": np.uint32, "int64": np.int64, "uint64": np.uint64,
+    "float32": np.float32, "float64": np.float64,
+}
+
+
+def _field_value(store, kind: int, spec: Any, value: Any, where: str) -> Any:
+    from rosbags.interfaces import Nodetype
+
+    if kind == Nodetype.NAME:
+        if value is not None and not isinstance(value, Mapping):
+            return value  # already a message object
+        return message_from_fields(spec, value or {}, typestore=store, where=where)
+    if kind == Nodetype.BASE:
+        name = spec[0]
+        if name in ("string", "wstring"):
+            return "" if value is None else str(value)
+        dtype = _BASE_DTYPES[name]
+        if value is None:
+            value = 0
+        return bool(value) if name == "bool" else dtype(value).item()
+    # ARRAY (fixed length) or SEQUENCE
+    (sub_kind, sub_spec), length = spec
+    if sub_kind == Nodetype.BASE and sub_spec[0] in _BASE_DTYPES:
+        dtype = _BASE_DTYPES[sub_spec[0]]
+        if value is None:
+            arr = np.zeros(length if kind == Nodetype.ARRAY else 0, dtype=dtype)
+        elif isinstance(value, (bytes, bytearray, memoryview)):
+            arr = np.frombuffer(bytes(value), dtype=dtype).copy()
+        else:
+            arr = np.asarray(value, dtype=dtype).reshape(-1)
+        if kind == Nodetype.ARRAY and arr.shape[0] != length:
+            raise ValueError(f"{where}: expected {length} elements, got {arr.shape[0]}")
+        return arr
+    items = list(value or [])
+    return [_field_value(store, sub_kind, sub_spec, v, f"{where}[{i}]")
+            for i, v in enumerate(items)]
+
+
+def message_from_fields(msgtype: str, fields: Mapping[str, Any], *, typestore=None,
+                        where: str | None = None) -> Any:
+    """A ``rosbags`` message of type ``msgtype`` from a nested field dict.
+
+    The dicts are those of :mod:`rwhec_ros.ros.conversions` (``*_fields`` functions); missing
+    fields take ROS defaults (zero, empty string, zero-filled fixed arrays, empty sequences),
+    ``bytes`` become ``uint8`` arrays. Raises ``ValueError`` for an unknown field or type.
+    """
+    store = typestore if typestore is not None else jazzy_typestore()
+    where = where or msgtype
+    if msgtype not in store.fielddefs:
+        raise ValueError(f"{where}: unknown message type {msgtype!r}")
+    _, defs = store.fielddefs[msgtype]
+    names = {name for name, _ in defs}
+    extra = sorted(set(fields) - names)
+    if extra:
+        raise ValueError(f"{where}: unknown fields {extra} for {msgtype} (fields {sorted(names)})")
+    kwargs = {
+        name: _field_value(store, kind, spec, fields.get(name), f"{where}.{name}")
+        for name, (kind, spec) in defs
+    }
+    return store.types[msgtype](**kwargs)
+
+
+def write_bag(
+    path: str | Path,
+    messages: Iterable[tuple[str, str, int, Any]],
+    *,
+    storage: str = "sqlite3",
+    typestore=None,
+) -> Path:
+    """Write a rosbag2 recording (``rosbags.rosbag2.Writer``, bag version 9).
+
+    Parameters
+    ----------
+    path : str or Path
+        The bag directory to create (must not exist).
+    messages : iterable of (topic, msgtype, log_time_ns, msg)
+        ``msg`` a ``rosbags`` message (see :func:`message_from_fields`); one connection per
+        topic, its type fixed by the first message.
+    storage : {"sqlite3", "mcap"}
+
+    Returns
+    -------
+    Path
+        The bag directory.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    if storage not in _STORAGES:
+        raise ValueError(f"storage: expected one of {list(_STORAGES)}, got {storage!r}")
+    path = Path(path)
+    if path.exists():
+        raise ValueError(f"bag {str(path)!r}: already exists (never overwritten)")
+    store = typestore if typestore is not None else jazzy_typestore()
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    conns: dict[str, Any] = {}
+    with Writer(path, version=9, storage_plugin=plugin) as writer:
+        for topic, msgtype, log_time_ns, msg in messages:
+            conn = conns.get(topic)
+            if conn is None:
+                conn = conns[topic] = writer.add_connection(topic, msgtype, typestore=store)
+            elif conn.msgtype != msgtype:
+                raise ValueError(f"topic {topic}: {msgtype} after {conn.msgtype}")
+            writer.write(conn, int(log_time_ns), store.serialize_cdr(msg, msgtype))
+    return path
+
+
+class SimulatedSample(NamedTuple):
+    """One sample of :func:`simulated_stream`: a pose (``camera`` None, ``data`` the measured
+    ``T_world_rig`` (4, 4)) or an image (``data`` the (H, W) uint8 image of ``camera``)."""
+
+    stamp_ns: int
+    camera: str | None
+    data: np.ndarray
+
+
+def simulated_stream(
+    rig,
+    rng: np.random.Generator,
+    *,
+    seconds: float,
+    image_rate_hz: float = 5.0,
+    pose_rate_hz: float = 100.0,
+    pose_noise_m: float = 5e-4,
+    pose_noise_rad: float = 5e-4,
+    image_noise_std: float = 2.0,
+    supersample: int = 2,
+    start_ns: int = _NS,
+) -> Iterator[SimulatedSample]:
+    """The sensor stream of a :class:`~rwhec_ros.simulation.SimulatedRig` in stamp order.
+
+    Poses ``T_world_rig`` (measured: Gaussian noise ``pose_noise_m`` [m] and ``pose_noise_rad``
+    [rad] per axis) every ``1 / pose_rate_hz`` seconds from simulation time 0 to ``seconds``;
+    one image per camera every ``1 / image_rate_hz`` seconds, rendered at the TRUE pose, with
+    stamps half a pose period after a pose (so that the session interpolates ``A``). Stamps are
+    ``start_ns`` + simulation time [ns]; at equal stamps cameras come in ``rig.cameras`` order.
+    """
+    for name, value in (("seconds", seconds), ("image_rate_hz", image_rate_hz),
+                        ("pose_rate_hz", pose_rate_hz)):
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
+    pose_period_ns = int(round(_NS / pose_rate_hz))
+    image_period_ns = int(round(_NS / image_rate_hz))
+    end_ns = int(round(seconds * _NS))
+    poses = [(s, 0) for s in range(0, end_ns + 1, pose_period_ns)]
+    images = [(s, 1) for s in range(pose_period_ns // 2, end_ns, image_period_ns)]
+    for s, kind in sorted(poses + images):
+        t = s / _NS
+        if kind == 0:
+            T = rig.pose_measurement(t, rng, pose_noise_m, pose_noise_rad)
+            yield SimulatedSample(start_ns + s, None, T)
+            continue
+        T_world_rig = rig.T_world_rig(t)
+        for cam in rig.cameras:
+            gray = rig.render(cam, T_world_rig, rng, noise_std=image_noise_std,
+                              supersample=supersample)
+            yield SimulatedSample(start_ns + s, cam, gray)
+
+
+def simulation_messages(
+    rig,
+    samples: Iterable[SimulatedSample],
+    *,
+    pose_source: str = "topic",
+    pose_topic: str | None = None,
+    typestore=None,
+) -> Iterator[tuple[str, str, int, Any]]:
+    """The messages ``rwhec_demo_sim`` would publish for ``samples`` (:func:`simulated_stream`),
+    as ``(topic, msgtype, log_time_ns, msg)`` for :func:`write_bag`; log time = header stamp.
+
+    Poses ``T_world_rig``: ``pose_source="topic"`` a ``PoseStamped`` on ``pose_topic`` (default
+    :data:`~rwhec_ros.simulation.DEMO_POSE_TOPIC`, ``header.frame_id = world``), ``"tf"``
+    ``world -> rig`` on ``/tf``, ``"both"`` both. Images: a camera info and a ``mono8`` image on
+    the camera's demo topics, ``header.frame_id = <camera>_optical``.
+    """
+    from ..ros.conversions import (
+        gray_to_image_fields,
+        intrinsics_to_camera_info_fields,
+        transform_to_pose_stamped_fields,
+        transform_to_transform_stamped_fields,
+    )
+    from ..simulation import (
+        DEMO_POSE_TOPIC,
+        DEMO_RIG_FRAME,
+        DEMO_WORLD_FRAME,
+        demo_camera_topics,
+    )
+
+    if pose_source not in ("topic", "tf", "both"):
+        raise ValueError(f"pose_source: expected 'topic', 'tf' or 'both', got {pose_source!r}")
+    store = typestore if typestore is not None else jazzy_typestore()
+    topic = pose_topic or DEMO_POSE_TOPIC
+    for stamp, cam, data in samples:
+        if cam is None:
+            if pose_source in ("topic", "both"):
+                fields = transform_to_pose_stamped_fields(data, DEMO_WORLD_FRAME, stamp)
+                yield topic, POSE_STAMPED, stamp, message_from_fields(
+                    POSE_STAMPED, fields, typestore=store)
+            if pose_source in ("tf", "both"):
+                fields = transform_to_transform_stamped_fields(
+                    data, DEMO_WORLD_FRAME, DEMO_RIG_FRAME, stamp)
+                yield "/tf", TF_MESSAGE, stamp, message_from_fields(
+                    TF_MESSAGE, {"transforms": [fields]}, typestore=store)
+            continue
+        image_topic, info_topic = demo_camera_topics(cam)
+        frame = f"{cam}_optical"
+        info = intrinsics_to_camera_info_fields(rig.intrinsics[cam], stamp, frame)
+        yield info_topic, CAMERA_INFO, stamp, message_from_fields(
+            CAMERA_INFO, info, typestore=store)
+        yield image_topic, IMAGE, stamp, message_from_fields(
+            IMAGE, gray_to_image_fields(data, stamp, frame), typestore=store)
+
+
+def write_simulated_bag(
+    path: str | Path,
+    rig,
+    rng: np.random.Generator,
+    *,
+    seconds: float,
+    pose_source: str = "topic",
+    pose_topic: str | None = None,
+    storage: str = "sqlite3",
+    **stream_options,
+) -> Path:
+    """Render a :class:`~rwhec_ros.simulation.SimulatedRig` into a rosbag2 recording:
+    :func:`simulated_stream` (``seconds``, ``stream_options``) through
+    :func:`simulation_messages` (``pose_source``, ``pose_topic``) into :func:`write_bag`."""
+    store = jazzy_typestore()
+    samples = simulated_stream(rig, rng, seconds=seconds, **stream_options)
+    messages = simulation_messages(rig, samples, pose_source=pose_source,
+                                   pose_topic=pose_topic, typestore=store)
+    return write_bag(path, messages, storage=storage, typestore=store)

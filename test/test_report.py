@@ -1,0 +1,84 @@
+"""The calibration report: residuals of A X = Y B, and the PNG + HTML files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rwhec_ros.core.lie import make_transform, so3_exp
+from rwhec_ros.core.solve import solve
+from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.data.results import FrameNaming, result_document
+from rwhec_ros.report import edge_residuals, estimates_from_document, write_report
+
+
+def test_residuals_vanish_at_the_truth_of_exact_data_also_with_a_scale():
+    rng = np.random.default_rng(0)
+    problem, gt = random_instance(rng, 2, 3, n_per_edge=5, unknown_scale=True, alpha=1.3)
+    res = edge_residuals(problem, gt.X, gt.Y, gt.alpha)
+    assert [(r.x, r.y) for r in res] == [(e.x, e.y) for e in problem.edges]
+    assert all(r.n == 5 for r in res)
+    # exact data: rounding only
+    assert max(r.translation_m.max() for r in res) < 1e-9
+    assert max(r.rotation_rad.max() for r in res) < 1e-7  # arccos near 1 loses half the digits
+    # ignoring the scale leaves the (alpha - 1) part of the B translations as residual
+    assert max(r.translation_m.max() for r in edge_residuals(problem, gt.X, gt.Y, 1.0)) > 1e-2
+
+
+def test_residuals_measure_a_known_perturbation():
+    rng = np.random.default_rng(1)
+    problem, gt = random_instance(rng, 2, 2, n_per_edge=4)
+    d = np.array([0.003, -0.004, 0.0])  # 5 mm
+    Y = gt.Y.copy()
+    Y[0, :3, 3] += d
+    X = gt.X.copy()
+    X[1] = X[1] @ make_transform(so3_exp(np.array([0.0, 0.01, 0.0])), np.zeros(3))
+    for r in edge_residuals(problem, X, Y):
+        # a shifted t_Y moves every pair's Y B translation by d; X_1's rotation error is 0.01 rad
+        # but leaves t(A X) unchanged (the perturbation is about X_1's own origin)
+        t_expected = 0.005 if r.y == "y0" else 0.0
+        r_expected = 0.01 if r.x == "x1" else 0.0
+        assert np.allclose(r.translation_m, t_expected, atol=1e-9)  # rounding only
+        assert np.allclose(r.rotation_rad, r_expected, atol=1e-7)  # arccos rounding
+
+
+def test_bad_shapes_and_scale_are_rejected():
+    problem, gt = random_instance(np.random.default_rng(2), 1, 1, n_per_edge=3)
+    with pytest.raises(ValueError, match="X, Y: expected shapes"):
+        edge_residuals(problem, gt.X[:0], gt.Y)
+    with pytest.raises(ValueError, match="scale: must be finite and > 0"):
+        edge_residuals(problem, gt.X, gt.Y, 0.0)
+
+
+def test_report_png_and_html(tmp_path):
+    from matplotlib.image import imread
+
+    rng = np.random.default_rng(3)
+    problem, gt = random_instance(rng, 3, 2, n_per_edge=8, sigma=0.01, kappa=400.0)
+    result = solve(problem)
+    naming = FrameNaming.from_carriers(problem.x_names, problem.y_names,
+                                       camera_carrier="rig", tag_carrier="world")
+    doc = result_document(result, naming, excluded={"(x9, y9)": "2 pairs < min_pairs=3"})
+    X, Y, scale = estimates_from_document(doc, problem)
+    assert np.array_equal(X, result.X) and np.array_equal(Y, result.Y) and scale == 1.0
+    files = write_report(doc, problem, tmp_path / "r.png", tmp_path / "r.html", title="test")
+    img = imread(str(files.png))
+    assert img.shape[:2] == (2080, 1440)  # 18 x 26 inches at 80 dpi
+    assert img[..., :3].std() > 0.05  # something is drawn
+    page = files.html.read_text()
+    assert "<img src='r.png'" in page
+    for e in problem.edges:  # one residual row per edge, and the excluded edge with its reason
+        assert f"<td>{e.x}</td><td>{e.y}</td><td>{e.n}</td>" in page
+    assert "2 pairs &lt; min_pairs=3" in page
+    assert "rig -&gt; y0_calibrated" in page
+
+
+def test_document_without_a_frame_of_the_data_is_rejected():
+    problem, gt = random_instance(np.random.default_rng(4), 2, 1, n_per_edge=3)
+    result = solve(problem)
+    naming = FrameNaming.from_carriers(problem.x_names, problem.y_names,
+                                       camera_carrier="rig", tag_carrier="world")
+    doc = result_document(result, naming)
+    doc["frames"] = [f for f in doc["frames"] if f["name"] != "x1"]
+    with pytest.raises(ValueError, match=r"no estimate for \['x1'\]"):
+        estimates_from_document(doc, problem)
