@@ -7,12 +7,11 @@ The parameter file is the one configuration format of the package (see config/*.
 rwhec_ros/config.py); its top-level key must be the node name, ``calibrator`` (or ``/**``).
 """
 
+from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
-
-from launch import LaunchDescription
 
 
 def generate_launch_description():

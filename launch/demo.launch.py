@@ -9,12 +9,11 @@ The simulator (rwhec_demo_sim, model in rwhec_ros/simulation.py) publishes /demo
 *_true frames; the calibrator (config/demo.yaml) publishes its estimates as *_calibrated frames.
 """
 
+from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
-
-from launch import LaunchDescription
 
 
 def generate_launch_description():
