@@ -61,7 +61,9 @@ def _sdp_options(limit: float) -> SdpOptions:
 
 def _row(name, mode, res):
     c = res.certificate
-    cells = [name, mode, res.certificate.status.value, f"{c.suboptimality_bound:.1e}"]
+    form = next((n.split(": ")[1] for n in res.notes if n.startswith("SDP form")), "")
+    label = f"{mode} ({form})" if form else mode
+    cells = [name, label, res.certificate.status.value, f"{c.suboptimality_bound:.1e}"]
     cells += [_ms(res.timing_s.get(p)) for p in PHASES]
     return "| " + " | ".join(cells) + " |"
 
@@ -128,16 +130,15 @@ def versus_opencv(problem, repeats):
     print(f"| ours, mode fast (closed form + local + certificate) | {t_fast * 1e3:.2f} | "
           f"{'yes' if res.certified else 'NO'} "
           f"(rho_hat {res.certificate.suboptimality_bound:.1e}) |")
-    verdict = "met" if t_fast <= t_bare else "MISSED"
-    print(f"\nTarget 'certified 1X1Y no slower than OpenCV Shah': {verdict} "
-          f"(ours {t_fast * 1e3:.2f} ms vs. {t_bare * 1e3:.2f} ms).\n")
+    print()
+    return t_fast, t_bare, t_wrapped
 
 
 def scaling(quick, repeats, sdp_limit, sdp_max_frames):
     print("## Scaling\n")
     print("Cameras with one target (cameras as Y, 20 pairs per camera, sigma 2 cm, kappa 100); "
-          f"the SDP is run only up to {sdp_max_frames} frames (its dense PSD block grows steeply, "
-          "see the notes).\n")
+          f"the SDP (form chosen by `auto`: the unreduced sparse form here) is run up to "
+          f"{sdp_max_frames} frames.\n")
     print("| cameras | fast [ms] | certified | local [ms] | sdp [ms] |")
     print("|---|---|---|---|---|")
     cams = (10, 30, 100) if quick else (10, 30, 100, 300, 1000)
@@ -176,7 +177,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--sdp-time-limit", type=float, default=900.0,
                     help="Clarabel time limit per SDP solve [s]")
-    ap.add_argument("--sdp-max-frames", type=int, default=11)
+    ap.add_argument("--sdp-max-frames", type=int, default=301)
     args = ap.parse_args(argv)
 
     import cv2
@@ -205,6 +206,8 @@ def main(argv=None) -> int:
         real = read_paper_csv(SHARED, sigma=0.1, kappa=125.0, min_pairs=3)
         if not args.quick:
             cases.append(("real 16 tags x 8 cameras (3230 pairs)", real))
+    p100y, _ = random_instance(rng, 1, 100, n_per_edge=20, sigma=0.01, kappa=125)
+    cases.append(("100 cameras x 1 target, cameras as Y (our convention)", p100y))
     p100x, _ = random_instance(rng, 100, 1, n_per_edge=20, sigma=0.01, kappa=125)
     cases.append(("100 cameras x 1 target, cameras as X (paper Sec. 8.2)", p100x))
     out = phase_table(cases, args.repeats, args.sdp_time_limit)
@@ -231,8 +234,38 @@ def main(argv=None) -> int:
         print(f"- unknown scale, fast: {_ms(fu.timing_s['total'])} ms, "
               f"{fu.certificate.status.value}, alpha = {fu.scale:.4f}\n")
 
-    versus_opencv(p11, max(args.repeats, 21))
+    t_fast, t_bare, t_wrapped = versus_opencv(p11, max(args.repeats, 21))
     scaling(args.quick, args.repeats, args.sdp_time_limit, args.sdp_max_frames)
+
+    def verdict(ok: bool) -> str:
+        return "met" if ok else "**MISSED**"
+
+    print("## Targets (issues 2 and 3) and the paper's published runtimes\n")
+    print("| target | measured | verdict |")
+    print("|---|---|---|")
+    sdp11 = out[("1X1Y, 100 poses", "sdp")]
+    print(f"| 1X1Y (100 poses) certified by the SDP path in < 50 ms | "
+          f"{_ms(sdp11.timing_s['total'])} ms | {verdict(sdp11.timing_s['total'] < 0.05)} |")
+    if real is not None and ("real 16 tags x 8 cameras (3230 pairs)", "sdp") in out:
+        sdp = out[("real 16 tags x 8 cameras (3230 pairs)", "sdp")]
+        fast = out[("real 16 tags x 8 cameras (3230 pairs)", "fast")]
+        ok = sdp.certified and sdp.timing_s["total"] < 10
+        print(f"| real data certified by the SDP path in < 10 s (one core) | "
+              f"{_ms(sdp.timing_s['total'])} | {verdict(ok)} |")
+        print(f"| real data certified by `fast` in < 50 ms end to end | "
+              f"{_ms(fast.timing_s['total'])} ms | "
+              f"{verdict(fast.certified and fast.timing_s['total'] < 0.05)} |")
+        ratio = sdp.timing_s["total"] / fast.timing_s["total"]
+        print(f"| `fast` >= 100x faster than `sdp`, same optimum (<= 1e-6) | {ratio:.0f}x, "
+              f"{max(agreement(fast, sdp)):.1e} | "
+              f"{verdict(ratio >= 100 and max(agreement(fast, sdp)) <= 1e-6)} |")
+    print(f"| certified 1X1Y no slower than OpenCV Shah (same inputs) | ours {t_fast * 1e3:.2f} ms,"
+          f" Shah {t_bare * 1e3:.2f} ms bare / {t_wrapped * 1e3:.2f} ms from our arrays | "
+          f"{verdict(t_fast <= t_bare)} (bare call), {verdict(t_fast <= t_wrapped)} (same "
+          "inputs) |")
+    print("\nThe paper (Julia + COSMO on an i7-8750H laptop, Section 9.4): the longest global "
+          "solve about 5 minutes (monocular real data), synthetic problems of the Fig. 3b "
+          "structure at most 7 s, the Ceres LOM at most 1 s.")
     return 0
 
 
