@@ -132,11 +132,13 @@ def refine_rotations(
         accepted = False
         for _ in range(30):
             try:
-                L = np.linalg.cholesky(H + mu * scale_h * np.eye(3 * n))
+                step = -np.linalg.solve(H + mu * scale_h * np.eye(3 * n), g)
             except np.linalg.LinAlgError:
                 mu *= 10.0
                 continue
-            step = -np.linalg.solve(L.T, np.linalg.solve(L, g))
+            if not g @ step < 0.0:  # not a descent direction: H + mu I is not positive definite
+                mu *= 10.0
+                continue
             R_new = R @ so3_exp(step.reshape(n, 3))
             f_new, g_new, H_new = _grad_hess(Q, R_new)
             predicted = -(g @ step + 0.5 * step @ H @ step)

@@ -143,7 +143,10 @@ class SdpOptions:
     clarabel : dict
         Settings passed to Clarabel through cvxpy (e.g. ``tol_gap_abs``, ``tol_gap_rel``,
         ``tol_feas``, ``max_iter``, ``chordal_decomposition_*``). Defaults are Clarabel's 1e-8
-        tolerances, which on the scaled problem (optimum ~1) resolve ``rho_hat`` to ~1e-8.
+        tolerances, which on the scaled problem (optimum ~1) resolve ``rho_hat`` to ~1e-8, and
+        iterative refinement of the KKT solves off: on the paper's 24-frame problem it cost a
+        quarter of the time (54 s -> 40 s here) without changing the certificate (rho_hat
+        ~1e-12 either way); the certificate is checked independently of Clarabel's accuracy.
     form : str
         ``"reduced"`` (``Q'`` on the rotations), ``"full"`` (``Q`` with the translations kept;
         sparse, for Clarabel's chordal decomposition) or ``"auto"`` (see
@@ -158,6 +161,7 @@ class SdpOptions:
             "tol_gap_rel": 1e-8,
             "tol_feas": 1e-8,
             "max_iter": 200,
+            "iterative_refinement_enable": False,
         }
     )
     verbose: bool = False

@@ -123,8 +123,11 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
 
 
 def _result(prep: _Prepared, R: np.ndarray, cert: Certificate, mode: str, solver_status: str,
-            moved: float, notes: list[str]) -> CalibrationResult:
-    est = estimate_from_rotations(prep.problem, prep.reduced, R)
+            moved: float, notes: list[str], est=None) -> CalibrationResult:
+    """The result for rotations ``R`` (translations and scale by eq. (47); ``est`` if already
+    computed for these rotations)."""
+    if est is None:
+        est = estimate_from_rotations(prep.problem, prep.reduced, R)
     T = make_transform(est.R, est.t)
     M = prep.problem.M
     return CalibrationResult(
@@ -215,7 +218,7 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
                           cost_floor=prep.cost_floor,
                           options=options.certificate)
     prep.timing["certify"] = time.perf_counter() - t2
-    return _result(prep, R_raw, cert, "sdp", sol.status, moved, notes)
+    return _result(prep, R_raw, cert, "sdp", sol.status, moved, notes, est)
 
 
 def _solve_local(prep: _Prepared, options: SolveOptions) -> tuple[np.ndarray, object]:
@@ -268,7 +271,7 @@ def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
         if options.mode == "local":
             est = estimate_from_rotations(problem, prep.reduced, R)
             res = _result(prep, R, Certificate.local_only(est.cost), "local",
-                          "converged" if loc.converged else "not converged", 0.0, notes)
+                          "converged" if loc.converged else "not converged", 0.0, notes, est)
         else:
             t0 = time.perf_counter()
             Z, lam_s = fast_certificate_matrix(prep.Qs, R)
@@ -294,7 +297,8 @@ def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
                     notes.append("fast certificate strengthened with handedness multipliers")
             if cert.certified or not options.fallback_to_sdp:
                 res = _result(prep, R, cert, "fast",
-                              "converged" if loc.converged else "not converged", 0.0, notes)
+                              "converged" if loc.converged else "not converged", 0.0, notes,
+                              est)
             else:
                 notes.append(f"fast certificate inconclusive ({cert.message}); fell back to the "
                              "SDP relaxation")
