@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse.linalg
 
 from .result import Certificate, Status
 
@@ -46,12 +47,36 @@ class CertificateOptions:
     n_eigenvalues: int = 6
 
 
-def _smallest_eigenvalues(Z: np.ndarray, k: int) -> np.ndarray:
-    """The ``k`` smallest eigenvalues (ascending) of symmetric ``Z``; for large matrices only those
-    are computed (LAPACK ``syevr`` with an index range)."""
+#: Above this size the smallest eigenvalues come from shift-invert Lanczos on a Cholesky factor.
+_LANCZOS_MIN_SIZE = 3000
+
+
+def _smallest_eigenvalues(Z: np.ndarray, k: int, shift: float = 1e-8) -> np.ndarray:
+    """The ``k`` smallest eigenvalues (ascending) of symmetric ``Z``.
+
+    Small matrices: a full (or index-range, LAPACK ``syevr``) eigensolve. Large ones: ``Z +
+    shift I`` is Cholesky-factored -- which succeeds exactly when ``lambda_min(Z) > -shift``, the
+    case of a valid certificate -- and shift-invert Lanczos (ARPACK) around ``-shift`` returns
+    the eigenvalues nearest to it, i.e. the smallest; this costs one factorisation instead of a
+    tridiagonal reduction (9,010 x 9,010: ~5 s instead of ~50 s). A failed factorisation falls
+    back to the index-range eigensolve.
+    """
     d = Z.shape[0]
     if d <= 300 or k >= d:
         return np.linalg.eigvalsh(Z)[:k]
+    if d >= _LANCZOS_MIN_SIZE:
+        try:
+            factor = scipy.linalg.cho_factor(Z + shift * np.eye(d), lower=True,
+                                              check_finite=False)
+        except np.linalg.LinAlgError:
+            factor = None
+        if factor is not None:
+            op = scipy.sparse.linalg.LinearOperator(
+                (d, d), matvec=lambda b: scipy.linalg.cho_solve(factor, b, check_finite=False),
+                dtype=float)
+            w = scipy.sparse.linalg.eigsh(Z, k=k, sigma=-shift, which="LM", OPinv=op,
+                                          return_eigenvectors=False)
+            return np.sort(w)
     return scipy.linalg.eigh(Z, eigvals_only=True, subset_by_index=[0, k - 1], driver="evr")
 
 

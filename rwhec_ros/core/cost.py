@@ -245,7 +245,6 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> Red
     complement), so rank-deficient translation blocks (unidentifiable translations) still give
     the minimum-norm recovery.
     """
-    Qd = Q.toarray() if sp.issparse(Q) else np.asarray(Q, dtype=float)
     nt = layout.n_t
     a = layout.alpha
     r = np.arange(layout.r0, layout.size)
@@ -255,12 +254,22 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> Red
     else:
         elim = np.arange(0, nt)
         keep = np.concatenate([r, [a]])  # rotations then s
-    Qee = Qd[np.ix_(elim, elim)]
-    Qek = Qd[np.ix_(elim, keep)]
-    Qkk = Qd[np.ix_(keep, keep)]
-    Qee_pinv = np.linalg.pinv(Qee, rcond=1e-12, hermitian=True)
-    G = -Qee_pinv @ Qek
-    Qr_keep = Qkk + Qek.T @ G
+    if sp.issparse(Q):  # large problems: keep the sparse coupling block sparse
+        Qc = sp.csr_matrix(Q)
+        Qee = Qc[elim][:, elim].toarray()
+        Qek = Qc[elim][:, keep].tocsc()
+        Qkk = Qc[keep][:, keep].toarray()
+        Qee_pinv = np.linalg.pinv(Qee, rcond=1e-12, hermitian=True)
+        G = -np.asarray((Qek.T @ Qee_pinv).T)  # -pinv(Qee) Qek, pinv symmetric
+        Qr_keep = Qkk + np.asarray(Qek.T @ G)
+    else:
+        Qd = np.asarray(Q, dtype=float)
+        Qee = Qd[np.ix_(elim, elim)]
+        Qek = Qd[np.ix_(elim, keep)]
+        Qkk = Qd[np.ix_(keep, keep)]
+        Qee_pinv = np.linalg.pinv(Qee, rcond=1e-12, hermitian=True)
+        G = -Qee_pinv @ Qek
+        Qr_keep = Qkk + Qek.T @ G
     Qr_keep = 0.5 * (Qr_keep + Qr_keep.T)
     nr = 9 * layout.n_frames
     Qr = np.zeros((nr + 1, nr + 1))
