@@ -34,7 +34,9 @@ setup(
     zip_safe=True,
     maintainer="rwhec_ros developers",
     maintainer_email="rwhec-ros@example.com",
-    description="Certifiably globally optimal multi-sensor robot-world/hand-eye calibration for ROS 2",
+    description=(
+        "Certifiably globally optimal multi-sensor robot-world/hand-eye calibration for ROS 2"
+    ),
     license="BSD-3-Clause",
     tests_require=["pytest"],
     entry_points={

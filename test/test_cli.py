@@ -7,7 +7,6 @@ sqlite3, ``/tf`` in mcap) and calibrate them exactly as the node would.
 
 from __future__ import annotations
 
-import ast
 import io
 import shutil
 import subprocess
@@ -16,10 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from launch_helpers import launch_transforms
 
 from rwhec_ros.cli import EXIT_BAD_INPUT, EXIT_CERTIFIED, demo_parameters, main
 from rwhec_ros.config import CalibratorConfig, read_parameter_file
-from rwhec_ros.core.lie import rotation_distance, transform_from_quat_xyzw
+from rwhec_ros.core.lie import rotation_distance
 from rwhec_ros.data.dataset import Dataset
 from rwhec_ros.data.results import RESULT_KEYS
 
@@ -32,19 +32,6 @@ def run(argv) -> tuple[int, str, str]:
     out, err = io.StringIO(), io.StringIO()
     code = main([str(a) for a in argv], stdout=out, stderr=err)
     return code, out.getvalue(), err.getvalue()
-
-
-def launch_transforms(text: str) -> dict[str, tuple[str, np.ndarray]]:
-    """child -> (parent, T_parent_child) of a generated static-transform launch file."""
-    out = {}
-    for node in ast.walk(ast.parse(text)):
-        if isinstance(node, ast.keyword) and node.arg == "arguments":
-            args = ast.literal_eval(node.value)
-            kv = dict(zip(args[::2], args[1::2], strict=True))
-            q = [float(kv[k]) for k in ("--qx", "--qy", "--qz", "--qw")]
-            t = [float(kv[k]) for k in ("--x", "--y", "--z")]
-            out[kv["--child-frame-id"]] = (kv["--frame-id"], transform_from_quat_xyzw(q, t))
-    return out
 
 
 def frame_errors(doc: dict, rig) -> tuple[float, float]:

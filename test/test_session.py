@@ -8,7 +8,6 @@ estimates with the simulation's ground truth.
 
 from __future__ import annotations
 
-import ast
 import datetime as dt
 import threading
 from pathlib import Path
@@ -16,9 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from launch_helpers import launch_transforms
 
 from rwhec_ros.config import CalibratorConfig, read_parameter_file
-from rwhec_ros.core.lie import invert_transform, transform_from_quat_xyzw
+from rwhec_ros.core.lie import invert_transform
 from rwhec_ros.data.dataset import Dataset
 from rwhec_ros.ros.conversions import transform_to_pose_stamped_fields
 from rwhec_ros.ros.handlers import MessageHandlers
@@ -192,19 +192,6 @@ def test_end_to_end_with_ros_messages(fed_session, recording):
     used = sum(e["pairs"] for e in diagnostics if e["pairs"] >= session.config.solver.min_pairs)
     assert data.to_problem(min_pairs=3).n_measurements == used
     assert f"{used} pairs on" in out.message
-
-
-def launch_transforms(text: str) -> dict[str, tuple[str, np.ndarray]]:
-    """child -> (parent, T_parent_child) parsed from a generated static-transform launch file."""
-    out = {}
-    for node in ast.walk(ast.parse(text)):
-        if isinstance(node, ast.keyword) and node.arg == "arguments":
-            args = ast.literal_eval(node.value)
-            kv = dict(zip(args[::2], args[1::2], strict=True))
-            q = [float(kv[k]) for k in ("--qx", "--qy", "--qz", "--qw")]
-            t = [float(kv[k]) for k in ("--x", "--y", "--z")]
-            out[kv["--child-frame-id"]] = (kv["--frame-id"], transform_from_quat_xyzw(q, t))
-    return out
 
 
 def test_static_transform_launch_reproduces_the_result(fed_session):
