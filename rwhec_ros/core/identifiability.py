@@ -71,7 +71,7 @@ import scipy.sparse as sp
 
 from .cost import StateLayout, build_cost_matrix, reduce_cost
 from .lie import hat, project_to_so3, so3_exp, unvec, vec
-from .problem import Edge, Problem, check_precisions, check_transforms
+from .problem import Edge, Problem, check_transforms
 
 __all__ = [
     "IdentifiabilityStatus",
@@ -233,15 +233,7 @@ class EdgeStatistics:
         kappa: float | np.ndarray = 125.0,
     ) -> EdgeStatistics:
         """Statistics of pairs ``A, B`` (N, 4, 4) (validated here)."""
-        A = check_transforms(A, what=f"edge ({x}, {y}) A")
-        B = check_transforms(B, what=f"edge ({x}, {y}) B")
-        if A.shape[0] != B.shape[0]:
-            raise ValueError(f"edge ({x}, {y}): {A.shape[0]} A transforms but {B.shape[0]} B")
-        n = A.shape[0]
-        stats = EdgeStatistics(x=x, y=y)
-        stats.add(A, B, check_precisions(sigma, n, what=f"edge ({x}, {y}) sigma"),
-                  check_precisions(kappa, n, what=f"edge ({x}, {y}) kappa"))
-        return stats
+        return EdgeStatistics.from_edge(Edge.build(x, y, A, B, sigma=sigma, kappa=kappa))
 
     @staticmethod
     def from_edge(edge: Edge) -> EdgeStatistics:
@@ -1143,23 +1135,16 @@ class IdentifiabilityTracker:
             raise ValueError(f"y={y!r} is already an X frame")
         if x == y:
             raise ValueError(f"x and y must differ, got {x!r} twice")
-        name = f"edge ({x}, {y})"
-        A = check_transforms(A, what=f"{name} A")
-        B = check_transforms(B, what=f"{name} B")
-        if A.shape[0] != B.shape[0]:
-            raise ValueError(f"{name}: {A.shape[0]} A transforms but {B.shape[0]} B transforms")
-        n = A.shape[0]
-        s = check_precisions(sigma, n, what=f"{name} sigma")
-        k = check_precisions(kappa, n, what=f"{name} kappa")
+        edge = Edge.build(x, y, A, B, sigma=sigma, kappa=kappa)  # validates, names the field
         key = (x, y)
         stats = self._stats.get(key)
         if stats is None:
             stats = self._stats[key] = EdgeStatistics(x=x, y=y)
             self._x.setdefault(x, None)
             self._y.setdefault(y, None)
-        stats.add(A, B, s, k)
+        stats.add(edge.A, edge.B, edge.sigma, edge.kappa)
         if self.keep_pairs:
-            self._pairs.setdefault(key, []).append((A, B, s, k))
+            self._pairs.setdefault(key, []).append((edge.A, edge.B, edge.sigma, edge.kappa))
 
     def problem(self) -> Problem:
         """The accumulated pairs as a :class:`Problem` (needs ``keep_pairs=True``)."""

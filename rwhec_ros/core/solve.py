@@ -145,6 +145,15 @@ def _result(prep: _Prepared, R: np.ndarray, cert: Certificate, mode: str, solver
     )
 
 
+def _certify(prep: _Prepared, options: SolveOptions, Z: np.ndarray, lambda_s: float,
+             cost: float, solver_ok: bool = True, solver_status: str = "local") -> Certificate:
+    """:func:`certify_from_Z` with this problem's scale, size, cost floor and options."""
+    return certify_from_Z(Z, lambda_s, cost, prep.scale, prep.problem.n_frames,
+                          solver_ok=solver_ok, solver_status=solver_status,
+                          homogeneous=prep.problem.unknown_scale, cost_floor=prep.cost_floor,
+                          options=options.certificate)
+
+
 def _full_form(prep: _Prepared) -> tuple[sp.csr_matrix, np.ndarray, int]:
     """The unreduced SDP data: ``Q`` of eq. (42) on ``z = [t; (alpha); vec R; s]`` (scaled), the
     offsets of the rotations in ``z`` and its size. For known scale ``alpha`` is ``s``."""
@@ -213,10 +222,7 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
     prep.timing["extract"] = time.perf_counter() - t1
     t2 = time.perf_counter()
     est = estimate_from_rotations(prep.problem, prep.reduced, R_raw)
-    cert = certify_from_Z(Z, sol.lambda_s, est.cost, prep.scale, n, solver_ok=solver_ok,
-                          solver_status=sol.status, homogeneous=prep.problem.unknown_scale,
-                          cost_floor=prep.cost_floor,
-                          options=options.certificate)
+    cert = _certify(prep, options, Z, sol.lambda_s, est.cost, solver_ok, sol.status)
     prep.timing["certify"] = time.perf_counter() - t2
     return _result(prep, R_raw, cert, "sdp", sol.status, moved, notes, est)
 
@@ -276,21 +282,13 @@ def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
             t0 = time.perf_counter()
             Z, lam_s = fast_certificate_matrix(prep.Qs, R)
             est = estimate_from_rotations(problem, prep.reduced, R)
-            cert = certify_from_Z(Z, lam_s, est.cost, prep.scale, problem.n_frames,
-                                  solver_ok=True, solver_status="local",
-                                  homogeneous=problem.unknown_scale,
-                                  cost_floor=prep.cost_floor,
-                                  options=options.certificate)
+            cert = _certify(prep, options, Z, lam_s, est.cost)
             prep.timing["certify"] = time.perf_counter() - t0
             if not cert.certified and cert.lambda_min >= -options.certificate.null_tol:
                 # PSD but a larger null space: try the handedness multipliers (cheap 1-D search)
                 t1 = time.perf_counter()
                 Z2, _ = strengthen_certificate(Z, R, null_tol=options.certificate.null_tol)
-                cert2 = certify_from_Z(Z2, lam_s, est.cost, prep.scale, problem.n_frames,
-                                       solver_ok=True, solver_status="local",
-                                       homogeneous=problem.unknown_scale,
-                                       cost_floor=prep.cost_floor,
-                                       options=options.certificate)
+                cert2 = _certify(prep, options, Z2, lam_s, est.cost)
                 prep.timing["strengthen"] = time.perf_counter() - t1
                 if cert2.certified:
                     cert = cert2
