@@ -22,8 +22,12 @@ Two forms are supported:
   dense when several Y share targets (paper Fig. 4).
 * ``full``: ``Q`` of eq. (42) on ``[t; (alpha); vec R; s]``: larger but as sparse as the graph,
   which Clarabel's chordal decomposition exploits.
+* ``arrow``: ``Q'`` again, with the PSD constraint on ``Z(lambda)`` written as one cone for the
+  hub rotations and ``s`` plus one cone of size <= 19 per leaf rotation (an exact
+  reformulation, :mod:`rwhec_ros.core.sparsity`); on a target/camera graph the targets are the
+  leaves, whatever the number of cameras each is seen by.
 
-Both give the same optimum; certification is always done on the reduced form (rotation
+All give the same optimum; certification is always done on the reduced form (rotation
 constraints do not involve translations, so the Schur complement of ``Z_full`` over the
 translation block is ``Z_reduced`` with the same multipliers).
 """
@@ -36,16 +40,22 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .sparsity import ArrowSplit
+
 __all__ = [
     "so3_constraint_matrices",
     "ConstraintSet",
     "DualSolution",
     "SdpOptions",
     "solve_dual_sdp",
+    "solve_dual_sdp_arrow",
     "evaluate_Z",
 ]
 
 _CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
+
+#: Accepted values of :attr:`SdpOptions.form`.
+SDP_FORMS = ("auto", "reduced", "full", "arrow")
 
 
 @dataclass(frozen=True)
@@ -149,8 +159,10 @@ class SdpOptions:
         ~1e-12 either way); the certificate is checked independently of Clarabel's accuracy.
     form : str
         ``"reduced"`` (``Q'`` on the rotations), ``"full"`` (``Q`` with the translations kept;
-        sparse, for Clarabel's chordal decomposition) or ``"auto"`` (see
-        :func:`rwhec_ros.core.solve.choose_sdp_form`). Same optimum and multipliers.
+        sparse, for Clarabel's chordal decomposition), ``"arrow"`` (``Q'`` with one small cone
+        per target, :func:`solve_dual_sdp_arrow`) or ``"auto"`` (the cheapest by the cost
+        model of :func:`rwhec_ros.core.sparsity.estimate_form_costs`). Same optimum and
+        multipliers.
     verbose : bool
     """
 
@@ -167,8 +179,8 @@ class SdpOptions:
     verbose: bool = False
 
     def __post_init__(self) -> None:
-        if self.form not in ("auto", "reduced", "full"):
-            raise ValueError(f"form: expected 'auto', 'reduced' or 'full', got {self.form!r}")
+        if self.form not in SDP_FORMS:
+            raise ValueError(f"form: expected one of {SDP_FORMS}, got {self.form!r}")
 
 
 @dataclass
@@ -212,7 +224,87 @@ def solve_dual_sdp(
     Zexpr = Qs - cp.reshape(constraints.C @ lam, (d, d), order="F")
     # Z is symmetric by construction; the PSD cone reads its lower triangle.
     prob = cp.Problem(cp.Maximize(lam[constraints.m - 1]), [cp.PSD(Zexpr)])
-    prob.solve(solver=cp.CLARABEL, verbose=options.verbose, **dict(options.clarabel))
+    return _run(prob, lam, constraints.m, options, t0)
+
+
+def _block(Q: np.ndarray, constraints: ConstraintSet, lam, rows: np.ndarray, cols: np.ndarray):
+    """cvxpy expression of the block ``Z(lambda)[rows][:, cols]`` (affine in ``lam``)."""
+    import cvxpy as cp
+
+    d = constraints.d
+    vec = (rows[:, None] + d * cols[None, :]).ravel(order="F")  # column-major vec of the block
+    Cb = constraints.C[vec]
+    const = Q[np.ix_(rows, cols)]
+    if Cb.nnz == 0:
+        return cp.Constant(const)
+    return const - cp.reshape(Cb @ lam, (rows.size, cols.size), order="F")
+
+
+def solve_dual_sdp_arrow(
+    Q: np.ndarray, constraints: ConstraintSet, split: ArrowSplit,
+    options: SdpOptions | None = None,
+) -> DualSolution:
+    """Solve Problem 7 on the reduced ``Q'`` with the hub/leaf cones of ``split``.
+
+    ``Z(lambda) >= 0`` is imposed as (see :mod:`rwhec_ros.core.sparsity` for the proof)::
+
+        [[Z_LjLj, Z_LjH Pi_j], [Pi_j^T Z_HLj, S_j]] >= 0   for every leaf j,
+        Z_HH - sum_j Pi_j S_j Pi_j^T >= 0,
+
+        with auxiliary symmetric S_j of size k_j + 1 <= 10.
+
+    Same multipliers ``lambda`` and optimum as :func:`solve_dual_sdp`; the certificate is still
+    evaluated on the whole ``Z(lambda)``.
+
+    Parameters
+    ----------
+    Q : (d, d)
+        Scaled ``Q'``, ``s`` last.
+    constraints : ConstraintSet
+        From :func:`so3_constraint_matrices` on the same ``z``.
+    split : ArrowSplit
+        From :func:`rwhec_ros.core.sparsity.arrow_split` on ``Q``.
+    """
+    import cvxpy as cp
+
+    options = options or SdpOptions()
+    Qd = np.asarray(Q.toarray() if sp.issparse(Q) else Q, float)
+    Qd = 0.5 * (Qd + Qd.T)
+    constraints = ConstraintSet(C=constraints.C.tocsr(), d=constraints.d,
+                                s_index=constraints.s_index,
+                                n_rotations=constraints.n_rotations)
+    t0 = time.perf_counter()
+    lam = cp.Variable(constraints.m)
+    H = split.hub
+    cones = []
+    hub = _block(Qd, constraints, lam, H, H)
+    for L, Pi in zip(split.leaves, split.bases, strict=True):
+        k = Pi.shape[1]
+        S = cp.Variable((k, k), symmetric=True)
+        D = _block(Qd, constraints, lam, L, L)
+        B = _block(Qd, constraints, lam, L, H) @ Pi
+        cones.append(cp.PSD(cp.bmat([[D, B], [B.T, S]])))
+        hub = hub - Pi @ S @ Pi.T
+    cones.append(cp.PSD(hub))
+    prob = cp.Problem(cp.Maximize(lam[constraints.m - 1]), cones)
+    return _run(prob, lam, constraints.m, options, t0, ARROW_CLARABEL_DEFAULTS)
+
+
+#: Clarabel settings of the arrow form unless :attr:`SdpOptions.clarabel` sets them: without
+#: Ruiz equilibration it needed 16 instead of 20-21 iterations on the paper's real data (about
+#: 6.5 s instead of 7.5-8.7 s on one core) and the same or fewer on most random graphs, all
+#: certified (``benchmarks/sdp_forms.md``); the reduced form was slower without it.
+ARROW_CLARABEL_DEFAULTS = {"equilibrate_enable": False}
+
+
+def _run(prob, lam, m: int, options: SdpOptions, t0: float,
+         defaults: dict | None = None) -> DualSolution:
+    """Solve ``prob`` with Clarabel (``defaults`` overridden by ``options.clarabel``) and
+    collect the multipliers, status and times."""
+    import cvxpy as cp
+
+    settings = {**(defaults or {}), **options.clarabel}
+    prob.solve(solver=cp.CLARABEL, verbose=options.verbose, **settings)
     total = time.perf_counter() - t0
     solve_s = float(getattr(prob.solver_stats, "solve_time", None) or 0.0)
     compile_s = float(getattr(prob, "compilation_time", None) or max(total - solve_s, 0.0))
@@ -220,6 +312,6 @@ def solve_dual_sdp(
     status = str(prob.status)
     iters = int(getattr(prob.solver_stats, "num_iters", 0) or 0)
     if value is None:
-        value = np.full(constraints.m, np.nan)
+        value = np.full(m, np.nan)
     return DualSolution(lam=np.asarray(value, float), status=status, compile_s=compile_s,
                         solve_s=solve_s, iterations=iters, total_s=total)

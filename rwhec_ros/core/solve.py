@@ -33,8 +33,15 @@ from .local_solver import (
     strengthen_certificate,
 )
 from .problem import Problem
-from .relaxation import SdpOptions, evaluate_Z, so3_constraint_matrices, solve_dual_sdp
+from .relaxation import (
+    SdpOptions,
+    evaluate_Z,
+    so3_constraint_matrices,
+    solve_dual_sdp,
+    solve_dual_sdp_arrow,
+)
 from .result import CalibrationResult, Certificate, Status
+from .sparsity import ArrowSplit, arrow_split, estimate_form_costs
 
 __all__ = ["SolveOptions", "solve", "MODES"]
 
@@ -172,16 +179,37 @@ def _full_form(prep: _Prepared) -> tuple[sp.csr_matrix, np.ndarray, int]:
     return Qf, offsets, Qf.shape[0]
 
 
+def _full_groups(prep: _Prepared, df: int) -> list[np.ndarray]:
+    """Variable groups of the ``full`` form's ``z = [t; (alpha); vec R; s]``: each frame's
+    translation, ``alpha`` (unknown scale), each rotation and ``s``."""
+    n, n_t = prep.problem.n_frames, prep.layout.n_t
+    groups = [np.arange(3 * f, 3 * f + 3) for f in range(n)]
+    r0 = n_t
+    if prep.problem.unknown_scale:
+        groups.append(np.array([n_t]))
+        r0 += 1
+    groups += [np.arange(r0 + 9 * f, r0 + 9 * f + 9) for f in range(n)]
+    groups.append(np.array([df - 1]))
+    return groups
+
+
 def choose_sdp_form(prep: _Prepared) -> str:
-    """``auto`` rule: the reduced form unless its rotation block is dense (several Y sharing
-    targets, paper Fig. 4a) while the unreduced ``Q`` is sparse -- then the unreduced form, whose
-    chordal cliques stay small. Measured in ``benchmarks/solver_speed.py``."""
+    """``auto`` rule: the form of Problem 7 with the smallest estimated cost per Clarabel
+    iteration (:func:`rwhec_ros.core.sparsity.estimate_form_costs`); ``reduced`` for up to three
+    frames, where every form is a few milliseconds. Measured in ``benchmarks/solver_speed.py``:
+    the paper's 16 targets x 8 cameras pick ``arrow``, one target seen by many cameras (Y) picks
+    ``full``."""
+    return _form_costs(prep)[0]
+
+
+def _form_costs(prep: _Prepared) -> tuple[str, dict[str, float], ArrowSplit | None]:
     n = prep.problem.n_frames
     if n <= 3:
-        return "reduced"
-    rr = prep.reduced.Qr[: 9 * n, : 9 * n]
-    density = float(np.count_nonzero(rr)) / rr.size
-    return "full" if density > 0.5 else "reduced"
+        return "reduced", {}, None
+    split = arrow_split(prep.Qs, n)
+    Qf, _, df = _full_form(prep)
+    costs = estimate_form_costs(prep.Qs, n, Qf, _full_groups(prep, df), split)
+    return min(costs, key=costs.get), costs, split
 
 
 def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> CalibrationResult:
@@ -189,16 +217,25 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
     d = 9 * n + 1
     t0 = time.perf_counter()
     cons = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
-    form = options.sdp.form if options.sdp.form != "auto" else choose_sdp_form(prep)
+    form, split = options.sdp.form, None
+    if form == "auto":
+        form, _, split = _form_costs(prep)
+    if form == "arrow" and split is None:
+        split = arrow_split(prep.Qs, n)
+        if split is None:
+            form = "reduced"
     if form == "full":
         Qf, offsets, df = _full_form(prep)
         cons_f = so3_constraint_matrices(offsets, df, df - 1)
     prep.timing["constraints"] = time.perf_counter() - t0
     if form == "full":
         sol = solve_dual_sdp(Qf, cons_f, options.sdp)
+    elif form == "arrow":
+        sol = solve_dual_sdp_arrow(prep.Qs, cons, split, options.sdp)
     else:
         sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
     notes.append(f"SDP form: {form}")
+    notes.append(f"Clarabel: {sol.iterations} iterations, status '{sol.status}'")
     prep.timing["compile"] = sol.compile_s
     prep.timing["solve"] = sol.solve_s
     t1 = time.perf_counter()

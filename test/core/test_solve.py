@@ -185,7 +185,7 @@ def test_fast_certificate_strengthened_on_single_sphere():
 
 def test_real_data_sdp_and_fast_agree():
     """Issue check: on the paper's real data both paths certify and give the same optimum.
-    The SDP takes ~40 s on 2 cores (the suite's longest test)."""
+    The SDP (arrow form) takes ~7 s on one core."""
     data = SHARED / "data" / "paper_real_world"
     if not data.is_dir():
         pytest.skip("shared/ data set not present")
