@@ -110,6 +110,11 @@ class DatasetEdge:
         ``T_<camera carrier>_<tag carrier>`` and ``T_cam_tag``, ``A_i X = Y B_i``.
     sigma, kappa : ndarray, shape (N,), float64
         Translation standard deviation [m] and Langevin concentration of each ``B``.
+    rotation_tol : float
+        Tolerance of the rotation checks (:func:`~rwhec_ros.core.problem.check_transforms`);
+        the pair accumulator passes its own, files are read with the default.
+
+    This is also the record :meth:`rwhec_ros.sync.PairAccumulator.edges` returns.
     """
 
     x: str
@@ -119,6 +124,7 @@ class DatasetEdge:
     B: np.ndarray
     sigma: np.ndarray
     kappa: np.ndarray
+    rotation_tol: float = field(default=DEFAULT_ROTATION_TOL, repr=False)
 
     def __post_init__(self) -> None:
         name = f"edge ({self.x}, {self.y})"
@@ -137,8 +143,8 @@ class DatasetEdge:
             i = int(np.argmax(stamps < 0))
             raise ValueError(f"{name} stamps_ns[{i}]: must be >= 0, got {int(stamps[i])}")
         n = stamps.shape[0]
-        A = check_transforms(self.A, what=f"{name} A", rotation_tol=DEFAULT_ROTATION_TOL)
-        B = check_transforms(self.B, what=f"{name} B", rotation_tol=DEFAULT_ROTATION_TOL)
+        A = check_transforms(self.A, what=f"{name} A", rotation_tol=self.rotation_tol)
+        B = check_transforms(self.B, what=f"{name} B", rotation_tol=self.rotation_tol)
         for what, T in (("A", A), ("B", B)):
             if T.shape[0] != n:
                 raise ValueError(f"{name} {what}: expected {n} transforms, got {T.shape[0]}")
@@ -316,9 +322,7 @@ class Dataset:
         return Dataset(
             x_names=tuple(xs),
             y_names=tuple(ys),
-            edges=tuple(
-                DatasetEdge(e.x, e.y, e.stamps_ns, e.A, e.B, e.sigma, e.kappa) for e in ordered
-            ),
+            edges=tuple(ordered),
             unknown_scale=unknown_scale,
             metadata={**default_metadata(), **dict(metadata or {})},
             carriers=dict(carriers or {}),

@@ -38,13 +38,13 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.problem import DEFAULT_ROTATION_TOL, Edge, Problem, check_transforms
+from ..data.dataset import DatasetEdge
 
-__all__ = ["EdgeData", "PairAccumulator", "PairListener"]
+__all__ = ["PairAccumulator", "PairListener"]
 
 #: ``callback(x_name, y_name, A (4, 4), B (4, 4))``, called for every kept pair.
 PairListener = Callable[[str, str, np.ndarray, np.ndarray], None]
@@ -63,35 +63,6 @@ _COUNTERS = (
     "dropped_max_edges",
     "rejected_invalid",
 )
-
-
-@dataclass(frozen=True)
-class EdgeData:
-    """The pairs kept for one edge, sorted by stamp (copies).
-
-    Attributes
-    ----------
-    x, y : str
-        X-frame (tag) and Y-frame (camera) names.
-    stamps_ns : ndarray, shape (N,), int64
-        Image stamps [ns].
-    A, B : ndarray, shape (N, 4, 4)
-        ``T_<camera carrier>_<tag carrier>`` and ``T_cam_tag`` at each stamp.
-    sigma, kappa : ndarray, shape (N,)
-        Translation standard deviation [m] and Langevin concentration of each ``B``.
-    """
-
-    x: str
-    y: str
-    stamps_ns: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
-    sigma: np.ndarray
-    kappa: np.ndarray
-
-    @property
-    def n(self) -> int:
-        return int(self.stamps_ns.shape[0])
 
 
 def _is_int(value: object) -> bool:
@@ -158,9 +129,10 @@ class _EdgeStore:
         self.sigma[i] = sigma
         self.kappa[i] = kappa
 
-    def data(self) -> EdgeData:
+    def data(self, rotation_tol: float) -> DatasetEdge:
+        """The kept pairs sorted by stamp (copies), validated with ``rotation_tol``."""
         order = np.argsort(self.stamps[: self.n], kind="stable")
-        return EdgeData(
+        return DatasetEdge(
             x=self.x,
             y=self.y,
             stamps_ns=self.stamps[: self.n][order].copy(),
@@ -168,6 +140,7 @@ class _EdgeStore:
             B=self.B[: self.n][order].copy(),
             sigma=self.sigma[: self.n][order].copy(),
             kappa=self.kappa[: self.n][order].copy(),
+            rotation_tol=rotation_tol,
         )
 
 
@@ -380,9 +353,11 @@ class PairAccumulator:
         return True
 
     # --- output --------------------------------------------------------------------------------
-    def edges(self) -> dict[tuple[str, str], EdgeData]:
-        """Kept pairs per edge ``(x, y)`` (sorted by stamp; copies), in first-offer order."""
-        return {key: store.data() for key, store in self._edges.items() if store.n}
+    def edges(self) -> dict[tuple[str, str], DatasetEdge]:
+        """Kept pairs per edge ``(x, y)`` (sorted by stamp; copies), in first-offer order, as
+        the records of a :class:`~rwhec_ros.data.dataset.Dataset`."""
+        return {key: store.data(self.rotation_tol) for key, store in self._edges.items()
+                if store.n}
 
     def counts(self) -> dict[tuple[str, str], int]:
         """Number of kept pairs per edge ``(x, y)``."""
@@ -447,7 +422,7 @@ class PairAccumulator:
         x_index = {n: i for i, n in enumerate(xs)}
         y_index = {n: i for i, n in enumerate(ys)}
         excluded: dict[tuple[str, str], str] = {}
-        kept: list[EdgeData] = []
+        kept: list[DatasetEdge] = []
         for (x, y), e in data.items():
             if x not in x_index:
                 excluded[(x, y)] = f"X frame {x!r} not in x_names"

@@ -222,3 +222,22 @@ def test_to_problem_excludes_and_orders():
         acc.to_problem(min_pairs=6)
     with pytest.raises(ValueError, match="min_pairs"):
         acc.to_problem(min_pairs=0)
+
+
+def test_edges_are_dataset_records_with_the_accumulator_tolerance():
+    """edges() returns the Dataset's own record type, validated with the accumulator's
+    rotation tolerance: pairs it accepted with a looser tolerance still make a Dataset."""
+    from rwhec_ros.data.dataset import Dataset, DatasetEdge
+
+    rng = np.random.default_rng(12)
+    A = random_transforms(rng, 3)
+    B = pairs_for(rng, A)
+    A[0, :3, :3] *= 1.0 + 1e-5  # |R^T R - I| ~ 2e-5: above the default 1e-6, below 1e-4
+    acc = PairAccumulator(rotation_tol=1e-4)  # random poses: far apart, all keyframes
+    assert all(acc.offer("tag_0", "cam_0", i * MS, A[i], B[i], 0.005, 400.0) for i in range(3))
+    e = acc.edges()[("tag_0", "cam_0")]
+    assert isinstance(e, DatasetEdge) and e.rotation_tol == 1e-4
+    ds = Dataset.from_accumulator(acc)
+    np.testing.assert_array_equal(ds.edges[0].A, A)
+    with pytest.raises(ValueError, match=r"edge \(tag_0, cam_0\) A\[0\]: rotation block"):
+        DatasetEdge("tag_0", "cam_0", e.stamps_ns, e.A, e.B, e.sigma, e.kappa)
