@@ -74,7 +74,7 @@ class ArrowSplit:
 
 def _frame_blocks(Q: np.ndarray, n: int) -> np.ndarray:
     """(n, n) bool: rotation blocks ``Q[9a:9a+9, 9b:9b+9]`` with a nonzero entry (a != b)."""
-    R = np.abs(np.asarray(Q)[: 9 * n, : 9 * n]).reshape(n, 9, n, 9).max(axis=(1, 3)) > 0.0
+    R = (np.asarray(Q)[: 9 * n, : 9 * n] != 0.0).reshape(n, 9, n, 9).any(axis=(1, 3))
     np.fill_diagonal(R, False)
     return R
 
@@ -241,10 +241,8 @@ def estimate_form_costs(Q_reduced: np.ndarray, n: int, Q_full: sp.spmatrix | Non
         ``{"reduced": c, "full": c, "arrow": c}`` for the forms whose data were given; ``c`` is
         the sum of :func:`cone_cost` over the cliques (the cones after chordal decomposition).
     """
-    d = 9 * n + 1
-    rot_groups = [np.arange(9 * f, 9 * f + 9) for f in range(n)]
-    adj = group_adjacency(Q_reduced, rot_groups + [np.array([d - 1])])
-    adj[-1, :] = adj[:, -1] = True
+    adj = np.ones((n + 1, n + 1), bool)  # s (last) is coupled to every rotation by (50c)
+    adj[:n, :n] = _frame_blocks(Q_reduced, n)
     weights = np.array([9] * n + [1])
     costs = {"reduced": _cliques_cost(adj, weights)}
     if Q_full is not None and full_groups is not None:
