@@ -227,17 +227,14 @@ def solve_dual_sdp(
     return _run(prob, lam, constraints.m, options, t0)
 
 
-def _block(Q: np.ndarray, constraints: ConstraintSet, lam, rows: np.ndarray, cols: np.ndarray):
-    """cvxpy expression of the block ``Z(lambda)[rows][:, cols]`` (affine in ``lam``)."""
+def _block(Q: np.ndarray, C: sp.csr_matrix, lam, rows: np.ndarray, cols: np.ndarray):
+    """cvxpy expression of the block ``Z(lambda)[rows][:, cols]`` (affine in ``lam``); ``C`` is
+    :attr:`ConstraintSet.C` in CSR form (row slicing)."""
     import cvxpy as cp
 
-    d = constraints.d
+    d = Q.shape[0]
     vec = (rows[:, None] + d * cols[None, :]).ravel(order="F")  # column-major vec of the block
-    Cb = constraints.C[vec]
-    const = Q[np.ix_(rows, cols)]
-    if Cb.nnz == 0:
-        return cp.Constant(const)
-    return const - cp.reshape(Cb @ lam, (rows.size, cols.size), order="F")
+    return Q[np.ix_(rows, cols)] - cp.reshape(C[vec] @ lam, (rows.size, cols.size), order="F")
 
 
 def solve_dual_sdp_arrow(
@@ -270,19 +267,17 @@ def solve_dual_sdp_arrow(
     options = options or SdpOptions()
     Qd = np.asarray(Q.toarray() if sp.issparse(Q) else Q, float)
     Qd = 0.5 * (Qd + Qd.T)
-    constraints = ConstraintSet(C=constraints.C.tocsr(), d=constraints.d,
-                                s_index=constraints.s_index,
-                                n_rotations=constraints.n_rotations)
+    C = constraints.C.tocsr()
     t0 = time.perf_counter()
     lam = cp.Variable(constraints.m)
     H = split.hub
     cones = []
-    hub = _block(Qd, constraints, lam, H, H)
+    hub = _block(Qd, C, lam, H, H)
     for L, Pi in zip(split.leaves, split.bases, strict=True):
         k = Pi.shape[1]
         S = cp.Variable((k, k), symmetric=True)
-        D = _block(Qd, constraints, lam, L, L)
-        B = _block(Qd, constraints, lam, L, H) @ Pi
+        D = _block(Qd, C, lam, L, L)
+        B = _block(Qd, C, lam, L, H) @ Pi
         cones.append(cp.PSD(cp.bmat([[D, B], [B.T, S]])))
         hub = hub - Pi @ S @ Pi.T
     cones.append(cp.PSD(hub))

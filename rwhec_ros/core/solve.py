@@ -100,6 +100,7 @@ class _Prepared:
     timing: dict
     cost_floor: float
     Q: object = None
+    full: tuple | None = None  # the ``full`` form's data, built once by :func:`_full_form`
 
 
 def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
@@ -164,6 +165,8 @@ def _certify(prep: _Prepared, options: SolveOptions, Z: np.ndarray, lambda_s: fl
 def _full_form(prep: _Prepared) -> tuple[sp.csr_matrix, np.ndarray, int]:
     """The unreduced SDP data: ``Q`` of eq. (42) on ``z = [t; (alpha); vec R; s]`` (scaled), the
     offsets of the rotations in ``z`` and its size. For known scale ``alpha`` is ``s``."""
+    if prep.full is not None:
+        return prep.full
     layout = prep.layout
     Q = sp.csr_matrix(prep.Q) / prep.scale
     n_t, n = layout.n_t, layout.n_frames
@@ -176,7 +179,8 @@ def _full_form(prep: _Prepared) -> tuple[sp.csr_matrix, np.ndarray, int]:
         perm = np.concatenate([np.arange(n_t), rot, [layout.alpha]])
         Qf = Q[perm][:, perm].tocsr()
         offsets = n_t + 9 * np.arange(n)
-    return Qf, offsets, Qf.shape[0]
+    prep.full = (Qf, offsets, Qf.shape[0])
+    return prep.full
 
 
 def _full_groups(prep: _Prepared, df: int) -> list[np.ndarray]:
@@ -193,16 +197,12 @@ def _full_groups(prep: _Prepared, df: int) -> list[np.ndarray]:
     return groups
 
 
-def choose_sdp_form(prep: _Prepared) -> str:
-    """``auto`` rule: the form of Problem 7 with the smallest estimated cost per Clarabel
-    iteration (:func:`rwhec_ros.core.sparsity.estimate_form_costs`); ``reduced`` for up to three
-    frames, where every form is a few milliseconds. Measured in ``benchmarks/solver_speed.py``:
-    the paper's 16 targets x 8 cameras pick ``arrow``, one target seen by many cameras (Y) picks
-    ``full``."""
-    return _form_costs(prep)[0]
-
-
 def _form_costs(prep: _Prepared) -> tuple[str, dict[str, float], ArrowSplit | None]:
+    """``auto`` rule: the form of Problem 7 with the smallest estimated cost per Clarabel
+    iteration (:func:`rwhec_ros.core.sparsity.estimate_form_costs`), with the estimates and the
+    hub/leaf split; ``reduced`` for up to three frames, where every form is a few milliseconds.
+    Measured in ``benchmarks/sdp_forms.md``: the paper's 16 targets x 8 cameras pick ``arrow``,
+    one target seen by many cameras (Y) picks ``full``."""
     n = prep.problem.n_frames
     if n <= 3:
         return "reduced", {}, None
