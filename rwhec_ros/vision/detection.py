@@ -3,7 +3,9 @@
 Pipeline per image (:meth:`TagDetector.detect`):
 
 1. ``cv2.aruco.ArucoDetector`` with an AprilTag dictionary finds the four corners of each black
-   square (distorted pixels) with the configured corner refinement;
+   square (distorted pixels) with the configured corner refinement
+   (:class:`~rwhec_ros.vision.candidates.CandidateSearch`; on a decimated image for large images,
+   ``DetectorConfig.decimate``);
 2. the corners are undistorted with the camera model (:class:`CameraIntrinsics`) and
    ``cv2.solvePnPGeneric(..., SOLVEPNP_IPPE_SQUARE)`` returns the (up to two) planar poses; the
    one with the smaller reprojection error in the *distorted* image is kept and optionally
@@ -49,16 +51,9 @@ from enum import Enum
 import cv2
 import numpy as np
 
-from .decimation import (
-    check_decimate,
-    corners_to_full_resolution,
-    decimate_image,
-    decimation_factor,
-    min_perimeter_rate,
-    refine_corners_subpix,
-)
+from .candidates import CandidateSearch, check_decimate, decimation_factor
 from .edges import refine_corners_edges
-from .families import _family_key, aruco_dictionary, marker_cells
+from .families import _family_key, marker_cells
 from .intrinsics import CameraIntrinsics
 
 __all__ = [
@@ -198,7 +193,7 @@ class DetectorConfig:
         (possibly decimated) image.
     decimate : int or "auto"
         Candidate search on the image shrunk by this integer factor, corners refined at full
-        resolution (:mod:`rwhec_ros.vision.decimation`); 1 searches the full image. ``"auto"``
+        resolution (:mod:`rwhec_ros.vision.candidates`); 1 searches the full image. ``"auto"``
         (default) picks ``max(W, H) // 600`` (1280x1024 -> 2, 640x480 -> 1). Only the
         ``"edge"`` and ``"subpix"`` refinements have a full-resolution step; the other modes
         always search the full image. A factor ``d`` raises the smallest detectable tag about
@@ -368,8 +363,11 @@ class TagDetector:
     def __init__(self, config: DetectorConfig | None = None) -> None:
         self.config = DetectorConfig() if config is None else config
         self._cells = marker_cells(self.config.family)
-        self._params = self.config.aruco_parameters()
-        self._detectors: dict[tuple[int, int], cv2.aruco.ArucoDetector] = {}
+        self._search = CandidateSearch(
+            self.config.family,
+            self.config.aruco_parameters(),
+            fixed_min_perimeter="minMarkerPerimeterRate" in self.config.detector_parameters,
+        )
 
     def detect(self, gray: np.ndarray, intrinsics: CameraIntrinsics) -> DetectionResult:
         """Detect tags in an 8-bit grayscale image and estimate their poses.
@@ -438,39 +436,7 @@ class TagDetector:
         with aruco's own refinement (SUBPIX for ``"edge"``, at full resolution also when the
         search ran on a decimated image, see ``DetectorConfig.decimate``); no gates, no pose."""
         img = np.ascontiguousarray(gray)
-        factor = self.config.decimation_for(img.shape[1], img.shape[0])
-        searched = decimate_image(img, factor)
-        corners, ids, _ = self._aruco(searched.shape).detectMarkers(searched)
-        if ids is None or len(ids) == 0:
-            return [], []
-        ids_list = [int(i) for i in np.asarray(ids).reshape(-1)]
-        quads = [np.asarray(c, dtype=float).reshape(4, 2) for c in corners]
-        if factor > 1:
-            quads = [
-                refine_corners_subpix(
-                    img,
-                    corners_to_full_resolution(q, searched.shape, img.shape),
-                    self._cells,
-                    self._params,
-                )
-                for q in quads
-            ]
-        return ids_list, quads
-
-    def _aruco(self, shape: tuple[int, int]) -> cv2.aruco.ArucoDetector:
-        """The ``cv2.aruco`` detector for a searched image of ``shape`` (H, W), created once per
-        shape: the smallest quad examined has one pixel per cell (``min_perimeter_rate``)
-        unless ``detector_parameters`` sets ``minMarkerPerimeterRate``."""
-        detector = self._detectors.get(shape)
-        if detector is None:
-            params = self.config.aruco_parameters()
-            if "minMarkerPerimeterRate" not in self.config.detector_parameters:
-                params.minMarkerPerimeterRate = min_perimeter_rate(
-                    self._cells, shape[1], shape[0], params.minMarkerPerimeterRate
-                )
-            detector = cv2.aruco.ArucoDetector(aruco_dictionary(self.config.family), params)
-            self._detectors[shape] = detector
-        return detector
+        return self._search.find(img, self.config.decimation_for(img.shape[1], img.shape[0]))
 
     def solve_pose(
         self, corners: np.ndarray, size: float, intrinsics: CameraIntrinsics

@@ -117,7 +117,7 @@ def test_oblique_tag_is_rejected_with_reason():
 
 def test_tiny_tag_is_rejected_with_reason():
     # Full-resolution search: a decimated one does not see an 18 px tag at all
-    # (test_decimation.py).
+    # (test_candidates.py).
     detector = TagDetector(DetectorConfig(default_tag_size=SIZE, decimate=1))
     T = np.diag([1.0, -1.0, -1.0, 1.0])
     T[:3, 3] = [0.0, 0.0, 9.0]  # 160 mm at 9 m: about 18 px

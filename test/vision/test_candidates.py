@@ -1,17 +1,21 @@
-"""Candidate search on a decimated image: coordinates, factor choice, accuracy, the size limit."""
+"""Candidate search (decimated or not): coordinates, factor choice, accuracy, small tags."""
 
+import cv2
 import numpy as np
 import pytest
 
 from rwhec_ros.core.lie import rotation_distance
-from rwhec_ros.vision.decimation import (
+from rwhec_ros.vision.candidates import (
     AUTO_DECIMATE_MIN_SIDE_PX,
+    REDETECT_BELOW_PX_PER_CELL,
     corners_to_full_resolution,
     decimate_image,
     decimation_factor,
     min_perimeter_rate,
+    redetect_in_window,
 )
 from rwhec_ros.vision.detection import DetectorConfig, TagDetector
+from rwhec_ros.vision.families import aruco_dictionary
 from rwhec_ros.vision.intrinsics import CameraIntrinsics
 from rwhec_ros.vision.render import RenderedTag, look_at, render_tags
 
@@ -118,3 +122,37 @@ def test_decimation_raises_the_smallest_detectable_tag():
         at_1, at_2 = (detectors[d].detect(img, CAM) for d in (1, 2))
         assert len(at_1.observations) + len(at_1.rejections) == 1
         assert (len(at_2.observations) + len(at_2.rejections) == 1) is seen_at_2
+
+
+def test_small_tags_are_searched_again_at_full_resolution():
+    """Below REDETECT_BELOW_PX_PER_CELL pixels per cell in the decimated image (< 64 px sides at
+    factor 2) the corners come from a full-resolution search in a window: the same corners as
+    the full-image search (to float32 round-off), not the mapped ones (up to 4 px off)."""
+    assert REDETECT_BELOW_PX_PER_CELL * 8 * 2 == 64
+    full = TagDetector(DetectorConfig(default_tag_size=SIZE, decimate=1))
+    half = TagDetector(DetectorConfig(default_tag_size=SIZE, decimate=2))
+    for distance in (3.5, 5.0):  # 46 and 32 px sides
+        tags = [RenderedTag(0, face_on(distance), SIZE)]
+        img = render_tags(CAM, tags, noise_std=1.0, blur_sigma=0.5, rng=np.random.default_rng(0))
+        (ids_a, (a,)), (ids_b, (b,)) = full.detect_markers(img), half.detect_markers(img)
+        assert ids_a == ids_b == [0]
+        # 1e-3 px: both are aruco's float32 SUBPIX corners of the same pixels.
+        np.testing.assert_allclose(b, a, atol=1e-3)
+
+
+def test_window_search_needs_the_same_id_near_the_same_place():
+    img = render_tags(
+        CAM,
+        [RenderedTag(5, face_on(4.0), SIZE)],
+        noise_std=1.0,
+        blur_sigma=0.5,
+        rng=np.random.default_rng(0),
+    )
+    detector = TagDetector(DetectorConfig(default_tag_size=SIZE, decimate=1))
+    (_, (quad,)) = detector.detect_markers(img)
+    params = DetectorConfig().aruco_parameters()
+    window = cv2.aruco.ArucoDetector(aruco_dictionary("tag36h11"), params)
+    found = redetect_in_window(window, params, img, quad + 1.5, 5, 8)
+    np.testing.assert_allclose(found, quad, atol=1e-3)
+    assert redetect_in_window(window, params, img, quad, 6, 8) is None  # another id
+    assert redetect_in_window(window, params, img, quad + 200.0, 5, 8) is None  # elsewhere
