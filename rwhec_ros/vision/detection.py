@@ -3,7 +3,9 @@
 Pipeline per image (:meth:`TagDetector.detect`):
 
 1. ``cv2.aruco.ArucoDetector`` with an AprilTag dictionary finds the four corners of each black
-   square (distorted pixels) with the configured corner refinement;
+   square (distorted pixels) with the configured corner refinement
+   (:class:`~rwhec_ros.vision.candidates.CandidateSearch`; on a decimated image for large images,
+   ``DetectorConfig.decimate``);
 2. the corners are undistorted with the camera model (:class:`CameraIntrinsics`) and
    ``cv2.solvePnPGeneric(..., SOLVEPNP_IPPE_SQUARE)`` returns the (up to two) planar poses; the
    one with the smaller reprojection error in the *distorted* image is kept and optionally
@@ -49,8 +51,9 @@ from enum import Enum
 import cv2
 import numpy as np
 
+from .candidates import CandidateSearch, check_decimate, decimation_factor
 from .edges import refine_corners_edges
-from .families import _family_key, aruco_dictionary, marker_cells
+from .families import _family_key, marker_cells
 from .intrinsics import CameraIntrinsics
 
 __all__ = [
@@ -186,7 +189,15 @@ class DetectorConfig:
         Floors of the precision model (defaults 0.1 px, 1 mm, 0.05 degrees).
     detector_parameters : dict[str, float]
         Overrides of ``cv2.aruco.DetectorParameters`` attributes (e.g.
-        ``{"adaptiveThreshWinSizeStep": 20}``); names are checked.
+        ``{"adaptiveThreshWinSizeStep": 20}``); names are checked. They apply to the searched
+        (possibly decimated) image.
+    decimate : int or "auto"
+        Candidate search on the image shrunk by this integer factor, corners refined at full
+        resolution (:mod:`rwhec_ros.vision.candidates`); 1 searches the full image. ``"auto"``
+        (default) picks ``max(W, H) // 600`` (1280x1024 -> 2, 640x480 -> 1). Only the
+        ``"edge"`` and ``"subpix"`` refinements have a full-resolution step; the other modes
+        always search the full image. A factor ``d`` raises the smallest detectable tag about
+        ``d``-fold (``benchmarks/perception.md``).
     """
 
     family: str = "tag36h11"
@@ -203,6 +214,7 @@ class DetectorConfig:
     sigma_floor_m: float = 1e-3
     rotation_std_floor_deg: float = 0.05
     detector_parameters: dict[str, float] = field(default_factory=dict)
+    decimate: int | str = "auto"
 
     def __post_init__(self) -> None:
         self.family = _family_key(self.family)
@@ -245,6 +257,14 @@ class DetectorConfig:
             if name.startswith("_") or not hasattr(params, name) or callable(getattr(params, name)):
                 raise ValueError(f"detector_parameters has an unknown name {name!r}")
         self.detector_parameters = dict(self.detector_parameters)
+        self.decimate = check_decimate(self.decimate)
+
+    def decimation_for(self, width: int, height: int) -> int:
+        """The decimation factor used for images of ``width x height`` (1 for refinements
+        without a full-resolution step)."""
+        if self.corner_refinement not in ("edge", "subpix"):
+            return 1
+        return decimation_factor(self.decimate, width, height)
 
     def size_of(self, tag_id: int) -> float | None:
         """Configured size of ``tag_id`` (metres), or None when the tag is not configured."""
@@ -343,8 +363,10 @@ class TagDetector:
     def __init__(self, config: DetectorConfig | None = None) -> None:
         self.config = DetectorConfig() if config is None else config
         self._cells = marker_cells(self.config.family)
-        self._detector = cv2.aruco.ArucoDetector(
-            aruco_dictionary(self.config.family), self.config.aruco_parameters()
+        self._search = CandidateSearch(
+            self.config.family,
+            self.config.aruco_parameters(),
+            fixed_min_perimeter="minMarkerPerimeterRate" in self.config.detector_parameters,
         )
 
     def detect(self, gray: np.ndarray, intrinsics: CameraIntrinsics) -> DetectionResult:
@@ -410,13 +432,11 @@ class TagDetector:
         return result
 
     def detect_markers(self, gray: np.ndarray) -> tuple[list[int], list[np.ndarray]]:
-        """Only the ``cv2.aruco`` stage: tag ids and their corners (4, 2) in distorted pixels,
-        with aruco's own refinement (SUBPIX for ``"edge"``); no gates, no pose."""
-        corners, ids, _ = self._detector.detectMarkers(np.ascontiguousarray(gray))
-        if ids is None or len(ids) == 0:
-            return [], []
-        ids_list = [int(i) for i in np.asarray(ids).reshape(-1)]
-        return ids_list, [np.asarray(c, dtype=float).reshape(4, 2) for c in corners]
+        """Only the candidate search: tag ids and their corners (4, 2) in distorted pixels,
+        with aruco's own refinement (SUBPIX for ``"edge"``, at full resolution also when the
+        search ran on a decimated image, see ``DetectorConfig.decimate``); no gates, no pose."""
+        img = np.ascontiguousarray(gray)
+        return self._search.find(img, self.config.decimation_for(img.shape[1], img.shape[0]))
 
     def solve_pose(
         self, corners: np.ndarray, size: float, intrinsics: CameraIntrinsics

@@ -116,7 +116,9 @@ def test_oblique_tag_is_rejected_with_reason():
 
 
 def test_tiny_tag_is_rejected_with_reason():
-    detector = TagDetector(DetectorConfig(default_tag_size=SIZE))
+    # Full-resolution search: a decimated one does not see an 18 px tag at all
+    # (test_candidates.py).
+    detector = TagDetector(DetectorConfig(default_tag_size=SIZE, decimate=1))
     T = np.diag([1.0, -1.0, -1.0, 1.0])
     T[:3, 3] = [0.0, 0.0, 9.0]  # 160 mm at 9 m: about 18 px
     result = detector.detect(render(CAM, [T]), CAM)
@@ -263,6 +265,8 @@ def test_bad_input_raises_value_error():
         (dict(max_reprojection_rms_px=-1.0), "max_reprojection_rms_px"),
         (dict(min_side_px=-1.0), "min_side_px"),
         (dict(detector_parameters={"noSuchParameter": 1}), "noSuchParameter"),
+        (dict(decimate=0), "decimate"),
+        (dict(decimate="half"), "decimate"),
     ],
 )
 def test_config_validation(kwargs, field):
