@@ -23,7 +23,7 @@ Subcommands::
 ``tag_<j>`` are X, cameras ``cam_<k>`` are Y; defaults sigma 0.1 m, kappa 125, 3 pairs per edge
 as the authors). ``bag`` feeds a rosbag2 recording (sqlite3 or mcap) message by message, in log
 time order, into a :class:`~rwhec_ros.session.CalibrationSession` through the node's
-:class:`~rwhec_ros.ros.handlers.MessageHandlers`, with the same configuration file as the node
+:class:`~rwhec_ros.session.handlers.MessageHandlers`, with the same configuration file as the node
 (PoseStamped topic, or ``/tf`` + ``/tf_static`` looked up at each image stamp). Unlike the node,
 images are processed synchronously (none is dropped) and the tf lookup sees the whole recording
 (the node waits ``sync.tf_timeout_s``). ``dataset`` solves a saved data set
@@ -428,9 +428,8 @@ def _cmd_bag(args: argparse.Namespace, say: _Printer) -> int:
         bag_topics,
         read_messages,
     )
-    from .ros.conversions import stamp_to_ns
-    from .ros.handlers import MessageHandlers
-    from .session import CalibrationSession
+    from .messages import stamp_to_ns
+    from .session import CalibrationSession, MessageHandlers
 
     overrides: dict[str, Any] = {}
     if args.output is not None:
@@ -535,9 +534,8 @@ def demo_parameters(rig, *, output_directory: str, mode: str = "fast") -> dict[s
 
 def _cmd_demo(args: argparse.Namespace, say: _Printer) -> int:
     from .config import CalibratorConfig
-    from .data.rosbag import simulated_stream
     from .session import CalibrationSession
-    from .simulation import demo_rig
+    from .simulation import demo_rig, simulated_stream
 
     if args.cameras < 1 or args.tags < 1:
         raise _BadInput(f"--cameras/--tags: must be >= 1, got {args.cameras}/{args.tags}")

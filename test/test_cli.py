@@ -153,8 +153,8 @@ def test_csv_missing_inputs_are_bad_input(tmp_path):
 def recorded(tmp_path_factory):
     """The demo rig rendered once and written as two bags: PoseStamped/sqlite3 and /tf/mcap."""
     pytest.importorskip("rosbags.rosbag2")
-    from rwhec_ros.data.rosbag import simulated_stream, simulation_messages, write_bag
-    from rwhec_ros.simulation import Trajectory, demo_rig
+    from rwhec_ros.data.rosbag import write_bag
+    from rwhec_ros.simulation import Trajectory, demo_rig, simulated_stream, simulation_messages
 
     rig = demo_rig(3, 6, trajectory=Trajectory(yaw_rate=2 * np.pi / 12.0))
     root = tmp_path_factory.mktemp("bags")

@@ -23,9 +23,12 @@ drop-oldest queue; both are plain Python and testable without ROS.
 
 Modules: :mod:`.live` (:class:`CalibrationSession`), :mod:`.outcomes` (what it answers),
 :mod:`.solving` (the solve step shared with the CLI), :mod:`.outputs` (summary, launch file, data
-set and output files) and :mod:`.image_queue` (:class:`ImageQueue`, :class:`QueueWorker`).
+set and output files), :mod:`.image_queue` (:class:`ImageQueue`, :class:`QueueWorker`) and
+:mod:`.handlers` (:class:`MessageHandlers`: one ROS message, rclpy's or rosbags', into the
+session).
 """
 
+from .handlers import MessageHandlers
 from .image_queue import ImageQueue, QueueWorker
 from .live import CalibrationSession
 from .outcomes import ImageOutcome, SolveOutcome
@@ -38,6 +41,7 @@ __all__ = [
     "CalibrationSession",
     "ImageQueue",
     "QueueWorker",
+    "MessageHandlers",
     "static_transforms_launch",
     "solve_problem",
     "summary",
