@@ -39,6 +39,7 @@ __all__ = [
     "output_paths",
     "session_output_paths",
     "new_output_dir",
+    "utc_stamp",
     "write_outputs",
     "load_result",
     "plain",
@@ -191,14 +192,20 @@ def session_output_paths(directory: str | Path) -> OutputPaths:
                        d / "report.png", d / "report.html")
 
 
+def utc_stamp(now: _dt.datetime | None = None) -> str:
+    """``now`` (default: the current time) as the UTC stamp of output directory names,
+    e.g. ``20261121T061241_560269Z``."""
+    now = now if now is not None else _dt.datetime.now(_dt.timezone.utc)
+    return now.astimezone(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S_%fZ")
+
+
 def new_output_dir(root: str | Path, kind: str = "calibration",
                    now: _dt.datetime | None = None) -> Path:
     """A new directory ``<root>/<kind>_<UTC stamp>[_n]`` (never reused), named like the
     session's output directories."""
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
-    now = now if now is not None else _dt.datetime.now(_dt.timezone.utc)
-    base = f"{kind}_{now.astimezone(_dt.timezone.utc).strftime('%Y%m%dT%H%M%S_%fZ')}"
+    base = f"{kind}_{utc_stamp(now)}"
     for i in range(1000):
         path = root / (base if i == 0 else f"{base}_{i}")
         try:

@@ -18,7 +18,7 @@ import yaml
 from ..config import CalibratorConfig
 from ..core.lie import invert_transform
 from ..core.result import CalibrationResult
-from ..data.results import FrameNaming, new_output_dir, plain, result_document
+from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
 from ..sync.accumulator import PairAccumulator
 from ..sync.buffer import LookupStatus, PoseBuffer
 from ..vision.detection import DetectorConfig, RejectReason, TagDetector
@@ -358,18 +358,27 @@ class CalibrationSession:
             return self._last_outcome
 
     # --- solve -------------------------------------------------------------------------------
-    def calibrate(self) -> SolveOutcome:
+    def calibrate(self, output_dir: str | Path | None = None, *,
+                  force: bool = False) -> SolveOutcome:
         """Solve with the data so far and write the outputs; never discards data.
+
+        Parameters
+        ----------
+        output_dir : str or Path, optional
+            Write the files exactly into this directory (created if needed; existing files are
+            refused unless ``force``). Default: a new timestamped directory under
+            ``output.directory``, never reused.
+        force : bool
+            Overwrite existing files in ``output_dir``.
 
         Returns
         -------
         SolveOutcome
             ``success=False`` with the reason when there are not enough pairs or the solver
-            raised; otherwise the result, a short summary and the written files (under
-            ``output.directory`` in a new timestamped directory, never overwriting).
+            raised; otherwise the result, a short summary and the written files.
         """
         with self._solve_lock:
-            outcome = self._calibrate()
+            outcome = self._calibrate(output_dir, force)
         with self._lock:
             self._last_outcome = outcome
         return outcome
@@ -391,7 +400,7 @@ class CalibrationSession:
             counts = self._acc.counts()
         return problem, excluded, err, report, dataset, counts
 
-    def _calibrate(self) -> SolveOutcome:
+    def _calibrate(self, output_dir: str | Path | None, force: bool) -> SolveOutcome:
         c = self.config
         problem, excluded, err, report, dataset, counts = self._snapshot()
         ident = report_dict(report)
@@ -417,7 +426,7 @@ class CalibrationSession:
         ident = full_report(problem, result) or ident
         text = yaml.safe_dump(self.result_document(result, excl, ident), sort_keys=False)
         try:
-            files = self._write_outputs(result, text, dataset)
+            files = self._write_outputs(result, text, dataset, output_dir, force)
             write_error = ""
         except OSError as exc:
             files, write_error = {}, f"; WRITING OUTPUTS FAILED: {exc}"
@@ -449,9 +458,16 @@ class CalibrationSession:
         """A new directory ``<output.directory>/<kind>_<UTC stamp>[_n]`` (never reused)."""
         return new_output_dir(self.config.output.directory, kind, now=self._now())
 
-    def _write_outputs(self, result: CalibrationResult, text: str, dataset) -> dict[str, str]:
-        return write_session_outputs(self._output_dir("calibration"),
-                                     self.published_transforms(result), result, text, dataset)
+    def _write_outputs(self, result: CalibrationResult, text: str, dataset,
+                       output_dir: str | Path | None = None,
+                       force: bool = False) -> dict[str, str]:
+        if output_dir is None:
+            out = self._output_dir("calibration")
+            created = out.name.split("_", 1)[1]
+        else:
+            out, created = Path(output_dir), utc_stamp(self._now())
+        return write_session_outputs(out, self.published_transforms(result), result, text,
+                                     dataset, created=created, force=force)
 
     def _dataset_locked(self):
         """A data-set object of the kept pairs (lock held), or None if unavailable."""

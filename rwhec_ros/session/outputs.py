@@ -111,12 +111,14 @@ def session_dataset(acc, config) -> Dataset | None:
 
 
 def write_session_outputs(out: Path, transforms: list[tuple[str, str, np.ndarray]],
-                          result: CalibrationResult, text: str, dataset) -> dict[str, str]:
-    """Write the result YAML ``text``, the launch file of ``transforms`` and ``dataset`` into the
-    new session directory ``out`` (``<kind>_<UTC stamp>``); returns the written paths."""
+                          result: CalibrationResult, text: str, dataset, *, created: str,
+                          force: bool = False) -> dict[str, str]:
+    """Write the result YAML ``text``, the launch file of ``transforms`` (its header says when it
+    was ``created``) and ``dataset`` into the directory ``out``; returns the written paths.
+    Existing files are refused (``FileExistsError``) unless ``force``."""
     launch = static_transforms_launch(transforms, header=(
         f"certified: {result.certified}, suboptimality bound "
-        f"{result.certificate.suboptimality_bound:.3g}, created {out.name.split('_', 1)[1]}"
+        f"{result.certificate.suboptimality_bound:.3g}, created {created}"
     ))
     return write_outputs(session_output_paths(out), result_yaml=text, launch_text=launch,
-                         dataset=dataset)
+                         dataset=dataset, force=force)

@@ -6,7 +6,13 @@ from ..core.identifiability import IdentifiabilityTracker, analyze
 from ..core.result import CalibrationResult
 from ..data.results import plain
 
-__all__ = ["solve_problem", "make_tracker", "full_report", "report_dict"]
+__all__ = [
+    "solve_problem",
+    "make_tracker",
+    "analyze_at_solution",
+    "full_report",
+    "report_dict",
+]
 
 
 def make_tracker(unknown_scale: bool) -> IdentifiabilityTracker:
@@ -15,13 +21,18 @@ def make_tracker(unknown_scale: bool) -> IdentifiabilityTracker:
     return IdentifiabilityTracker(unknown_scale=unknown_scale, keep_pairs=False)
 
 
-def full_report(problem, result: CalibrationResult) -> dict | None:
-    """Whole-problem identifiability at the solution (``analyze(..., full=True)``), or None."""
+def analyze_at_solution(problem, result: CalibrationResult):
+    """Whole-problem identifiability at the solution (``analyze(..., full=True)``, an
+    :class:`~rwhec_ros.core.identifiability.IdentifiabilityReport`), or None if it fails."""
     try:
-        report = analyze(problem, solution=(result.X, result.Y, float(result.scale)))
+        return analyze(problem, solution=(result.X, result.Y, float(result.scale)))
     except Exception:  # noqa: BLE001 - optional extra; the tracker's report remains
         return None
-    return report_dict(report)
+
+
+def full_report(problem, result: CalibrationResult) -> dict | None:
+    """:func:`analyze_at_solution` as a plain mapping, or None."""
+    return report_dict(analyze_at_solution(problem, result))
 
 
 def report_dict(report) -> dict | None:
