@@ -29,6 +29,7 @@ __all__ = [
     "MODES",
     "DEFAULT_OUTPUT",
     "BadInput",
+    "NoSolution",
     "Printer",
     "Progress",
     "SolveSettings",
@@ -56,6 +57,10 @@ DEFAULT_OUTPUT = "rwhec_output"
 
 class BadInput(Exception):
     """Bad input for the CLI: printed without a traceback, exit code 2."""
+
+
+class NoSolution(Exception):
+    """No solution (e.g. not enough data): the message is printed on stdout, exit code 3."""
 
 
 class Printer:

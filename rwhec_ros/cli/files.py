@@ -10,8 +10,8 @@ from typing import Any
 
 from .common import (
     EXIT_CERTIFIED,
-    EXIT_NO_SOLUTION,
     BadInput,
+    NoSolution,
     Printer,
     SolveSettings,
     check_positive,
@@ -37,9 +37,15 @@ def _with_carriers(naming, args: argparse.Namespace):
     return replace(naming, frames=frames)
 
 
-def _excluded(data, min_pairs: int) -> dict[str, str]:
-    return {f"({e.x}, {e.y})": f"{e.n} pairs < min_pairs={min_pairs}"
-            for e in data.edges if e.n < min_pairs}
+def _problem(data, min_pairs: int):
+    """The data set's problem and the edges below ``min_pairs`` left out (``excluded``);
+    :class:`~.common.NoSolution` when no edge is left."""
+    excluded = {f"({e.x}, {e.y})": f"{e.n} pairs < min_pairs={min_pairs}"
+                for e in data.edges if e.n < min_pairs}
+    try:
+        return data.to_problem(min_pairs=min_pairs), excluded
+    except ValueError as exc:
+        raise NoSolution(f"not enough data: {exc}") from None
 
 
 def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
@@ -67,12 +73,7 @@ def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
     source = {"type": "paper_csv", "path": str(args.directory)}
     carriers = {n: p for n, (p, _) in naming.frames.items()}
     dataset = Dataset.from_problem(everything, metadata={"source": source}, carriers=carriers)
-    excluded = _excluded(dataset, settings.min_pairs)
-    try:
-        problem = dataset.to_problem(min_pairs=settings.min_pairs)
-    except ValueError as exc:
-        say(f"not enough data: {exc}")
-        return EXIT_NO_SOLUTION
+    problem, excluded = _problem(dataset, settings.min_pairs)
     used = {
         "camera_carrier.frame": camera_carrier,
         "tag_carrier.frame": tag_carrier,
@@ -109,12 +110,7 @@ def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
                   "tag_carrier.frame": args.tag_carrier or "world",
                   "tags.unknown_scale": data.unknown_scale}
     params.update(settings.parameters())
-    excluded = _excluded(data, settings.min_pairs)
-    try:
-        problem = data.to_problem(min_pairs=settings.min_pairs)
-    except ValueError as exc:
-        say(f"not enough data: {exc}")
-        return EXIT_NO_SOLUTION
+    problem, excluded = _problem(data, settings.min_pairs)
     return solve_and_write(say, problem, data, naming, paths, settings, excluded=excluded,
                            config=params, source={"type": "dataset", "path": str(args.file)},
                            force=args.force, report=args.report)

@@ -7,7 +7,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import TextIO
 
-from .common import EXIT_BAD_INPUT, PROG, BadInput, Printer
+from .common import EXIT_BAD_INPUT, EXIT_NO_SOLUTION, PROG, BadInput, NoSolution, Printer
 from .files import cmd_csv, cmd_dataset, cmd_report
 from .parser import build_parser
 from .replay import cmd_bag, cmd_demo
@@ -41,6 +41,9 @@ def main(argv: Sequence[str] | None = None, *, stdout: TextIO | None = None,
     say = Printer(out, err, quiet=bool(getattr(args, "quiet", False)))
     try:
         return _COMMANDS[args.command](args, say)
+    except NoSolution as exc:
+        say(str(exc))
+        return EXIT_NO_SOLUTION
     except (BadInput, ValueError, FileExistsError, FileNotFoundError, IsADirectoryError,
             NotADirectoryError, PermissionError) as exc:
         print(f"{PROG} {args.command}: error: {exc}", file=err)

@@ -64,6 +64,20 @@ def _add_carriers(p: argparse.ArgumentParser, *, stored: bool = False) -> None:
                         f"tag_carrier.frame{also}, else world)")
 
 
+def _add_solving(sub, name: str, help_text: str, positional: tuple[str, str, str] | None,
+                 config_help: str, *, config_required: bool = False) -> argparse.ArgumentParser:
+    """A solving subcommand: its positional argument ``(dest, metavar, help)`` and the shared
+    options."""
+    p = sub.add_parser(name, help=help_text)
+    if positional is not None:
+        dest, metavar, text = positional
+        p.add_argument(dest, metavar=metavar, type=Path, help=text)
+    _add_output(p)
+    _add_config(p, config_help, required=config_required)
+    _add_solver(p)
+    return p
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``rwhec-calibrate`` (subcommands csv, bag, dataset, demo, report)."""
     parser = argparse.ArgumentParser(
@@ -75,13 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    p = sub.add_parser("csv", help="the paper's CSV layout (tag_<j>_cam_<k>_A.csv / _B.csv)")
-    p.add_argument("directory", metavar="DIR", type=Path,
-                   help="directory of tag_<j>_cam_<k>_A.csv / _B.csv files")
-    _add_output(p)
-    _add_config(p, "take the noise, carriers, scale, solver and output settings from a node "
-                   "parameter file (default: none)")
-    _add_solver(p)
+    p = _add_solving(sub, "csv", "the paper's CSV layout (tag_<j>_cam_<k>_A.csv / _B.csv)",
+                     ("directory", "DIR", "directory of tag_<j>_cam_<k>_A.csv / _B.csv files"),
+                     "take the noise, carriers, scale, solver and output settings from a node "
+                     "parameter file (default: none)")
     p.add_argument("--sigma", type=float, default=None,
                    help="translation std of B [m] (default: the configuration's noise.sigma, "
                         "else 0.1 as the authors)")
@@ -93,29 +104,21 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: the configuration's tags.unknown_scale, else off)")
     _add_carriers(p)
 
-    p = sub.add_parser("bag", help="a rosbag2 recording (sqlite3 or mcap) with the node's config")
-    p.add_argument("bag", metavar="BAG", type=Path,
-                   help="rosbag2 directory (sqlite3 or mcap)")
-    _add_output(p)
-    _add_config(p, "the node's parameter file, e.g. config/demo.yaml (required)",
-                required=True)
-    _add_solver(p)
+    _add_solving(sub, "bag", "a rosbag2 recording (sqlite3 or mcap) with the node's config",
+                 ("bag", "BAG", "rosbag2 directory (sqlite3 or mcap)"),
+                 "the node's parameter file, e.g. config/demo.yaml (required)",
+                 config_required=True)
 
-    p = sub.add_parser("dataset", help="a data set saved by the session or the CLI")
-    p.add_argument("file", metavar="FILE", type=Path,
-                   help="dataset.yaml written by the node or the CLI")
-    _add_output(p)
-    _add_config(p, "a node parameter file to use instead of the configuration stored in the "
-                   "data set (default: the stored one, if any)")
-    _add_solver(p)
+    p = _add_solving(sub, "dataset", "a data set saved by the session or the CLI",
+                     ("file", "FILE", "dataset.yaml written by the node or the CLI"),
+                     "a node parameter file to use instead of the configuration stored in the "
+                     "data set (default: the stored one, if any)")
     _add_carriers(p, stored=True)
 
-    p = sub.add_parser("demo", help="simulated mobile rig: render, detect, sync, solve, compare")
-    _add_output(p)
-    _add_config(p, "calibrator settings (noise, sync, keyframe, detection, solver, output) "
-                   "from a node parameter file; the rig's frames, topics and tags stay the "
-                   "simulation's (default: the values of config/demo.yaml)")
-    _add_solver(p)
+    p = _add_solving(sub, "demo", "simulated mobile rig: render, detect, sync, solve, compare",
+                     None, "calibrator settings (noise, sync, keyframe, detection, solver, "
+                     "output) from a node parameter file; the rig's frames, topics and tags stay "
+                     "the simulation's (default: the values of config/demo.yaml)")
     p.add_argument("--cameras", type=int, default=3,
                    help="cameras on the rig (default: %(default)s)")
     p.add_argument("--tags", type=int, default=6, help="tags in the room (default: %(default)s)")

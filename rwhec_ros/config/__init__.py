@@ -39,67 +39,22 @@ enforces the same rule so that a file accepted here is accepted by the node.
 Units: metres, seconds, radians (suffixes ``_m``, ``_s``, ``_rad`` in the names).
 
 Modules: :mod:`.specs` (the parameter schema), :mod:`.sections` (the typed sections),
-:mod:`.calibrator` (:class:`CalibratorConfig`), :mod:`.validation` (types and values, naming the
-parameter) and :mod:`.parameter_file` (reading a ROS 2 parameter file without ROS).
+:mod:`.calibrator` (:class:`CalibratorConfig`, built from its sections), :mod:`.validation`
+(types and values, naming the parameter) and :mod:`.parameter_file` (reading a ROS 2 parameter
+file without ROS).
 """
 
+from . import sections, specs
 from .calibrator import CalibratorConfig
 from .parameter_file import flatten_parameters, load_config, read_parameter_file
-from .sections import (
-    CameraConfig,
-    CarrierConfig,
-    DetectionConfig,
-    KeyframeConfig,
-    NoiseConfig,
-    OutputConfig,
-    PoseSourceConfig,
-    RosConfig,
-    SolverConfig,
-    SyncConfig,
-    TagsConfig,
-)
-from .specs import (
-    CAMERA_SPECS,
-    DEFAULT_NODE_NAME,
-    GLOBAL_SPECS,
-    IMAGE_QOS,
-    KINDS,
-    POSE_SOURCE_TYPES,
-    ROS_MANAGED_PARAMETERS,
-    ROS_MANAGED_PREFIXES,
-    SOLVER_MODES,
-    ParamSpec,
-    is_valid_name,
-    parameter_specs,
-)
+from .sections import *  # noqa: F403 - every section class, listed in sections.__all__
+from .specs import *  # noqa: F403 - the schema, listed in specs.__all__
 
 __all__ = [
-    "ParamSpec",
-    "CarrierConfig",
-    "PoseSourceConfig",
-    "CameraConfig",
-    "TagsConfig",
-    "NoiseConfig",
-    "SyncConfig",
-    "KeyframeConfig",
-    "DetectionConfig",
-    "SolverConfig",
-    "OutputConfig",
-    "RosConfig",
     "CalibratorConfig",
-    "GLOBAL_SPECS",
-    "CAMERA_SPECS",
-    "parameter_specs",
-    "is_valid_name",
     "load_config",
     "read_parameter_file",
     "flatten_parameters",
-    "DEFAULT_NODE_NAME",
-    "ROS_MANAGED_PARAMETERS",
-    "ROS_MANAGED_PREFIXES",
-    "KINDS",
-    "SOLVER_MODES",
-    "POSE_SOURCE_TYPES",
-    "IMAGE_QOS",
+    *sections.__all__,
+    *specs.__all__,
 ]
-

@@ -7,28 +7,9 @@
   (:func:`simulation_messages`) and recorded into a bag (:func:`write_simulated_bag`).
 """
 
-from .bag import simulation_messages, write_simulated_bag
-from .rig import (
-    DEMO_POSE_TOPIC,
-    DEMO_RIG_FRAME,
-    DEMO_WORLD_FRAME,
-    SimulatedRig,
-    Trajectory,
-    demo_camera_topics,
-    demo_rig,
-)
-from .stream import SimulatedSample, simulated_stream
+from . import bag, rig, stream
+from .bag import *  # noqa: F403 - simulation_messages, write_simulated_bag
+from .rig import *  # noqa: F403 - the scene and the demo's names, listed in rig.__all__
+from .stream import *  # noqa: F403 - SimulatedSample, simulated_stream
 
-__all__ = [
-    "DEMO_POSE_TOPIC",
-    "DEMO_WORLD_FRAME",
-    "DEMO_RIG_FRAME",
-    "demo_camera_topics",
-    "Trajectory",
-    "SimulatedRig",
-    "demo_rig",
-    "SimulatedSample",
-    "simulated_stream",
-    "simulation_messages",
-    "write_simulated_bag",
-]
+__all__ = [*rig.__all__, *stream.__all__, *bag.__all__]
