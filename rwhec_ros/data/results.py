@@ -4,16 +4,16 @@ One module for every entry point: the live session (:class:`rwhec_ros.session.Ca
 writes into a new timestamped directory (``result.yaml``, ``static_transforms.launch.py``,
 ``dataset.yaml``), and the offline CLI, which solves a :class:`~rwhec_ros.core.problem.Problem`
 read from files (the paper's CSV layout, a saved data set), writes the same files with the same
-keys, possibly beside an explicit result path. Nothing here knows a ROS message.
+keys into such a directory or the one named by ``-o``. Nothing here knows a ROS message.
 
 * :class:`FrameNaming` says under which ``(parent, child)`` each estimated frame is published
   (from a :class:`~rwhec_ros.config.CalibratorConfig` or from two carrier frame names).
 * :func:`result_document` is the result YAML mapping (``certified``, ``suboptimality_bound``,
   ``scale``, ``frames`` with ``parent``/``child``, ``timing_s``, ``identifiability``,
   ``excluded_edges``, ``config``, ...).
-* :class:`OutputPaths` / :func:`output_paths` name the files beside an explicit result path
-  (``OUT.yaml``, ``OUT.launch.py``, ``OUT.dataset.yaml``, ``OUT.report.png``,
-  ``OUT.report.html``); :func:`new_output_dir` makes a new timestamped directory like the
+* :class:`OutputPaths` / :func:`session_output_paths` name the files of one output directory
+  (:func:`output_paths`: the older layout beside an explicit ``OUT.yaml``, still read by
+  ``rwhec-calibrate report``); :func:`new_output_dir` makes a new timestamped directory like the
   session's; :func:`write_outputs` writes them, refusing to overwrite unless ``force``.
 * :func:`load_result` reads a result YAML back (for ``rwhec-calibrate report``).
 """
