@@ -4,7 +4,7 @@
     ros2 service call /calibrate std_srvs/srv/Trigger          (or /<namespace>/calibrate)
 
 The parameter file is the one configuration format of the package (see config/*.yaml and
-rwhec_ros/config.py); its top-level key must be the node name, ``calibrator`` (or ``/**``).
+rwhec_ros/config/); its top-level key must be the node name, ``calibrator`` (or ``/**``).
 """
 
 from launch import LaunchDescription

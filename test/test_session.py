@@ -1,8 +1,8 @@
 """The ROS-free live session, driven by real ROS message types (rosbags) and by plain arrays.
 
 The end-to-end tests render the demo rig of :mod:`rwhec_ros.simulation` (3 cameras, 6 tags,
-noisy motion-capture poses), push the messages through :mod:`rwhec_ros.ros.conversions` /
-:mod:`rwhec_ros.ros.handlers`, detect, synchronise, accumulate and solve, and compare the
+noisy motion-capture poses), push the messages through :mod:`rwhec_ros.messages` /
+:mod:`rwhec_ros.session.handlers`, detect, synchronise, accumulate and solve, and compare the
 estimates with the simulation's ground truth.
 """
 
@@ -20,9 +20,9 @@ from launch_helpers import launch_transforms
 from rwhec_ros.config import CalibratorConfig, read_parameter_file
 from rwhec_ros.core.lie import invert_transform
 from rwhec_ros.data.dataset import Dataset
-from rwhec_ros.ros.conversions import transform_to_pose_stamped_fields
-from rwhec_ros.ros.handlers import MessageHandlers
+from rwhec_ros.messages import transform_to_pose_stamped_fields
 from rwhec_ros.session import CalibrationSession, ImageQueue, QueueWorker
+from rwhec_ros.session.handlers import MessageHandlers
 from rwhec_ros.simulation import demo_rig
 from rwhec_ros.vision.intrinsics import CameraIntrinsics
 from rwhec_ros.vision.render import RenderedTag, render_tags

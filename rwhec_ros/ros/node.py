@@ -23,7 +23,7 @@ tag detection runs on a worker thread fed by a bounded drop-oldest queue; the se
 own mutually exclusive group, so ``calibrate`` answers while data keep flowing under a
 ``MultiThreadedExecutor``. Everything else is delegated to
 :class:`~rwhec_ros.session.CalibrationSession` through
-:class:`~rwhec_ros.ros.handlers.MessageHandlers`.
+:class:`~rwhec_ros.session.handlers.MessageHandlers`.
 """
 
 from __future__ import annotations
@@ -54,8 +54,7 @@ from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
 from ..config import DEFAULT_NODE_NAME
-from ..session import CalibrationSession, ImageQueue, QueueWorker
-from .conversions import (
+from ..messages import (
     diagnostic_rows,
     fill_message,
     ns_to_stamp_fields,
@@ -63,7 +62,7 @@ from .conversions import (
     transform_stamped_to_transform,
     transform_to_transform_stamped_fields,
 )
-from .handlers import MessageHandlers
+from ..session import CalibrationSession, ImageQueue, MessageHandlers, QueueWorker
 from .params import config_from_node
 
 __all__ = ["CalibratorNode", "main"]

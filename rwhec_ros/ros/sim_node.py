@@ -28,19 +28,19 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
+from ..messages import (
+    fill_message,
+    gray_to_image_fields,
+    intrinsics_to_camera_info_fields,
+    transform_to_pose_stamped_fields,
+    transform_to_transform_stamped_fields,
+)
 from ..simulation import (
     DEMO_POSE_TOPIC,
     DEMO_RIG_FRAME,
     DEMO_WORLD_FRAME,
     demo_camera_topics,
     demo_rig,
-)
-from .conversions import (
-    fill_message,
-    gray_to_image_fields,
-    intrinsics_to_camera_info_fields,
-    transform_to_pose_stamped_fields,
-    transform_to_transform_stamped_fields,
 )
 
 __all__ = ["DemoSimulatorNode", "main"]

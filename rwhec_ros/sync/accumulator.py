@@ -42,7 +42,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..core.problem import DEFAULT_ROTATION_TOL, Edge, Problem, check_transforms
-from ..data.dataset import DatasetEdge
+from .edge_pairs import DatasetEdge
 
 __all__ = ["PairAccumulator", "PairListener"]
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp
-from rwhec_ros.ros.conversions import (
+from rwhec_ros.messages import (
     camera_info_to_intrinsics,
     gray_to_image_fields,
     image_to_gray,
@@ -29,9 +29,7 @@ from rwhec_ros.data.rosbag import (  # noqa: E402 - after the importorskip
     bag_topics,
     message_from_fields,
     read_messages,
-    simulated_stream,
     write_bag,
-    write_simulated_bag,
 )
 
 NS = 1_000_000_000
@@ -108,7 +106,7 @@ def test_bag_errors_name_the_path(tmp_path):
 
 
 def test_simulated_bag_holds_the_demo_topics(tmp_path):
-    from rwhec_ros.simulation import DEMO_POSE_TOPIC, demo_rig
+    from rwhec_ros.simulation import DEMO_POSE_TOPIC, demo_rig, write_simulated_bag
 
     rig = demo_rig(1, 2)
     bag = write_simulated_bag(tmp_path / "sim", rig, np.random.default_rng(0), seconds=0.4,
@@ -124,18 +122,6 @@ def test_simulated_bag_holds_the_demo_topics(tmp_path):
     assert frame == "world" and stamp == first.log_time_ns == NS
     # the default pose noise is 0.5 mm / 0.5 mrad per axis: well within 1 cm / 0.01 rad
     assert np.allclose(T, rig.T_world_rig(0.0), atol=1e-2)
-
-
-def test_simulated_stream_is_ordered_and_reproducible():
-    from rwhec_ros.simulation import demo_rig
-
-    rig = demo_rig(2, 2)
-    a = list(simulated_stream(rig, np.random.default_rng(3), seconds=0.2, supersample=1))
-    b = list(simulated_stream(rig, np.random.default_rng(3), seconds=0.2, supersample=1))
-    stamps = [s.stamp_ns for s in a]
-    assert stamps == sorted(stamps)
-    assert [s.camera for s in a if s.camera] == ["cam0", "cam1"]
-    assert all(np.array_equal(x.data, y.data) for x, y in zip(a, b, strict=True))
 
 
 # --- offline tf ------------------------------------------------------------------------------

@@ -29,7 +29,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from rwhec_ros.config import read_parameter_file  # noqa: E402
-from rwhec_ros.ros.conversions import (  # noqa: E402
+from rwhec_ros.messages import (  # noqa: E402
     fill_message,
     gray_to_image_fields,
     intrinsics_to_camera_info_fields,

@@ -1,25 +1,6 @@
-"""The ROS-free live calibration session: poses and images in, certified extrinsics out.
+"""The live session, :class:`CalibrationSession`: poses and images in, certified extrinsics out.
 
-:class:`CalibrationSession` is a thin layer over the pipeline: the pose stream goes into a
-:class:`~rwhec_ros.sync.buffer.PoseBuffer` (as ``A = T_<camera carrier>_<tag carrier>``, inverted
-from ``T_parent_child`` where the configuration says so); each image is searched for tags
-(:class:`~rwhec_ros.vision.detection.TagDetector`, ``B = T_cam_tag``), ``A`` is looked up at the
-image stamp, and every ``(A, B)`` pair is offered to a
-:class:`~rwhec_ros.sync.accumulator.PairAccumulator` whose kept pairs feed an incremental
-:class:`~rwhec_ros.core.identifiability.IdentifiabilityTracker`.
-:meth:`CalibrationSession.calibrate` solves the paper's MLE (``A_i X_j = Y_k B_i``, eq. (7))
-with :func:`rwhec_ros.core.solve.solve` and writes the result YAML, the data set and a
-static-transform launch file.
-
-Live-path promise: :meth:`~CalibrationSession.add_pose` and :meth:`~CalibrationSession.add_image`
-never raise for bad data (missing intrinsics, wrong image size, unknown tags, no pose at the
-stamp, ...): every rejection is counted by reason (:meth:`~CalibrationSession.counters`).
-
-Threading: the ROS node calls ``add_pose``/``add_image`` from worker threads and ``calibrate``
-from a service thread. Shared state is protected by one lock that is never held during tag
-detection or the solve (the data are copied under the lock, then processed).
-:class:`ImageQueue` and :class:`QueueWorker` move detection off the caller's thread with a bounded
-drop-oldest queue; both are plain Python and testable without ROS.
+See :mod:`rwhec_ros.session` for the pipeline, the live-path promise and the threading model.
 """
 
 from __future__ import annotations
@@ -28,99 +9,27 @@ import collections
 import datetime as _dt
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
-from .config import CalibratorConfig
-from .core.lie import invert_transform, transform_to_quat_xyzw
-from .core.result import CalibrationResult
-from .data.results import (
-    FrameNaming,
-    new_output_dir,
-    plain,
-    result_document,
-    session_output_paths,
-    write_outputs,
-)
-from .sync.accumulator import PairAccumulator
-from .sync.buffer import LookupStatus, PoseBuffer
-from .vision.detection import DetectorConfig, RejectReason, TagDetector
-from .vision.intrinsics import CameraIntrinsics
+from ..config import CalibratorConfig
+from ..core.lie import invert_transform
+from ..core.result import CalibrationResult
+from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
+from ..sync.accumulator import PairAccumulator
+from ..sync.buffer import LookupStatus, PoseBuffer
+from ..vision.detection import DetectorConfig, RejectReason, TagDetector
+from ..vision.intrinsics import CameraIntrinsics
+from .outcomes import ImageOutcome, SolveOutcome, edge_rows
+from .outputs import session_dataset, summary, write_session_outputs
+from .solving import full_report, make_tracker, report_dict, solve_problem
 
-__all__ = [
-    "ImageOutcome",
-    "SolveOutcome",
-    "CalibrationSession",
-    "ImageQueue",
-    "QueueWorker",
-    "static_transforms_launch",
-]
+__all__ = ["CalibrationSession"]
 
 _NS_PER_S = 1_000_000_000
-
-
-@dataclass
-class ImageOutcome:
-    """What happened to one image.
-
-    Attributes
-    ----------
-    camera : str
-    stamp_ns : int
-    status : str
-        ``"used"`` (at least one pair kept), ``"no_new_pairs"`` (tags seen, pose found, but no
-        pair passed the keyframe test), ``"no_tags"``, ``"pending"`` (detections wait for a pose
-        newer than the stamp) or ``"rejected"``.
-    observations : int
-        Accepted tag detections.
-    pairs_kept : int
-        Pairs the accumulator kept.
-    reasons : list of str
-        Counter keys of every rejection in this image.
-    """
-
-    camera: str
-    stamp_ns: int
-    status: str
-    observations: int = 0
-    pairs_kept: int = 0
-    reasons: list[str] = field(default_factory=list)
-
-
-@dataclass
-class SolveOutcome:
-    """Answer of :meth:`CalibrationSession.calibrate`.
-
-    Attributes
-    ----------
-    success : bool
-        A solution was computed (certified or not: see ``result.certified``). False when there
-        were not enough data or the solver failed; the session keeps all its data either way.
-    message : str
-        Short summary: certified?, ``rho_hat``, each frame's estimate, edges excluded and why
-        (or the reason of the failure).
-    result : CalibrationResult or None
-    excluded : dict of str to str
-        Edge ``"(x, y)"`` -> reason it was left out of the problem.
-    files : dict of str to str
-        ``result``, ``dataset``, ``launch`` -> written paths (empty on failure).
-    identifiability : dict or None
-        The identifiability report at the time of the solve (``IdentifiabilityReport.to_dict()``).
-    result_yaml : str
-        The text of the result YAML (also written to ``files["result"]``); empty on failure.
-    """
-
-    success: bool
-    message: str
-    result: CalibrationResult | None = None
-    excluded: dict[str, str] = field(default_factory=dict)
-    files: dict[str, str] = field(default_factory=dict)
-    identifiability: dict | None = None
-    result_yaml: str = ""
 
 
 class CalibrationSession:
@@ -183,7 +92,7 @@ class CalibrationSession:
             max_pairs_per_edge=c.keyframe.max_pairs_per_edge,
             max_edges=max(1, len(c.cameras) * len(c.tags.ids)),
         )
-        self._tracker = _make_tracker(c.tags.unknown_scale)
+        self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()
         self._counters: collections.Counter = collections.Counter()
 
@@ -286,7 +195,7 @@ class CalibrationSession:
             with self._lock:
                 self._count(reason)
             reasons.append(reason)
-            return ImageOutcome(camera, _safe_int(stamp_ns), "rejected", reasons=reasons)
+            return ImageOutcome(camera, safe_int(stamp_ns), "rejected", reasons=reasons)
 
         with self._lock:
             self._count("images")
@@ -295,7 +204,7 @@ class CalibrationSession:
             return reject("image_unknown_camera")
         if intrinsics is None:
             return reject("image_missing_camera_info")
-        stamp = _safe_int(stamp_ns)
+        stamp = safe_int(stamp_ns)
         if stamp is None:
             return reject("image_bad_stamp")
         img = np.asarray(gray) if isinstance(gray, np.ndarray) else None
@@ -440,19 +349,7 @@ class CalibrationSession:
         with self._lock:
             counts = self._acc.counts()
             report = self._tracker_report()
-        per_edge = _edge_statuses(report)
-        min_pairs = self.config.solver.min_pairs
-        rows = []
-        for (x, y), n in counts.items():
-            status, ident, reasons = per_edge.get((x, y), ("unknown", None, []))
-            reasons = list(reasons)
-            if n < min_pairs:
-                reasons.append(f"{n} pairs < solver.min_pairs={min_pairs}")
-            rows.append(
-                {"x": x, "y": y, "pairs": int(n), "status": status, "identifiable": ident,
-                 "reasons": reasons}
-            )
-        return rows
+        return edge_rows(counts, report, self.config.solver.min_pairs)
 
     @property
     def last_outcome(self) -> SolveOutcome | None:
@@ -461,18 +358,27 @@ class CalibrationSession:
             return self._last_outcome
 
     # --- solve -------------------------------------------------------------------------------
-    def calibrate(self) -> SolveOutcome:
+    def calibrate(self, output_dir: str | Path | None = None, *,
+                  force: bool = False) -> SolveOutcome:
         """Solve with the data so far and write the outputs; never discards data.
+
+        Parameters
+        ----------
+        output_dir : str or Path, optional
+            Write the files exactly into this directory (created if needed; existing files are
+            refused unless ``force``). Default: a new timestamped directory under
+            ``output.directory``, never reused.
+        force : bool
+            Overwrite existing files in ``output_dir``.
 
         Returns
         -------
         SolveOutcome
             ``success=False`` with the reason when there are not enough pairs or the solver
-            raised; otherwise the result, a short summary and the written files (under
-            ``output.directory`` in a new timestamped directory, never overwriting).
+            raised; otherwise the result, a short summary and the written files.
         """
         with self._solve_lock:
-            outcome = self._calibrate()
+            outcome = self._calibrate(output_dir, force)
         with self._lock:
             self._last_outcome = outcome
         return outcome
@@ -494,10 +400,10 @@ class CalibrationSession:
             counts = self._acc.counts()
         return problem, excluded, err, report, dataset, counts
 
-    def _calibrate(self) -> SolveOutcome:
+    def _calibrate(self, output_dir: str | Path | None, force: bool) -> SolveOutcome:
         c = self.config
         problem, excluded, err, report, dataset, counts = self._snapshot()
-        ident = _report_dict(report)
+        ident = report_dict(report)
         excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         if problem is None:
             n = sum(counts.values())
@@ -517,10 +423,10 @@ class CalibrationSession:
                 False, f"solver failed: {type(exc).__name__}: {exc}; all data kept",
                 excluded=excl, identifiability=ident,
             )
-        ident = _full_report(problem, result) or ident
+        ident = full_report(problem, result) or ident
         text = yaml.safe_dump(self.result_document(result, excl, ident), sort_keys=False)
         try:
-            files = self._write_outputs(result, text, dataset)
+            files = self._write_outputs(result, text, dataset, output_dir, force)
             write_error = ""
         except OSError as exc:
             files, write_error = {}, f"; WRITING OUTPUTS FAILED: {exc}"
@@ -552,35 +458,20 @@ class CalibrationSession:
         """A new directory ``<output.directory>/<kind>_<UTC stamp>[_n]`` (never reused)."""
         return new_output_dir(self.config.output.directory, kind, now=self._now())
 
-    def _write_outputs(self, result: CalibrationResult, text: str, dataset) -> dict[str, str]:
-        out = self._output_dir("calibration")
-        launch = static_transforms_launch(self.published_transforms(result), header=(
-            f"certified: {result.certified}, suboptimality bound "
-            f"{result.certificate.suboptimality_bound:.3g}, created {out.name.split('_', 1)[1]}"
-        ))
-        return write_outputs(session_output_paths(out), result_yaml=text, launch_text=launch,
-                             dataset=dataset)
+    def _write_outputs(self, result: CalibrationResult, text: str, dataset,
+                       output_dir: str | Path | None = None,
+                       force: bool = False) -> dict[str, str]:
+        if output_dir is None:
+            out = self._output_dir("calibration")
+            created = out.name.split("_", 1)[1]
+        else:
+            out, created = Path(output_dir), utc_stamp(self._now())
+        return write_session_outputs(out, self.published_transforms(result), result, text,
+                                     dataset, created=created, force=force)
 
     def _dataset_locked(self):
         """A data-set object of the kept pairs (lock held), or None if unavailable."""
-        try:
-            from .data.dataset import Dataset
-        except ImportError:
-            return None
-        c = self.config
-        carriers = {n: c.camera_carrier.frame for n in c.y_names}
-        carriers.update({n: c.tag_carrier.frame for n in c.x_names})
-        try:
-            return Dataset.from_accumulator(
-                self._acc,
-                x_names=c.x_names,
-                y_names=c.y_names,
-                unknown_scale=c.tags.unknown_scale,
-                metadata={"config": c.to_parameters()},
-                carriers=carriers,
-            )
-        except ValueError:
-            return None
+        return session_dataset(self._acc, self.config)
 
     def save_dataset(self, path: str | Path | None = None) -> str:
         """Save the kept pairs (format of :mod:`rwhec_ros.data.dataset`) and return the path.
@@ -603,131 +494,8 @@ class CalibrationSession:
             self._init_data()
 
 
-# ------------------------------------------------------------------------------------------------
-# queue + worker
 
-
-class ImageQueue:
-    """Bounded FIFO that drops the OLDEST item when full (fresh images matter most live).
-
-    Thread-safe. ``put`` never blocks; ``get`` blocks up to ``timeout`` seconds and returns None
-    on timeout or after :meth:`close`.
-    """
-
-    def __init__(self, maxsize: int) -> None:
-        if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
-            raise ValueError(f"maxsize: expected an integer >= 1, got {maxsize!r}")
-        self.maxsize = maxsize
-        self._items: collections.deque = collections.deque()
-        self._cond = threading.Condition()
-        self._dropped = 0
-        self._closed = False
-
-    def put(self, item: Any) -> bool:
-        """Enqueue ``item``; returns False when an older item had to be dropped (counted)."""
-        with self._cond:
-            dropped = False
-            if len(self._items) >= self.maxsize:
-                self._items.popleft()
-                self._dropped += 1
-                dropped = True
-            self._items.append(item)
-            self._cond.notify()
-            return not dropped
-
-    def get(self, timeout: float | None = None) -> Any | None:
-        """Next item, or None after ``timeout`` seconds or once closed and empty."""
-        with self._cond:
-            if not self._items and not self._closed:
-                self._cond.wait(timeout)
-            if self._items:
-                return self._items.popleft()
-            return None
-
-    def close(self) -> None:
-        """Wake every waiting ``get``; later ``get`` calls return the remaining items then None."""
-        with self._cond:
-            self._closed = True
-            self._cond.notify_all()
-
-    @property
-    def closed(self) -> bool:
-        with self._cond:
-            return self._closed
-
-    @property
-    def dropped(self) -> int:
-        with self._cond:
-            return self._dropped
-
-    def __len__(self) -> int:
-        with self._cond:
-            return len(self._items)
-
-
-class QueueWorker:
-    """A daemon thread that feeds every item of an :class:`ImageQueue` to ``handler``.
-
-    Exceptions raised by ``handler`` are counted (``errors``) and passed to ``on_error`` (e.g. a
-    throttled logger); they never stop the worker.
-    """
-
-    def __init__(
-        self,
-        queue: ImageQueue,
-        handler: Callable[[Any], Any],
-        *,
-        name: str = "rwhec-image-worker",
-        on_error: Callable[[BaseException], None] | None = None,
-    ) -> None:
-        self.queue = queue
-        self.handler = handler
-        self.on_error = on_error
-        self.processed = 0
-        self.errors = 0
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> QueueWorker:
-        self._thread.start()
-        return self
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            item = self.queue.get(timeout=0.1)
-            if item is None:
-                if self.queue.closed:
-                    break
-                continue
-            try:
-                self.handler(item)
-            except Exception as exc:  # noqa: BLE001 - the worker must survive bad data
-                self.errors += 1
-                if self.on_error is not None:
-                    try:
-                        self.on_error(exc)
-                    except Exception:  # noqa: BLE001
-                        pass
-            finally:
-                self.processed += 1
-
-    def stop(self, timeout: float | None = 2.0) -> None:
-        """Stop after the current item and join the thread."""
-        self._stop.set()
-        self.queue.close()
-        if self._thread.is_alive():
-            self._thread.join(timeout)
-
-    @property
-    def alive(self) -> bool:
-        return self._thread.is_alive()
-
-
-# ------------------------------------------------------------------------------------------------
-# helpers
-
-
-def _safe_int(value: Any) -> int | None:
+def safe_int(value: Any) -> int | None:
     try:
         if isinstance(value, bool):
             return None
@@ -736,146 +504,3 @@ def _safe_int(value: Any) -> int | None:
     except (TypeError, ValueError, OverflowError):
         return None
 
-
-def _make_tracker(unknown_scale: bool):
-    try:
-        from .core.identifiability import IdentifiabilityTracker
-    except ImportError:
-        return None
-    # the accumulator holds the pairs; the tracker keeps only its fixed-size sums
-    return IdentifiabilityTracker(unknown_scale=unknown_scale, keep_pairs=False)
-
-
-def _full_report(problem, result: CalibrationResult) -> dict | None:
-    """Whole-problem identifiability at the solution (``analyze(..., full=True)``), or None."""
-    try:
-        from .core.identifiability import analyze
-
-        report = analyze(problem, solution=(result.X, result.Y, float(result.scale)))
-    except Exception:  # noqa: BLE001 - optional extra; the tracker's report remains
-        return None
-    return _report_dict(report)
-
-
-def _report_dict(report) -> dict | None:
-    if report is None:
-        return None
-    return plain(report.to_dict())
-
-
-def _edge_statuses(report) -> dict[tuple[str, str], tuple[str, bool | None, list[str]]]:
-    """Per-edge ``(status, identifiable, reasons)`` from an IdentifiabilityReport."""
-    if report is None:
-        return {}
-    out = {}
-    for e in getattr(report, "edges", ()):
-        x, y = getattr(e, "x", None), getattr(e, "y", None)
-        status = getattr(e, "status", "unknown")
-        status = getattr(status, "value", status)
-        ident = getattr(e, "identifiable", None)
-        reasons = getattr(e, "reasons", None)
-        if reasons is None:
-            reason = getattr(e, "reason", "")
-            reasons = [reason] if reason else []
-        out[(x, y)] = (str(status), None if ident is None else bool(ident), list(reasons))
-    return out
-
-
-def solve_problem(
-    problem, *, mode: str = "fast", reject_outliers: bool = False
-) -> tuple[CalibrationResult, dict[str, str], list[str]]:
-    """The solve step shared by the session and the CLI: ``solve`` in ``mode``, or with
-    ``reject_outliers`` RANSAC (paper Section 9.1) + GNC-TLS re-certified on the inlier set
-    (:func:`rwhec_ros.core.outliers.robust_solve`). Returns (result, dropped edges, notes)."""
-    from .core.solve import SolveOptions, solve
-
-    options = SolveOptions(mode=mode)
-    if not reject_outliers:
-        return solve(problem, options), {}, []
-    from .core.outliers import RobustOptions, robust_solve
-
-    robust = robust_solve(problem, options=RobustOptions(solve=options))
-    dropped = {}
-    if robust.ransac is not None:
-        dropped = {str(edge): f"outlier rejection: {reason}" for edge, reason in
-                   robust.ransac.dropped}
-    notes = [f"outlier rejection: {len(robust.rejected)} of {problem.n_measurements} pairs "
-             f"rejected ({len(dropped)} edges dropped)"]
-    robust.result.notes.extend(notes)
-    return robust.result, dropped, notes
-
-
-def summary(result: CalibrationResult, problem, excluded: dict, config) -> str:
-    """The short summary of the ``calibrate`` service and the CLI: certified?, rho_hat, each
-    frame's result, edges excluded and why. ``config`` names the published frames (a
-    :class:`CalibratorConfig` or :class:`~rwhec_ros.data.results.FrameNaming`)."""
-    c = result.certificate
-    head = (
-        f"CERTIFIED globally optimal (rho_hat={c.suboptimality_bound:.2e})"
-        if result.certified
-        else f"NOT certified: {c.status.value} (rho_hat={c.suboptimality_bound:.2e})"
-    )
-    parts = [
-        head,
-        f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode {result.mode}",
-    ]
-    if problem.unknown_scale:
-        parts.append(f"scale {result.scale:.5f}")
-    frames = config.published_frames()
-    for name, T in list(zip(result.y_names, result.Y, strict=True)) + list(
-        zip(result.x_names, result.X, strict=True)
-    ):
-        q, t = transform_to_quat_xyzw(T)
-        parent, child = frames.get(name, ("?", name))
-        parts.append(
-            f"{parent}->{child}: t=[{t[0]:.4f} {t[1]:.4f} {t[2]:.4f}] "
-            f"q=[{q[0]:.4f} {q[1]:.4f} {q[2]:.4f} {q[3]:.4f}]"
-        )
-    if excluded:
-        parts.append("excluded: " + ", ".join(f"{k}: {v}" for k, v in excluded.items()))
-    missing = [n for n in config.y_names + config.x_names if n not in problem.frame_names]
-    if missing:
-        parts.append(f"not calibrated (no usable edge): {missing}")
-    if result.notes:
-        parts.append("notes: " + " | ".join(result.notes))
-    return "; ".join(parts)
-
-
-def static_transforms_launch(
-    transforms: list[tuple[str, str, np.ndarray]], *, header: str = ""
-) -> str:
-    """Text of a ROS 2 Python launch file that publishes ``transforms`` with
-    ``tf2_ros static_transform_publisher`` (one node per ``(parent, child, T_parent_child)``),
-    so the calibration is reproduced at bring-up: ``ros2 launch <file>``."""
-    lines = [
-        f'"""Static transforms of an rwhec_ros calibration. {header}',
-        "",
-        "Generated file: ros2 launch <this file>. One tf2_ros static_transform_publisher per",
-        "frame (--frame-id parent, --child-frame-id child: T_parent_child).",
-        '"""',
-        "",
-        "from launch import LaunchDescription",
-        "from launch_ros.actions import Node",
-        "",
-        "",
-        "def generate_launch_description():",
-        "    return LaunchDescription([",
-    ]
-    for parent, child, T in transforms:
-        q, t = transform_to_quat_xyzw(np.asarray(T, dtype=float))
-        name = "rwhec_static_" + "".join(ch if ch.isalnum() else "_" for ch in child)
-        args = [
-            "--x", repr(float(t[0])), "--y", repr(float(t[1])), "--z", repr(float(t[2])),
-            "--qx", repr(float(q[0])), "--qy", repr(float(q[1])), "--qz", repr(float(q[2])),
-            "--qw", repr(float(q[3])), "--frame-id", parent, "--child-frame-id", child,
-        ]
-        lines += [
-            "        Node(",
-            '            package="tf2_ros",',
-            '            executable="static_transform_publisher",',
-            f"            name={name!r},",
-            f"            arguments={args!r},",
-            "        ),",
-        ]
-    lines += ["    ])", ""]
-    return "\n".join(lines)

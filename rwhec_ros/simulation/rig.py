@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .core.lie import invert_transform, make_transform, so3_exp
-from .vision.intrinsics import CameraIntrinsics
-from .vision.render import RenderedTag, look_at, render_tags
+from ..core.lie import invert_transform, make_transform, so3_exp
+from ..vision.intrinsics import CameraIntrinsics
+from ..vision.render import RenderedTag, look_at, render_tags
 
 __all__ = [
     "DEMO_POSE_TOPIC",

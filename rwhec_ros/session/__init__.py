@@ -1,0 +1,48 @@
+"""The ROS-free live calibration session: poses and images in, certified extrinsics out.
+
+:class:`CalibrationSession` is a thin layer over the pipeline: the pose stream goes into a
+:class:`~rwhec_ros.sync.buffer.PoseBuffer` (as ``A = T_<camera carrier>_<tag carrier>``, inverted
+from ``T_parent_child`` where the configuration says so); each image is searched for tags
+(:class:`~rwhec_ros.vision.detection.TagDetector`, ``B = T_cam_tag``), ``A`` is looked up at the
+image stamp, and every ``(A, B)`` pair is offered to a
+:class:`~rwhec_ros.sync.accumulator.PairAccumulator` whose kept pairs feed an incremental
+:class:`~rwhec_ros.core.identifiability.IdentifiabilityTracker`.
+:meth:`CalibrationSession.calibrate` solves the paper's MLE (``A_i X_j = Y_k B_i``, eq. (7))
+with :func:`rwhec_ros.core.solve.solve` and writes the result YAML, the data set and a
+static-transform launch file.
+
+Live-path promise: :meth:`~CalibrationSession.add_pose` and :meth:`~CalibrationSession.add_image`
+never raise for bad data (missing intrinsics, wrong image size, unknown tags, no pose at the
+stamp, ...): every rejection is counted by reason (:meth:`~CalibrationSession.counters`).
+
+Threading: the ROS node calls ``add_pose``/``add_image`` from worker threads and ``calibrate``
+from a service thread. Shared state is protected by one lock that is never held during tag
+detection or the solve (the data are copied under the lock, then processed).
+:class:`ImageQueue` and :class:`QueueWorker` move detection off the caller's thread with a bounded
+drop-oldest queue; both are plain Python and testable without ROS.
+
+Modules: :mod:`.live` (:class:`CalibrationSession`), :mod:`.outcomes` (what it answers),
+:mod:`.solving` (the solve step shared with the CLI), :mod:`.outputs` (summary, launch file, data
+set and output files), :mod:`.image_queue` (:class:`ImageQueue`, :class:`QueueWorker`) and
+:mod:`.handlers` (:class:`MessageHandlers`: one ROS message, rclpy's or rosbags', into the
+session).
+"""
+
+from .handlers import MessageHandlers
+from .image_queue import ImageQueue, QueueWorker
+from .live import CalibrationSession
+from .outcomes import ImageOutcome, SolveOutcome
+from .outputs import static_transforms_launch, summary
+from .solving import solve_problem
+
+__all__ = [
+    "ImageOutcome",
+    "SolveOutcome",
+    "CalibrationSession",
+    "ImageQueue",
+    "QueueWorker",
+    "MessageHandlers",
+    "static_transforms_launch",
+    "solve_problem",
+    "summary",
+]
