@@ -236,11 +236,16 @@ def find_unobservable_directions(
     w, V = np.linalg.eigh(E)
     w_max = float(max(w[-1], 0.0)) if w.size else 0.0
     weak = (w <= w_max / opts.max_condition) | (w < info_floor)
-    V_w, w_w = V[:, weak], w[weak]
+    V_w, w_w = V[:, weak].copy(), w[weak]
     names = problem.frame_names
     directions = []
     for i in range(V_w.shape[1]):
         v = V_w[:, i]
+        # canonical sign: the largest-magnitude translation entry positive
+        big = int(np.argmax(np.abs(v[: 3 * len(names)])))
+        if v[big] < 0:
+            v = -v
+            V_w[:, i] = v
         comps = {}
         for f, name in enumerate(names):
             part = v[3 * f: 3 * f + 3]
@@ -356,18 +361,21 @@ def build_gauge_fix(
     P = np.array(rows)  # (r, n_t)
     c = np.array(vals)
     W = np.array(weights)
-    P_obs = np.eye(n_t) - Vt @ Vt.T
     A = P @ Vt  # (r, k)
-    Mk = A.T @ (W[:, None] * A)
-    K = np.linalg.solve(Mk, (A * W[:, None]).T)  # (k, r)
-    G = Vt.T + K @ (P @ P_obs)
-    b = K @ c
     pinned = False
     if n_user:
         s = np.linalg.svd(A[:n_user], compute_uv=False)
         pinned = bool(s.size >= k and s[k - 1] >= 1e-3)
+    if pinned:  # the user's priors alone decide (no pull towards the default)
+        P, c, W, A = P[:n_user], c[:n_user], W[:n_user], A[:n_user]
+    P_obs = np.eye(n_t) - Vt @ Vt.T
+    Mk = A.T @ (W[:, None] * A)
+    K = np.linalg.solve(Mk, (A * W[:, None]).T)  # (k, r)
+    G = Vt.T + K @ (P @ P_obs)
+    b = K @ c
     notes = []
-    for d in directions:
-        d.fixed_by = "prior" if pinned else "default"
+    for i, d in enumerate(directions):
+        by_user = n_user and np.linalg.norm(A[:n_user, i]) >= 1e-3
+        d.fixed_by = "prior" if pinned or by_user else "default"
     rho = float(max(w_max, 1.0))
     return GaugeFix(directions, G, b, rho, Vt, pinned, prior_rows, notes)

@@ -35,6 +35,7 @@ translation block is ``Z_reduced`` with the same multipliers).
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -204,7 +205,8 @@ class SdpOptions:
 @dataclass
 class DualSolution:
     """Solution of Problem 7 on scaled data: multipliers ``lam`` (m,) with ``lam[-1] =
-    lambda_s``, the solver status string, and compile/solve times in seconds."""
+    lambda_s``, the solver status string, compile/solve times in seconds, and the solver's
+    warnings in words (never printed: the caller puts them in the result's notes)."""
 
     lam: np.ndarray
     status: str
@@ -212,6 +214,7 @@ class DualSolution:
     solve_s: float
     iterations: int
     total_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def lambda_s(self) -> float:
@@ -317,7 +320,9 @@ def _run(prob, lam, m: int, options: SdpOptions, t0: float,
     import cvxpy as cp
 
     settings = {**(defaults or {}), **options.clarabel}
-    prob.solve(solver=cp.CLARABEL, verbose=options.verbose, **settings)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        prob.solve(solver=cp.CLARABEL, verbose=options.verbose, **settings)
     total = time.perf_counter() - t0
     solve_s = float(getattr(prob.solver_stats, "solve_time", None) or 0.0)
     compile_s = float(getattr(prob, "compilation_time", None) or max(total - solve_s, 0.0))
@@ -326,5 +331,14 @@ def _run(prob, lam, m: int, options: SdpOptions, t0: float,
     iters = int(getattr(prob.solver_stats, "num_iters", 0) or 0)
     if value is None:
         value = np.full(m, np.nan)
+    notes = [_WARNING_WORDS.get(str(w.message).split(".")[0], str(w.message)) for w in caught]
     return DualSolution(lam=np.asarray(value, float), status=status, compile_s=compile_s,
-                        solve_s=solve_s, iterations=iters, total_s=total)
+                        solve_s=solve_s, iterations=iters, total_s=total,
+                        warnings=list(dict.fromkeys(notes)))
+
+
+#: cvxpy warnings in words for a user (the key is the warning's first sentence).
+_WARNING_WORDS = {
+    "Solution may be inaccurate": "the SDP solver (Clarabel) reached its iteration limit or "
+    "reduced accuracy; its multipliers are used only if the certificate proves the bound",
+}

@@ -318,6 +318,7 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
         return _result(prep, est, cert, "sdp", "failed", 0.0, notes)
     notes.append(f"SDP form: {form}")
     notes.append(f"Clarabel: {sol.iterations} iterations, status '{sol.status}'")
+    notes.extend(sol.warnings)
     prep.timing["compile"] = sol.compile_s
     prep.timing["solve"] = sol.solve_s
     t1 = time.perf_counter()
@@ -453,22 +454,27 @@ def _downgrade(res: CalibrationResult, status: Status, message: str) -> None:
     if cert.status in (Status.SOLVER_FAILED, Status.LOCAL_ONLY):
         res.notes.append(message)
         return
-    certified_part = ""
     if cert.status is Status.CERTIFIED_OPTIMAL:
-        certified_part = (f" With that, the rest is certified optimal "
-                          f"(rho_hat={cert.suboptimality_bound:.3g}).")
-    cert.message = message + certified_part + (
-        "" if cert.status is Status.CERTIFIED_OPTIMAL else f" [{cert.message}]")
+        tail = (f" With that, the rest is certified optimal "
+                f"(rho_hat={cert.suboptimality_bound:.3g}).")
+    else:
+        tail = f" [{cert.message}]"
+    cert.message = message + tail
     cert.status = status
 
 
 def _check_identifiability(prep: _Prepared, options: SolveOptions,
                            res: CalibrationResult) -> None:
     """Statuses the certificate alone cannot know: translation directions fixed by default, an
-    unobservable scale, a non-positive unknown scale, a rotation the data do not determine, and
-    a reduced cost that disagrees with the direct cost."""
+    unobservable scale, a non-positive unknown scale, a rotation the data do not determine."""
     problem = prep.problem
     gauge = prep.gauge
+    reasons: list[str] = []
+    cert = res.certificate
+    if not cert.certified and cert.null_space_dim > 1:
+        words = _rotation_gauge_words(prep, res, options.certificate.null_tol)
+        if words:
+            reasons.append(words)
     if gauge is not None and not gauge.empty:
         t = np.concatenate([res.X, res.Y])[:, :3, 3].reshape(-1)
         for i, d in enumerate(gauge.directions):
@@ -476,38 +482,30 @@ def _check_identifiability(prep: _Prepared, options: SolveOptions,
         res.unobservable = list(gauge.directions)
         words = "; ".join(d.describe(x_names=problem.x_names) for d in gauge.directions)
         if any(d.involves_scale for d in gauge.directions):
-            _downgrade(res, Status.NOT_IDENTIFIABLE, f"not identifiable: {words}.")
+            reasons.append(words)
         elif gauge.pinned:
             res.notes.append(f"{words}: fixed by the given priors (certificate with the priors)")
             for p, row in gauge.prior_rows:
                 got = float(row @ t)
-                if abs(got - p.value_m) > 1e-6:
+                if abs(got - p.value_m) > 1e-4:
                     res.notes.append(f"prior {p.frame} {np.round(p.axis, 3).tolist()} = "
                                      f"{p.value_m:.4f} m: estimate {got:.4f} m (the priors "
                                      "disagree with each other or with the data)")
         else:
-            _downgrade(res, Status.NOT_IDENTIFIABLE,
-                       f"not identifiable: {words}. It was set by default (the cameras' "
-                       "translations along it are zero on average); give a prior for it "
-                       "(a known translation component of one of these frames).")
+            reasons.append(f"{words}. It was set by default (the cameras' translations along it "
+                           "are zero on average); give a prior for it (a known translation "
+                           "component of one of these frames)")
     if problem.unknown_scale and not res.scale > options.min_scale:
-        _downgrade(res, Status.NOT_IDENTIFIABLE,
-                   f"not identifiable: the estimated scale alpha = {res.scale:.4g} is not above "
-                   f"the floor {options.min_scale:g}: the data do not determine the scale (too "
-                   "much noise, outliers, or too little translation relative to the tags).")
-    cert = res.certificate
-    # an optimal point (the bound closes) whose Z has extra null directions along which the cost
-    # is flat: the optimum is not unique
-    if cert.status is Status.NOT_TIGHT and cert.null_space_dim > 1 and \
-            cert.suboptimality_bound <= options.certificate.rho_tol:
-        words = _rotation_gauge_words(prep, res, options.certificate.null_tol)
-        if words:
-            _downgrade(res, Status.NOT_IDENTIFIABLE, f"not identifiable: {words}.")
+        reasons.append(f"the estimated scale alpha = {res.scale:.4g} is not above the floor "
+                       f"{options.min_scale:g}: the data do not determine the scale (too much "
+                       "noise, outliers, or too little translation relative to the tags)")
+    if reasons:
+        _downgrade(res, Status.NOT_IDENTIFIABLE, "not identifiable: " + "; ".join(reasons) + ".")
 
 
 def _rotation_gauge_words(prep: _Prepared, res: CalibrationResult, null_tol: float) -> str:
     """Words for rotation directions the data do not determine (near-null directions of the
-    Riemannian Hessian of the reduced cost at the estimate), or ``""``."""
+    Riemannian Hessian of the reduced cost at the estimate, at a minimum), or ``""``."""
     R = np.concatenate([res.X, res.Y])[:, :3, :3]
     try:
         _, _, H = _grad_hess(prep.Qs, R)
@@ -516,21 +514,22 @@ def _rotation_gauge_words(prep: _Prepared, res: CalibrationResult, null_tol: flo
         return ""
     # flat directions of the scaled cost: the Riemannian Hessian is ~4 Z on the tangent space
     # (|d vec(R w^)/d w|^2 = 2), so a second null direction of Z that is a rotation of the frames
-    # shows as an eigenvalue of H within a few null_tol; the predicted std is 1/sqrt(scale h) rad
-    with np.errstate(divide="ignore"):
-        std = 1.0 / np.sqrt(np.maximum(w, 0.0) * prep.scale)
+    # shows as an eigenvalue of H within a few null_tol
     if w[0] < -10.0 * null_tol:  # a saddle point, not a flat minimum
         return ""
     weak = np.where(np.abs(w) <= 10.0 * null_tol)[0]
-    if weak.size == 0:
-        return ""
     names = prep.problem.frame_names
     parts = []
     for i in weak:
         v = V[:, i].reshape(-1, 3)
-        frames = [names[f] for f in range(len(names)) if np.linalg.norm(v[f]) >= 0.1]
-        axis = v[int(np.argmax(np.linalg.norm(v, axis=1)))]
-        parts.append(f"rotation of {', '.join(frames)} about {axis_words(axis)} (in each frame) "
-                     f"not determined by the data (predicted std "
-                     f"{np.rad2deg(std[i]) if np.isfinite(std[i]) else float('inf'):.3g} deg)")
+        frames = [f for f in range(len(names)) if np.linalg.norm(v[f]) >= 0.1]
+        # right perturbation R exp(w^): the axis in the frame's parent is R w (sign canonical:
+        # the largest component of the first frame's axis positive)
+        par = [R[f] @ v[f] for f in frames]
+        if par and par[0][int(np.argmax(np.abs(par[0])))] < 0:
+            par = [-a for a in par]
+        axes = {axis_words(a) for a in par}
+        about = axes.pop() if len(axes) == 1 else "different axes"
+        parts.append(f"rotation of {', '.join(names[f] for f in frames)} about {about} (in "
+                     "their carriers) not determined by the data")
     return "; ".join(parts)
