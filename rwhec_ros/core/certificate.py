@@ -1,16 +1,37 @@
-"""Certification of a candidate solution from a dual certificate matrix ``Z(lambda)``.
+"""Certification of a candidate solution by a dual point: a bound that holds in floating point.
 
-Weak duality (paper eq. (71)): for every feasible ``z`` (rotations in SO(3)^n, ``s = 1``),
-``z^T Q z = lambda_s + z^T Z(lambda) z >= lambda_s + lambda_min(Z) |z|^2`` and ``|z|^2 = 3 n + 1``.
-Hence the rigorous lower bound on the optimum used here is::
+Weak duality (paper eq. (51), (71)): for multipliers ``lambda`` of the constraints of eq. (50)
+and ``lambda_s`` of ``s^2 = 1``, every feasible ``x = [t; y]`` (``y = [vec R; s]``, rotations in
+SO(3), ``s^2 = 1``) satisfies ``x^T Q x = lambda_s + x^T Z_full(lambda) x`` with
+``Z_full = Q - K(lambda)``, where ``K(lambda) = lambda_s E_ss + sum_c lambda_c A_c`` touches only
+the ``y`` block. With the recovery ``t = G y`` of the Schur reduction
+(:func:`~rwhec_ros.core.cost.reduce_cost`) and ``t = u + G y``, for ANY ``G``::
 
-    d = lambda_s + min(0, lambda_min(Z)) (3 n + 1)
+    x^T Z_full x = u^T Q_ee u + 2 u^T F y + y^T (S_G - K) y,    F = Q_ee G + Q_ey,
 
-(which guards against a slightly infeasible dual), and the relative suboptimality bound of the
-returned solution with cost ``p`` is ``rho_hat = (p - d) / d`` (eq. (73)).
+so, minimising over the free ``u`` (``Q_ee`` positive definite) and using ``|y|^2 = 3 n + 1``,
+``|y_i| <= 1``::
 
-The status is CERTIFIED_OPTIMAL only when ``rho_hat <= rho_tol`` AND ``Z`` has a one-dimensional
-(numerical) null space, i.e. the relaxation is tight with a unique rank-one solution.
+    p* >= d = lambda_s + (3 n + 1) min(0, lambda_min(Z_fl)) - e_round - (3 n + 1) ||F||^2 / l_e
+
+with ``Z_fl`` the certificate matrix as computed (the reduced ``Q'`` minus ``K``), ``e_round`` a
+bound on ``y^T (S_G - K - Z_fl) y`` from the entrywise rounding bounds of the reduction, of the
+scaling and of forming ``K`` (the sum of the bound matrix, or ``3 n + 1`` times its largest row
+sum), ``||F||`` bounded by the backward error of the Cholesky solve and ``l_e`` a proven lower
+bound on ``lambda_min(Q_ee)``. ``lambda_min(Z_fl)`` is bounded from below by a shifted Cholesky
+factorisation with a backward-error margin (:mod:`rwhec_ros.core.verified`). The relative
+suboptimality bound of the returned estimate with cost ``p`` (evaluated directly from the
+residuals of eq. (33), never from the reduced cost) is ``rho_hat = (p - d) / max(d, floor)``
+(eq. (73)).
+
+Scope of the proof: the cost matrix ``Q`` as computed from the data in double precision (its
+entries carry a relative rounding error of ~``N u``, which moves the cost by ~``N u L^2 /
+sigma^2`` relative -- about 1e-7 for 300 pairs per edge at sigma = 1 mm and 2 m translations --
+and cannot be amplified, because a translation block with weak directions is handled by
+:mod:`rwhec_ros.core.gauge` before any certificate is computed).
+
+The status is CERTIFIED_OPTIMAL only when ``rho_hat <= rho_tol`` AND the computed ``Z`` has a
+one-dimensional (numerical) null space (the relaxation is tight with a unique rank-one solution).
 """
 
 from __future__ import annotations
@@ -18,12 +39,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
-import scipy.sparse.linalg
 
+from .cost import ReducedCost
+from .relaxation import ConstraintSet
 from .result import Certificate, Status
+from .verified import UNIT_ROUNDOFF, gamma, smallest_eigenvalues, verified_min_eigenvalue
 
-__all__ = ["CertificateOptions", "certify_from_Z"]
+__all__ = ["CertificateOptions", "DualBound", "ExactReduction", "certificate_matrix",
+           "rigorous_dual_bound", "certify_from_Z", "certify"]
 
 
 @dataclass
@@ -46,67 +69,140 @@ class CertificateOptions:
     null_tol: float = 1e-6
     n_eigenvalues: int = 6
 
+    def __post_init__(self) -> None:
+        for name in ("rho_tol", "null_tol"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: must be finite and > 0, got {v!r}")
+        if int(self.n_eigenvalues) < 2:
+            raise ValueError(f"n_eigenvalues: must be >= 2, got {self.n_eigenvalues!r}")
 
-#: Above this size the smallest eigenvalues come from shift-invert Lanczos on a Cholesky factor.
-_LANCZOS_MIN_SIZE = 3000
 
+@dataclass(frozen=True)
+class DualBound:
+    """The pieces of the rigorous dual bound (scaled units, see the module docstring).
 
-def _smallest_eigenvalues(Z: np.ndarray, k: int, shift: float = 1e-8) -> np.ndarray:
-    """The ``k`` smallest eigenvalues (ascending) of symmetric ``Z``.
-
-    Small matrices: a full (or index-range, LAPACK ``syevr``) eigensolve. Large ones: ``Z +
-    shift I`` is Cholesky-factored -- which succeeds exactly when ``lambda_min(Z) > -shift``, the
-    case of a valid certificate -- and shift-invert Lanczos (ARPACK) around ``-shift`` returns
-    the eigenvalues nearest to it, i.e. the smallest; this costs one factorisation instead of a
-    tridiagonal reduction (9,010 x 9,010: ~5 s instead of ~50 s). A failed factorisation falls
-    back to the index-range eigensolve.
+    Attributes
+    ----------
+    value : float
+        ``d`` in scaled units (``-inf`` when it could not be established).
+    lambda_s : float
+    lambda_min_lower : float
+        Proven lower bound on ``lambda_min(Z_fl)``.
+    eigenvalue_term, rounding_term, schur_term : float
+        What each part subtracts from ``lambda_s``: ``(3 n + 1) max(0, -lambda_min_lower)``,
+        ``e_round`` and ``(3 n + 1) ||F||^2 / l_e``.
+    reason : str
+        Why the bound is ``-inf`` (empty otherwise).
     """
-    d = Z.shape[0]
-    if d <= 300 or k >= d:
-        return np.linalg.eigvalsh(Z)[:k]
-    if d >= _LANCZOS_MIN_SIZE:
-        try:
-            factor = scipy.linalg.cho_factor(Z + shift * np.eye(d), lower=True,
-                                              check_finite=False)
-        except np.linalg.LinAlgError:
-            factor = None
-        if factor is not None:
-            op = scipy.sparse.linalg.LinearOperator(
-                (d, d), matvec=lambda b: scipy.linalg.cho_solve(factor, b, check_finite=False),
-                dtype=float)
-            w = scipy.sparse.linalg.eigsh(Z, k=k, sigma=-shift, which="LM", OPinv=op,
-                                          return_eigenvectors=False)
-            return np.sort(w)
-    return scipy.linalg.eigh(Z, eigvals_only=True, subset_by_index=[0, k - 1], driver="evr")
+
+    value: float
+    lambda_s: float
+    lambda_min_lower: float
+    eigenvalue_term: float
+    rounding_term: float
+    schur_term: float
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class ExactReduction:
+    """Reduction bounds of a problem given directly on the reduced variables (no translations to
+    eliminate, no rounding in a reduction): what :func:`certify_from_Z` needs from a
+    :class:`~rwhec_ros.core.cost.ReducedCost`, for matrices given as they are (tests, crafted
+    certificates)."""
+
+    size: int
+    verified: bool = True
+    block_lower: float = 1.0
+    residual_norm: float = 0.0
+
+    @property
+    def err_rows(self) -> np.ndarray:
+        return np.zeros(self.size)
+
+
+def certificate_matrix(Qs: np.ndarray, constraints: ConstraintSet, lam: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """``Z = Q' - K(lambda)`` (symmetrised, eq. (51)) and the row sums of an entrywise bound on
+    its rounding error (forming ``K = C lambda``, the subtraction, the symmetrisation)."""
+    d = constraints.d
+    K = constraints.apply(lam)
+    K_abs = np.asarray(abs(constraints.C) @ np.abs(lam)).reshape(d, d, order="F")
+    terms = int(np.diff(constraints.C.tocsr().indptr).max(initial=1))
+    Z = np.asarray(Qs, float) - K
+    Z = 0.5 * (Z + Z.T)
+    err_rows = (gamma(terms + 1) * K_abs.sum(axis=1)
+                + gamma(3) * (np.abs(Qs).sum(axis=1) + np.abs(K).sum(axis=1)))
+    return Z, err_rows
+
+
+def rigorous_dual_bound(
+    Z: np.ndarray,
+    z_err_rows: np.ndarray,
+    lambda_s: float,
+    reduced: ReducedCost | ExactReduction,
+    scale: float,
+    n_rotations: int,
+    lambda_min_estimate: float,
+) -> DualBound:
+    """``d`` of the module docstring in scaled units, from the certificate matrix ``Z``
+    (scaled), the row sums of its rounding bound, ``lambda_s``, the reduction (unscaled bounds)
+    and the data scale."""
+    ny = 3 * n_rotations + 1
+    if not reduced.verified or reduced.err_rows is None:
+        return DualBound(float("-inf"), lambda_s, float("nan"), float("nan"), float("nan"),
+                         float("nan"), "the translation block could not be factorised")
+    if not (np.isfinite(lambda_s) and np.all(np.isfinite(Z))):
+        return DualBound(float("-inf"), lambda_s, float("nan"), float("nan"), float("nan"),
+                         float("nan"), "non-finite multipliers")
+    vb = verified_min_eigenvalue(Z, lambda_min_estimate)
+    if not vb.verified:
+        return DualBound(float("-inf"), lambda_s, float("-inf"), float("inf"), float("nan"),
+                         float("nan"), "no shifted factorisation of Z succeeded")
+    # reduction bounds are unscaled: divide (one more relative rounding, u |Q'| per entry)
+    rows = (reduced.err_rows / scale) * (1.0 + gamma(2)) + UNIT_ROUNDOFF * np.abs(Z).sum(axis=1)
+    rows = (rows + z_err_rows) * (1.0 + gamma(3))
+    rounding = float(min(rows.sum(), ny * rows.max(initial=0.0)) * (1.0 + gamma(rows.size)))
+    schur = float(ny * reduced.residual_norm**2 / (reduced.block_lower * scale))
+    eig_term = float(ny * max(0.0, -vb.lower))
+    value = float(lambda_s - eig_term - rounding - schur)
+    return DualBound(value, float(lambda_s), float(vb.lower), eig_term, rounding, schur)
 
 
 def certify_from_Z(
-    Z_scaled: np.ndarray,
-    lambda_s_scaled: float,
+    Z: np.ndarray,
+    lambda_s: float,
     primal_cost: float,
     scale: float,
     n_rotations: int,
     *,
+    reduced: ReducedCost | ExactReduction | None = None,
+    z_err_rows: np.ndarray | None = None,
     solver_ok: bool = True,
     solver_status: str = "",
     homogeneous: bool = False,
     cost_floor: float = 0.0,
     options: CertificateOptions | None = None,
 ) -> Certificate:
-    """Build a :class:`Certificate` from a (scaled) certificate matrix.
+    """The certificate of a (scaled) certificate matrix ``Z`` and ``lambda_s``.
 
     Parameters
     ----------
-    Z_scaled : ndarray, shape (9 n + 1, 9 n + 1)
-        ``Z(lambda)`` on the reduced variables ``[vec R; s]`` of the scaled problem.
-    lambda_s_scaled : float
+    Z : ndarray, shape (9 n + 1, 9 n + 1)
+        ``Z(lambda)`` on ``[vec R; s]`` of the scaled problem (symmetric).
+    lambda_s : float
         Multiplier of ``s^2 = 1`` (scaled units).
     primal_cost : float
-        Cost ``p`` of the returned feasible solution (unscaled).
+        ``p``: cost of the returned estimate (unscaled), evaluated directly (eq. (33)).
     scale : float
         Factor by which the data matrix was divided.
     n_rotations : int
-        Number of rotation variables ``n = M + P``.
+        ``n = M + P``.
+    reduced : ReducedCost or ExactReduction
+        Error bounds of the Schur reduction (unscaled); ``ExactReduction`` when ``Z`` is exact.
+    z_err_rows : ndarray, optional
+        Row sums of an entrywise bound on the rounding in forming ``Z`` (zeros if omitted).
     solver_ok : bool
         Whether the numerical solver that produced ``lambda`` reported success.
     homogeneous : bool
@@ -120,37 +216,49 @@ def certify_from_Z(
         eq. (73) is undefined): ``rho_hat = (p - d) / max(d, cost_floor)``.
     """
     opts = options or CertificateOptions()
-    w = _smallest_eigenvalues(0.5 * (Z_scaled + Z_scaled.T), opts.n_eigenvalues)
-    lam_min = float(w[0])
+    Z = np.asarray(Z, dtype=float)
+    p = float(primal_cost)
+    if reduced is None:
+        reduced = ExactReduction(Z.shape[0])
+    if z_err_rows is None:
+        z_err_rows = np.zeros(Z.shape[0])
+    if not (np.isfinite(lambda_s) and np.isfinite(p) and np.all(np.isfinite(Z))):
+        return Certificate(Status.SOLVER_FAILED, p, float("nan"), float("nan"), float("nan"),
+                           np.zeros(0), -1, opts.rho_tol,
+                           f"solver status '{solver_status}': no finite dual point")
+    w = smallest_eigenvalues(Z, opts.n_eigenvalues)
     null_dim = int(np.sum(w <= opts.null_tol))
     trivial_s = False
-    if homogeneous and np.linalg.norm(Z_scaled[:-1, -1]) <= opts.null_tol and \
-            abs(Z_scaled[-1, -1]) <= opts.null_tol:
-        w_r = _smallest_eigenvalues(0.5 * (Z_scaled[:-1, :-1] + Z_scaled[:-1, :-1].T),
-                                    opts.n_eigenvalues)
+    if homogeneous and np.linalg.norm(Z[:-1, -1]) <= opts.null_tol and \
+            abs(Z[-1, -1]) <= opts.null_tol:
+        w_r = smallest_eigenvalues(Z[:-1, :-1], opts.n_eigenvalues)
         null_dim = int(np.sum(w_r <= opts.null_tol))
         trivial_s = True
-    bound_scaled = lambda_s_scaled + min(0.0, lam_min) * (3 * n_rotations + 1)
-    d = float(bound_scaled * scale)
-    p = float(primal_cost)
+    bound = rigorous_dual_bound(Z, z_err_rows, float(lambda_s), reduced, scale, n_rotations,
+                                float(w[0]))
+    d = float(bound.value * scale)
     denom = max(d, cost_floor)
-    rho = (p - d) / denom if np.isfinite(d) else float("nan")
-    eigs = w[: opts.n_eigenvalues].copy()
-    if not solver_ok or not np.isfinite(rho):
+    rho = (p - d) / denom if np.isfinite(d) and denom > 0 else float("nan")
+    eigs = w.copy()
+    margins = {"eigenvalue": bound.eigenvalue_term * scale, "rounding": bound.rounding_term * scale,
+               "schur": bound.schur_term * scale}
+    if not solver_ok:
         status = Status.SOLVER_INACCURATE
-        msg = (f"solver status '{solver_status}': the dual solution is not reliable "
-               f"(rho_hat={rho:.3g}, lambda_min={lam_min:.3g})")
+        msg = (f"solver status '{solver_status}': the dual point is not reliable "
+               f"(rho_hat={rho:.3g}, lambda_min={w[0]:.3g})")
+    elif not np.isfinite(d):
+        status = Status.ILL_CONDITIONED
+        msg = f"not certified: no rigorous dual bound ({bound.reason})"
     elif rho <= opts.rho_tol and null_dim == 1:
         status = Status.CERTIFIED_OPTIMAL
         msg = (f"certified globally optimal: rho_hat={rho:.3g} <= {opts.rho_tol:g}, Z has a "
-               f"one-dimensional null space (eigenvalues {eigs[0]:.2g}, {eigs[1]:.2g}, ...)"
-               if len(eigs) > 1 else "certified globally optimal")
+               f"one-dimensional null space (eigenvalues {eigs[0]:.2g}, {eigs[1]:.2g}, ...)")
         if trivial_s:
             msg += " on the rotation block (the sign of s is free for unknown scale)"
     else:
         status = Status.NOT_TIGHT
         why = []
-        if rho > opts.rho_tol:
+        if not rho <= opts.rho_tol:
             why.append(f"rho_hat={rho:.3g} > {opts.rho_tol:g}")
         if null_dim != 1:
             why.append(f"Z has {null_dim} eigenvalues <= {opts.null_tol:g} "
@@ -161,9 +269,59 @@ def certify_from_Z(
         primal_cost=p,
         dual_bound=d,
         suboptimality_bound=float(rho),
-        lambda_min=lam_min,
+        lambda_min=float(w[0]),
         eigenvalues=eigs,
         null_space_dim=null_dim,
         tolerance=opts.rho_tol,
         message=msg,
+        lambda_min_lower=float(bound.lambda_min_lower),
+        margins=margins,
     )
+
+
+def certify(
+    reduced: ReducedCost,
+    scale: float,
+    Qs: np.ndarray,
+    constraints: ConstraintSet,
+    lam: np.ndarray,
+    primal_cost: float,
+    *,
+    solver_ok: bool = True,
+    solver_status: str = "",
+    homogeneous: bool = False,
+    cost_floor: float = 0.0,
+    options: CertificateOptions | None = None,
+) -> Certificate:
+    """Build a :class:`Certificate` for a dual point ``lam`` and an estimate of cost
+    ``primal_cost``: :func:`certificate_matrix` then :func:`certify_from_Z`.
+
+    Parameters
+    ----------
+    reduced : ReducedCost
+        The reduction the solve used (unscaled), with its error bounds.
+    scale : float
+        Factor by which the data matrix was divided.
+    Qs : ndarray, shape (9 n + 1, 9 n + 1)
+        The scaled reduced cost ``reduced.Qr / scale`` as used by the solvers.
+    constraints : ConstraintSet
+        The constraints of eq. (50) on ``[vec R; s]`` (:func:`~rwhec_ros.core.relaxation.
+        so3_constraint_matrices`).
+    lam : ndarray, shape (constraints.m,)
+        Multipliers in scaled units, ``lam[-1] = lambda_s``.
+    primal_cost : float
+        ``p``: cost of the returned estimate (unscaled), evaluated directly (eq. (33)).
+    solver_ok, solver_status, homogeneous, cost_floor, options
+        As for :func:`certify_from_Z`.
+    """
+    opts = options or CertificateOptions()
+    lam = np.asarray(lam, dtype=float)
+    if not np.all(np.isfinite(lam)):
+        return Certificate(Status.SOLVER_FAILED, float(primal_cost), float("nan"), float("nan"),
+                           float("nan"), np.zeros(0), -1, opts.rho_tol,
+                           f"solver status '{solver_status}': no finite dual point")
+    Z, z_err = certificate_matrix(Qs, constraints, lam)
+    return certify_from_Z(Z, float(lam[-1]), primal_cost, scale, constraints.n_rotations,
+                          reduced=reduced, z_err_rows=z_err, solver_ok=solver_ok,
+                          solver_status=solver_status, homogeneous=homogeneous,
+                          cost_floor=cost_floor, options=opts)

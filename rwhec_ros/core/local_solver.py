@@ -32,7 +32,15 @@ import numpy as np
 
 from .lie import so3_exp, vee
 
-__all__ = ["LocalSolverOptions", "LocalSolution", "refine_rotations", "fast_certificate_matrix"]
+__all__ = [
+    "LocalSolverOptions",
+    "LocalSolution",
+    "refine_rotations",
+    "fast_certificate_multipliers",
+    "fast_certificate_matrix",
+    "handedness_multipliers",
+    "strengthen_certificate",
+]
 
 
 @dataclass
@@ -158,6 +166,30 @@ def refine_rotations(
                          converged=converged)
 
 
+def fast_certificate_multipliers(Q: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """The first-order multipliers at ``R`` as a vector over the constraints of
+    :func:`~rwhec_ros.core.relaxation.so3_constraint_matrices` (21 per rotation, then ``s^2``).
+
+    Only the column-orthogonality constraints (50b) get non-zero multipliers: ``Gamma_l[a, a]``
+    for ``(R^T R)_aa = s^2`` and ``2 Gamma_l[a, b]`` for ``(R^T R)_ab = 0`` (``a < b``: the
+    constraint counts the pair once), and ``lambda_s = z^T Q z`` (the cost). Then
+    ``K(lambda) = Diag(Gamma_l (x) I_3, lambda_s - sum_l tr Gamma_l)`` and ``Z = Q - K`` is the
+    matrix of the module docstring. Returns shape (21 n + 1,), in the units of ``Q``.
+    """
+    n = R.shape[0]
+    z = _z_of(R)
+    Qz = Q @ z
+    G = np.swapaxes(Qz[: 9 * n].reshape(n, 3, 3), 1, 2)
+    RtG = np.swapaxes(R, 1, 2) @ G
+    Gamma = 0.5 * (RtG + np.swapaxes(RtG, 1, 2))
+    lam = np.zeros(21 * n + 1)
+    pairs = [(a, b) for a in range(3) for b in range(a, 3)]  # the (50b) order of the constraints
+    for c, (a, b) in enumerate(pairs):
+        lam[6 + c: 21 * n: 21] = Gamma[:, a, b] * (1.0 if a == b else 2.0)
+    lam[-1] = float(z @ Qz)
+    return lam
+
+
 def fast_certificate_matrix(Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, float]:
     """Certificate matrix ``Z`` and ``lambda_s`` from the first-order multipliers at ``R``.
 
@@ -180,8 +212,9 @@ def fast_certificate_matrix(Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, f
     return 0.5 * (Z + Z.T), lambda_s
 
 
-def handedness_direction(R: np.ndarray) -> np.ndarray:
-    """A multiplier direction ``D`` with ``D z = 0`` that couples ``s`` to the rotations.
+def handedness_multipliers(R: np.ndarray) -> np.ndarray:
+    """A multiplier direction (vector over the constraints, like
+    :func:`fast_certificate_multipliers`) whose matrix ``D`` satisfies ``D z = 0``.
 
     For each rotation ``l`` it is the quadratic form of
     ``g_l(z) = sum_cyc R*_c . (R_a x R_b - s R_c) - 1/2 (|R|_F^2 - 3 s^2)``: a combination of the
@@ -189,14 +222,9 @@ def handedness_direction(R: np.ndarray) -> np.ndarray:
     norm constraints (50b). At the feasible ``z*`` its gradient vanishes (the handedness part
     contributes ``R*_a`` per column and ``-3`` on ``s``, the norm part cancels both), so
     ``Z - t D`` satisfies the stationarity ``Z z* = 0`` for every ``t``.
-    Returns a dense (9 n + 1, 9 n + 1) matrix.
     """
-    from .relaxation import so3_constraint_matrices
-
     n = R.shape[0]
-    d = 9 * n + 1
-    cons = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
-    lam = np.zeros(cons.m)
+    lam = np.zeros(21 * n + 1)
     cyclic = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
     for l in range(n):
         base = 21 * l
@@ -205,19 +233,29 @@ def handedness_direction(R: np.ndarray) -> np.ndarray:
         for ci, (_, _, c) in enumerate(cyclic):
             for k in range(3):
                 lam[base + 12 + 3 * ci + k] = R[l, k, c]
-    return cons.apply(lam)
+    return lam
+
+
+def handedness_direction(R: np.ndarray) -> np.ndarray:
+    """The dense (9 n + 1, 9 n + 1) matrix of :func:`handedness_multipliers`."""
+    from .relaxation import so3_constraint_matrices
+
+    n = R.shape[0]
+    d = 9 * n + 1
+    return so3_constraint_matrices(np.arange(n) * 9, d, d - 1).apply(handedness_multipliers(R))
 
 
 def strengthen_certificate(Z: np.ndarray, R: np.ndarray, *, null_tol: float = 1e-6
-                           ) -> tuple[np.ndarray, float]:
-    """Move the fast certificate along :func:`handedness_direction` to lift spurious null
-    directions, keeping ``Z z* = 0``.
+                           ) -> tuple[float, float]:
+    """Step along :func:`handedness_direction` to lift spurious null directions of the fast
+    certificate, keeping ``Z z* = 0``.
 
     The orthogonality-only multipliers leave ``e_s`` in the null space whenever the cost does not
     couple ``s`` to the rotations at the optimum (e.g. single-sphere trajectories, where eq. (63)
     fails); the handedness constraints can. ``t`` maximises the smallest eigenvalue of
     ``Z - t D`` on the complement of ``z*`` -- a concave function of ``t`` (minimum of affine
-    functions), maximised by a bounded scalar search. Returns the best ``Z`` and that eigenvalue.
+    functions), maximised by a bounded scalar search. Returns ``(t, that eigenvalue)``: the
+    multipliers become ``lambda + t * handedness_multipliers(R)`` (``Z - t D``).
     """
     from scipy.optimize import minimize_scalar
 
@@ -234,4 +272,4 @@ def strengthen_certificate(Z: np.ndarray, R: np.ndarray, *, null_tol: float = 1e
     res = minimize_scalar(lambda t: -lam_perp(t), bounds=(-scale, scale), method="bounded",
                           options={"xatol": 1e-6 * scale})
     t_best = float(res.x) if lam_perp(float(res.x)) > lam_perp(0.0) else 0.0
-    return Z - t_best * D, lam_perp(t_best)
+    return t_best, lam_perp(t_best)

@@ -35,6 +35,7 @@ translation block is ``Z_reduced`` with the same multipliers).
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,61 +88,79 @@ class ConstraintSet:
         return np.asarray(self.C @ lam).reshape(self.d, self.d, order="F")
 
 
+def _one_rotation_pattern() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Entries ``(p, q, value, constraint)`` of the 21 constraint matrices of one rotation with
+    ``vec(R)`` at local indices 0..8 and ``s`` at local index 9 (symmetric entries split in
+    halves), in the order (50a) rows ``i <= j``, (50b) columns ``a <= b``, (50c) cyclic ``(a, b,
+    c)`` and component ``k``."""
+    P: list[int] = []
+    Qi: list[int] = []
+    V: list[float] = []
+    Ci: list[int] = []
+    s = 9
+
+    def add(p: int, q: int, v: float, con: int) -> None:
+        if p == q:
+            P.append(p)
+            Qi.append(p)
+            V.append(v)
+            Ci.append(con)
+        else:
+            P.extend((p, q))
+            Qi.extend((q, p))
+            V.extend((0.5 * v, 0.5 * v))
+            Ci.extend((con, con))
+
+    idx = lambda i, c: 3 * c + i  # noqa: E731
+    con = 0
+    for i in range(3):  # (50a) R R^T = s^2 I: rows i, j
+        for j in range(i, 3):
+            for c in range(3):
+                add(idx(i, c), idx(j, c), 1.0, con)
+            if i == j:
+                add(s, s, -1.0, con)
+            con += 1
+    for a in range(3):  # (50b) R^T R = s^2 I: columns a, b
+        for b in range(a, 3):
+            for i in range(3):
+                add(idx(i, a), idx(i, b), 1.0, con)
+            if a == b:
+                add(s, s, -1.0, con)
+            con += 1
+    for a, b, c in _CYCLIC:  # (50c) R_a x R_b - s R_c = 0, component k
+        for k in range(3):
+            k1, k2 = (k + 1) % 3, (k + 2) % 3
+            add(idx(k1, a), idx(k2, b), 1.0, con)
+            add(idx(k2, a), idx(k1, b), -1.0, con)
+            add(s, idx(k, c), -1.0, con)
+            con += 1
+    return np.array(P), np.array(Qi), np.array(V), np.array(Ci)
+
+
+_PATTERN = _one_rotation_pattern()
+
+
 def so3_constraint_matrices(rotation_offsets: np.ndarray, d: int, s_index: int) -> ConstraintSet:
     """Build :class:`ConstraintSet` for rotations whose ``vec(R)`` starts at ``rotation_offsets``.
 
     Column-major ``vec``: ``R[i, c] = z[o + 3 c + i]``. 21 constraints per rotation (one of them
-    linearly dependent on the others, harmless) plus ``s^2 = 1`` last.
+    linearly dependent on the others, harmless) plus ``s^2 = 1`` last. The entries of one
+    rotation's constraints are built once and shifted to every offset.
     """
-    rows: list[int] = []
-    cols: list[int] = []
-    vals: list[float] = []
-    con = 0
-
-    def add(p: int, q: int, v: float) -> None:
-        # symmetric entry (p, q) and (q, p) of A_con with total weight v on z_p z_q
-        if p == q:
-            rows.append(p * d + p)
-            cols.append(con)
-            vals.append(v)
-        else:
-            rows.extend((p * d + q, q * d + p))
-            cols.extend((con, con))
-            vals.extend((0.5 * v, 0.5 * v))
-
-    s = s_index
-    for o in np.asarray(rotation_offsets, dtype=int):
-        idx = lambda i, c, o=o: int(o + 3 * c + i)  # noqa: E731
-        # (50a) R R^T = s^2 I: rows i, j
-        for i in range(3):
-            for j in range(i, 3):
-                for c in range(3):
-                    add(idx(i, c), idx(j, c), 1.0)
-                if i == j:
-                    add(s, s, -1.0)
-                con += 1
-        # (50b) R^T R = s^2 I: columns a, b
-        for a in range(3):
-            for b in range(a, 3):
-                for i in range(3):
-                    add(idx(i, a), idx(i, b), 1.0)
-                if a == b:
-                    add(s, s, -1.0)
-                con += 1
-        # (50c) R_a x R_b - s R_c = 0, component k
-        for a, b, c in _CYCLIC:
-            for k in range(3):
-                k1, k2 = (k + 1) % 3, (k + 2) % 3
-                add(idx(k1, a), idx(k2, b), 1.0)
-                add(idx(k2, a), idx(k1, b), -1.0)
-                add(s, idx(k, c), -1.0)
-                con += 1
-    # s^2 = 1
-    add(s, s, 1.0)
-    con += 1
-    C = sp.csc_matrix((vals, (rows, cols)), shape=(d * d, con))
+    offsets = np.asarray(rotation_offsets, dtype=int).reshape(-1)
+    P, Qi, V, Ci = _PATTERN
+    n = offsets.size
+    gp = np.where(P[None, :] == 9, s_index, offsets[:, None] + P[None, :])
+    gq = np.where(Qi[None, :] == 9, s_index, offsets[:, None] + Qi[None, :])
+    rows = (gp * d + gq).ravel()
+    cols = (21 * np.arange(n)[:, None] + Ci[None, :]).ravel()
+    vals = np.tile(V, n)
+    rows = np.concatenate([rows, [s_index * d + s_index]])  # s^2 = 1, last
+    cols = np.concatenate([cols, [21 * n]])
+    vals = np.concatenate([vals, [1.0]])
+    C = sp.csc_matrix((vals, (rows, cols)), shape=(d * d, 21 * n + 1))
     C.sum_duplicates()
-    return ConstraintSet(C=C, d=d, s_index=s_index, n_rotations=len(rotation_offsets))
+    return ConstraintSet(C=C, d=d, s_index=s_index, n_rotations=n)
 
 
 @dataclass
@@ -186,7 +205,8 @@ class SdpOptions:
 @dataclass
 class DualSolution:
     """Solution of Problem 7 on scaled data: multipliers ``lam`` (m,) with ``lam[-1] =
-    lambda_s``, the solver status string, and compile/solve times in seconds."""
+    lambda_s``, the solver status string, compile/solve times in seconds, and the solver's
+    warnings in words (never printed: the caller puts them in the result's notes)."""
 
     lam: np.ndarray
     status: str
@@ -194,6 +214,7 @@ class DualSolution:
     solve_s: float
     iterations: int
     total_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def lambda_s(self) -> float:
@@ -299,7 +320,9 @@ def _run(prob, lam, m: int, options: SdpOptions, t0: float,
     import cvxpy as cp
 
     settings = {**(defaults or {}), **options.clarabel}
-    prob.solve(solver=cp.CLARABEL, verbose=options.verbose, **settings)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        prob.solve(solver=cp.CLARABEL, verbose=options.verbose, **settings)
     total = time.perf_counter() - t0
     solve_s = float(getattr(prob.solver_stats, "solve_time", None) or 0.0)
     compile_s = float(getattr(prob, "compilation_time", None) or max(total - solve_s, 0.0))
@@ -308,5 +331,14 @@ def _run(prob, lam, m: int, options: SdpOptions, t0: float,
     iters = int(getattr(prob.solver_stats, "num_iters", 0) or 0)
     if value is None:
         value = np.full(m, np.nan)
+    notes = [_WARNING_WORDS.get(str(w.message).split(".")[0], str(w.message)) for w in caught]
     return DualSolution(lam=np.asarray(value, float), status=status, compile_s=compile_s,
-                        solve_s=solve_s, iterations=iters, total_s=total)
+                        solve_s=solve_s, iterations=iters, total_s=total,
+                        warnings=list(dict.fromkeys(notes)))
+
+
+#: cvxpy warnings in words for a user (the key is the warning's first sentence).
+_WARNING_WORDS = {
+    "Solution may be inaccurate": "the SDP solver (Clarabel) reached its iteration limit or "
+    "reduced accuracy; its multipliers are used only if the certificate proves the bound",
+}

@@ -13,15 +13,31 @@ __all__ = ["Status", "Certificate", "CalibrationResult"]
 
 
 class Status(str, Enum):
-    """Outcome of a solve. "Not certified" is a status, never an exception."""
+    """Outcome of a solve. "Not certified" is a status, never an exception.
 
-    #: Relative suboptimality bound below tolerance AND one-dimensional null space of Z.
+    Only CERTIFIED_OPTIMAL claims global optimality; every other status says why not, and the
+    estimate is still returned (use it only as the message says).
+    """
+
+    #: Relative suboptimality bound below tolerance (a bound that holds in floating point) AND a
+    #: one-dimensional null space of Z.
     CERTIFIED_OPTIMAL = "certified_optimal"
     #: The dual certificate does not prove optimality (gap too large or Z has a larger null
     #: space / negative eigenvalue): the relaxation is not tight at this solution.
     NOT_TIGHT = "not_tight"
+    #: The data do not determine the answer: a translation component (or the scale, or a rotation)
+    #: is unobservable, or an unknown scale came out <= the positive floor. The message names the
+    #: frames and the direction; an unobservable translation is set by the documented default
+    #: (or a prior) and the rest may still be the certified optimum (see the message).
+    NOT_IDENTIFIABLE = "not_identifiable"
+    #: The numbers cannot establish a rigorous bound (e.g. a translation block too ill-conditioned
+    #: for the Schur reduction, or a reduced cost that disagrees with the direct cost).
+    ILL_CONDITIONED = "ill_conditioned"
     #: The conic solver did not reach its tolerances; numbers are reported but prove nothing.
     SOLVER_INACCURATE = "solver_inaccurate"
+    #: A numerical solver failed outright (exception or no solution); the closed-form or local
+    #: estimate is returned, see the message.
+    SOLVER_FAILED = "solver_failed"
     #: A local solution without any certificate (mode ``local``).
     LOCAL_ONLY = "local_only"
 
@@ -51,6 +67,11 @@ class Certificate:
         The ``rho_hat`` tolerance used for ``CERTIFIED_OPTIMAL``.
     message : str
         Human-readable explanation of the status.
+    lambda_min_lower : float
+        Proven lower bound on ``lambda_min(Z)`` (scaled units) used in ``dual_bound``.
+    margins : dict of str to float
+        What the rounding analysis subtracted from ``lambda_s`` (unscaled cost units):
+        ``eigenvalue``, ``rounding``, ``schur`` (see :mod:`rwhec_ros.core.certificate`).
     """
 
     status: Status
@@ -62,6 +83,8 @@ class Certificate:
     null_space_dim: int
     tolerance: float
     message: str = ""
+    lambda_min_lower: float = float("nan")
+    margins: dict = field(default_factory=dict)
 
     @property
     def certified(self) -> bool:
@@ -108,6 +131,9 @@ class CalibrationResult:
         block of the extracted (normalised) null vector; ~0 when the relaxation is tight.
     notes : list of str
         Anything the user should know (fallbacks, dropped edges, ...).
+    unobservable : list
+        :class:`~rwhec_ros.core.gauge.UnobservableDirection` s: translation directions the data
+        do not determine, with how each was fixed (prior or default) and its value.
     """
 
     x_names: tuple[str, ...]
@@ -121,6 +147,7 @@ class CalibrationResult:
     solver_status: str = ""
     rounding_displacement: float = 0.0
     notes: list[str] = field(default_factory=list)
+    unobservable: list = field(default_factory=list)
 
     @property
     def certified(self) -> bool:
@@ -178,8 +205,11 @@ class CalibrationResult:
                 "smallest_eigenvalues": [float(v) for v in np.asarray(c.eigenvalues)],
                 "null_space_dim": int(c.null_space_dim),
                 "tolerance": float(c.tolerance),
+                "lambda_min_lower": float(c.lambda_min_lower),
+                "margins": {k: float(v) for k, v in c.margins.items()},
                 "message": c.message,
             },
+            "unobservable": [u.to_dict() for u in self.unobservable],
             "solver_status": self.solver_status,
             "rounding_displacement": float(self.rounding_displacement),
             "notes": list(self.notes),

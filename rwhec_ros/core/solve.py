@@ -10,6 +10,14 @@
 
 All modes scale the data matrix by an upper bound on the optimum (the cost at the closed-form
 estimate) before any numerical work, so that tolerances are relative to the optimal cost.
+
+Before the reduction, translation directions the data do not determine (motion about one
+axis, :mod:`rwhec_ros.core.gauge`) are fixed by the user's priors or the documented default; the
+certificate (:mod:`rwhec_ros.core.certificate`) then applies to that problem and the status says
+what was fixed. The primal cost ``p`` of every certificate is the cost of the returned estimate
+evaluated directly from the residuals of eq. (33) (plus the prior's term), never the reduced
+cost. Numerical failures (Clarabel, eigensolvers, singular systems) become the status
+``solver_failed``; an exception leaves :func:`solve` only for invalid input.
 """
 
 from __future__ import annotations
@@ -20,22 +28,32 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg
 from threadpoolctl import ThreadpoolController
 
-from .certificate import CertificateOptions, certify_from_Z
-from .cost import StateLayout, build_cost_matrices, reduce_cost
+from .certificate import CertificateOptions, certificate_matrix, certify
+from .cost import StateLayout, build_cost_matrices, direct_cost, reduce_cost
+from .gauge import (
+    GaugeFix,
+    GaugeOptions,
+    axis_words,
+    build_gauge_fix,
+    find_unobservable_directions,
+)
 from .initialization import closed_form_estimate, estimate_from_rotations, rotations_from_vector
 from .lie import make_transform
 from .local_solver import (
     LocalSolverOptions,
-    fast_certificate_matrix,
+    _grad_hess,
+    fast_certificate_multipliers,
+    handedness_multipliers,
     refine_rotations,
     strengthen_certificate,
 )
 from .problem import Problem
 from .relaxation import (
+    ConstraintSet,
     SdpOptions,
-    evaluate_Z,
     so3_constraint_matrices,
     solve_dual_sdp,
     solve_dual_sdp_arrow,
@@ -49,6 +67,14 @@ MODES = ("sdp", "fast", "local")
 
 #: Costs below this fraction of the largest entry of ``Q'`` count as zero (noise-free data).
 COST_FLOOR_REL = 1e-4
+
+#: Exceptions of the numerical back ends that become the status ``solver_failed``.
+NUMERICAL_ERRORS: tuple[type[BaseException], ...] = (
+    np.linalg.LinAlgError,
+    scipy.sparse.linalg.ArpackError,
+    scipy.sparse.linalg.ArpackNoConvergence,
+    ArithmeticError,
+)
 
 
 @dataclass
@@ -74,6 +100,13 @@ class SolveOptions:
         every measurement on the 2-core target machines (real 16x8 data: 24 ms single-threaded
         vs. 60-600 ms with two threads on a busy machine; 100 cameras: 1.9 s vs. 9.1 s); ``None``
         leaves the BLAS library's own setting.
+    gauge : GaugeOptions
+        When a translation direction counts as unobservable, and the user's priors that fix such
+        directions (:mod:`rwhec_ros.core.gauge`).
+    min_scale : float
+        Unknown scale only: an estimate ``alpha`` at or below this positive floor (0.01: tags 100
+        times smaller than their nominal size) is never certified -- the data do not determine
+        the scale (noise, outliers, too little translation).
     """
 
     mode: str = "fast"
@@ -83,10 +116,14 @@ class SolveOptions:
     initial: tuple[np.ndarray, np.ndarray] | None = None
     fallback_to_sdp: bool = True
     blas_threads: int | None = 1
+    gauge: GaugeOptions = field(default_factory=GaugeOptions)
+    min_scale: float = 0.01
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode: expected one of {MODES}, got {self.mode!r}")
+        if not (np.isfinite(self.min_scale) and self.min_scale > 0):
+            raise ValueError(f"min_scale: must be finite and > 0, got {self.min_scale!r}")
 
 
 @dataclass
@@ -101,13 +138,30 @@ class _Prepared:
     cost_floor: float
     Q: object = None
     full: tuple | None = None  # the ``full`` form's data, built once by :func:`_full_form`
+    gauge: GaugeFix | None = None
+    constraints: ConstraintSet | None = None
+
+    def cons(self) -> ConstraintSet:
+        """The constraints of eq. (50) on the reduced ``[vec R; s]`` (built once)."""
+        if self.constraints is None:
+            n = self.problem.n_frames
+            d = 9 * n + 1
+            self.constraints = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
+        return self.constraints
 
 
 def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
+    """Cost matrices, the fix of unobservable translation directions, the Schur reduction, the
+    closed-form (or given) start and the data scale."""
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
     layout = StateLayout(problem.M, problem.P)
     Q, Q_rot = build_cost_matrices(problem)
+    V_w, w_w, directions, w_max = find_unobservable_directions(Q, layout, problem, options.gauge)
+    gauge = build_gauge_fix(problem, V_w, w_w, directions, w_max, options.gauge.priors)
+    if not gauge.empty:
+        pen = gauge.penalty_matrix(layout)
+        Q = (sp.csr_matrix(Q) + pen).tocsr() if sp.issparse(Q) else Q + pen.toarray()
     reduced = reduce_cost(Q, layout, problem.unknown_scale)
     timing["build"] = time.perf_counter() - t0
     t1 = time.perf_counter()
@@ -127,18 +181,26 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
     floor = COST_FLOOR_REL * max(float(np.abs(reduced.Qr).max()), 1e-300)
     scale = max(float(init.cost), floor)
     return _Prepared(problem, layout, reduced, scale, reduced.Qr / scale, init.R, timing, floor,
-                     Q)
+                     Q, gauge=gauge)
 
 
-def _result(prep: _Prepared, R: np.ndarray, cert: Certificate, mode: str, solver_status: str,
-            moved: float, notes: list[str], est=None) -> CalibrationResult:
-    """The result for rotations ``R`` (translations and scale by eq. (47); ``est`` if already
-    computed for these rotations)."""
-    if est is None:
-        est = estimate_from_rotations(prep.problem, prep.reduced, R)
+def _estimate(prep: _Prepared, R: np.ndarray):
+    """Translations and scale for rotations ``R`` (eq. (47)) and the cost ``p`` of that
+    estimate evaluated directly (eq. (33) plus the prior's term)."""
+    est = estimate_from_rotations(prep.problem, prep.reduced, R)
+    X, Y = est.split(prep.problem.M)
+    p = direct_cost(prep.problem, X, Y, est.alpha)
+    if prep.gauge is not None and not prep.gauge.empty:
+        p += prep.gauge.penalty_value(est.t, est.alpha if prep.problem.unknown_scale else 1.0)
+    return est, p
+
+
+def _result(prep: _Prepared, est, cert: Certificate, mode: str, solver_status: str,
+            moved: float, notes: list[str]) -> CalibrationResult:
+    """The result for the estimate ``est`` (rotations, translations and scale)."""
     T = make_transform(est.R, est.t)
     M = prep.problem.M
-    return CalibrationResult(
+    res = CalibrationResult(
         x_names=prep.problem.x_names,
         y_names=prep.problem.y_names,
         X=T[:M],
@@ -151,15 +213,26 @@ def _result(prep: _Prepared, R: np.ndarray, cert: Certificate, mode: str, solver
         rounding_displacement=moved,
         notes=notes,
     )
+    return res
 
 
-def _certify(prep: _Prepared, options: SolveOptions, Z: np.ndarray, lambda_s: float,
-             cost: float, solver_ok: bool = True, solver_status: str = "local") -> Certificate:
-    """:func:`certify_from_Z` with this problem's scale, size, cost floor and options."""
-    return certify_from_Z(Z, lambda_s, cost, prep.scale, prep.problem.n_frames,
-                          solver_ok=solver_ok, solver_status=solver_status,
-                          homogeneous=prep.problem.unknown_scale, cost_floor=prep.cost_floor,
-                          options=options.certificate)
+def _certify(prep: _Prepared, options: SolveOptions, lam: np.ndarray, cost: float,
+             solver_ok: bool = True, solver_status: str = "local") -> Certificate:
+    """:func:`certify` with this problem's reduction, scale, cost floor and options; a numerical
+    failure of the eigen-analysis becomes ``solver_failed``."""
+    try:
+        return certify(prep.reduced, prep.scale, prep.Qs, prep.cons(), lam, cost,
+                       solver_ok=solver_ok, solver_status=solver_status,
+                       homogeneous=prep.problem.unknown_scale, cost_floor=prep.cost_floor,
+                       options=options.certificate)
+    except NUMERICAL_ERRORS as exc:
+        return _failed_certificate(options, cost, f"the certificate's eigen-analysis failed "
+                                   f"({type(exc).__name__}: {exc})")
+
+
+def _failed_certificate(options: SolveOptions, cost: float, message: str) -> Certificate:
+    return Certificate(Status.SOLVER_FAILED, float(cost), float("nan"), float("nan"),
+                       float("nan"), np.zeros(0), -1, options.certificate.rho_tol, message)
 
 
 def _full_form(prep: _Prepared) -> tuple[sp.csr_matrix, np.ndarray, int]:
@@ -214,9 +287,8 @@ def _form_costs(prep: _Prepared) -> tuple[str, dict[str, float], ArrowSplit | No
 
 def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> CalibrationResult:
     n = prep.problem.n_frames
-    d = 9 * n + 1
     t0 = time.perf_counter()
-    cons = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
+    cons = prep.cons()
     form, split = options.sdp.form, None
     if form == "auto":
         form, _, split = _form_costs(prep)
@@ -228,28 +300,43 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
         Qf, offsets, df = _full_form(prep)
         cons_f = so3_constraint_matrices(offsets, df, df - 1)
     prep.timing["constraints"] = time.perf_counter() - t0
-    if form == "full":
-        sol = solve_dual_sdp(Qf, cons_f, options.sdp)
-    elif form == "arrow":
-        sol = solve_dual_sdp_arrow(prep.Qs, cons, split, options.sdp)
-    else:
-        sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
+    try:
+        if form == "full":
+            sol = solve_dual_sdp(Qf, cons_f, options.sdp)
+        elif form == "arrow":
+            sol = solve_dual_sdp_arrow(prep.Qs, cons, split, options.sdp)
+        else:
+            sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
+    except Exception as exc:  # noqa: BLE001 - cvxpy/Clarabel raise SolverError and others
+        notes.append(f"SDP form: {form}")
+        notes.append(f"the SDP solver failed ({type(exc).__name__}: {exc}); returning the "
+                     "closed-form estimate")
+        est, p = _estimate(prep, prep.init_R)
+        cert = _failed_certificate(
+            options, p, f"the SDP solver (Clarabel) failed: {exc}. Try mode 'fast', or check the "
+            "data for degenerate edges and outliers")
+        return _result(prep, est, cert, "sdp", "failed", 0.0, notes)
     notes.append(f"SDP form: {form}")
     notes.append(f"Clarabel: {sol.iterations} iterations, status '{sol.status}'")
+    notes.extend(sol.warnings)
     prep.timing["compile"] = sol.compile_s
     prep.timing["solve"] = sol.solve_s
     t1 = time.perf_counter()
-    solver_ok = sol.status == "optimal" and bool(np.all(np.isfinite(sol.lam)))
     if not np.all(np.isfinite(sol.lam)):
-        cert = Certificate(Status.SOLVER_INACCURATE, float("nan"), float("nan"), float("nan"),
-                           float("nan"), np.zeros(0), -1, options.certificate.rho_tol,
-                           f"SDP solver returned no solution (status '{sol.status}')")
-        R = prep.init_R
+        est, p = _estimate(prep, prep.init_R)
+        cert = _failed_certificate(options, p, f"the SDP solver returned no solution (status "
+                                   f"'{sol.status}'); the closed-form estimate is returned")
         prep.timing["extract"] = time.perf_counter() - t1
         notes.append("SDP failed; returning the closed-form estimate")
-        return _result(prep, R, cert, "sdp", sol.status, 0.0, notes)
-    Z = evaluate_Z(prep.Qs, cons, sol.lam)
-    w, V = np.linalg.eigh(Z)
+        return _result(prep, est, cert, "sdp", sol.status, 0.0, notes)
+    solver_ok = sol.status == "optimal"
+    try:
+        Z, _ = certificate_matrix(prep.Qs, cons, sol.lam)
+        w, V = np.linalg.eigh(Z)
+    except NUMERICAL_ERRORS as exc:
+        est, p = _estimate(prep, prep.init_R)
+        cert = _failed_certificate(options, p, f"eigendecomposition of Z failed: {exc}")
+        return _result(prep, est, cert, "sdp", sol.status, 0.0, notes)
     v = V[:, 0]
     # Algorithm 1 step 6: scale the null vector so that s = 1 (sign and magnitude), then fix
     # det R = +1 via the mean cube-root determinant and project each block onto SO(3).
@@ -258,10 +345,10 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
     R_raw, moved = rotations_from_vector(v[:-1], n)
     prep.timing["extract"] = time.perf_counter() - t1
     t2 = time.perf_counter()
-    est = estimate_from_rotations(prep.problem, prep.reduced, R_raw)
-    cert = _certify(prep, options, Z, sol.lambda_s, est.cost, solver_ok, sol.status)
+    est, p = _estimate(prep, R_raw)
+    cert = _certify(prep, options, sol.lam, p, solver_ok, sol.status)
     prep.timing["certify"] = time.perf_counter() - t2
-    return _result(prep, R_raw, cert, "sdp", sol.status, moved, notes, est)
+    return _result(prep, est, cert, "sdp", sol.status, moved, notes)
 
 
 def _solve_local(prep: _Prepared, options: SolveOptions) -> tuple[np.ndarray, object]:
@@ -269,6 +356,53 @@ def _solve_local(prep: _Prepared, options: SolveOptions) -> tuple[np.ndarray, ob
     loc = refine_rotations(prep.Qs, prep.init_R, options.local)
     prep.timing["local"] = time.perf_counter() - t0
     return loc.R, loc
+
+
+def _solve_fast(prep: _Prepared, options: SolveOptions, notes: list[str]) -> CalibrationResult:
+    """Closed-form start, Riemannian Newton, fast certificate (strengthened if needed), and the
+    SDP when it is inconclusive."""
+    try:
+        R, loc = _solve_local(prep, options)
+    except NUMERICAL_ERRORS as exc:
+        notes.append(f"local solver failed ({type(exc).__name__}: {exc})")
+        if not options.fallback_to_sdp or options.mode == "local":
+            est, p = _estimate(prep, prep.init_R)
+            cert = _failed_certificate(options, p, f"the local solver failed: {exc}")
+            return _result(prep, est, cert, options.mode, "failed", 0.0, notes)
+        res = _solve_sdp(prep, options, notes)
+        res.mode = "fast"
+        return res
+    status = "converged" if loc.converged else "not converged"
+    if not loc.converged:
+        notes.append(f"local solver stopped after {loc.iterations} iterations without "
+                     f"converging (gradient norm {loc.gradient_norm:.3g})")
+    est, p = _estimate(prep, R)
+    if options.mode == "local":
+        return _result(prep, est, Certificate.local_only(p), "local", status, 0.0, notes)
+    t0 = time.perf_counter()
+    lam = fast_certificate_multipliers(prep.Qs, R)
+    cert = _certify(prep, options, lam, p)
+    prep.timing["certify"] = time.perf_counter() - t0
+    if cert.status is Status.NOT_TIGHT and cert.lambda_min >= -options.certificate.null_tol:
+        # PSD but a larger null space: try the handedness multipliers (cheap 1-D search)
+        t1 = time.perf_counter()
+        try:
+            Z, _ = certificate_matrix(prep.Qs, prep.cons(), lam)
+            t_step, _ = strengthen_certificate(Z, R, null_tol=options.certificate.null_tol)
+            cert2 = _certify(prep, options, lam + t_step * handedness_multipliers(R), p)
+        except NUMERICAL_ERRORS:
+            cert2 = None
+        prep.timing["strengthen"] = time.perf_counter() - t1
+        if cert2 is not None and cert2.certified:
+            cert = cert2
+            notes.append("fast certificate strengthened with handedness multipliers")
+    if cert.certified or not options.fallback_to_sdp:
+        return _result(prep, est, cert, "fast", status, 0.0, notes)
+    notes.append(f"fast certificate inconclusive ({cert.message}); fell back to the SDP "
+                 "relaxation")
+    res = _solve_sdp(prep, options, notes)
+    res.mode = "fast"
+    return res
 
 
 def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationResult:
@@ -307,37 +441,95 @@ def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
     if options.mode == "sdp":
         res = _solve_sdp(prep, options, notes)
     else:
-        R, loc = _solve_local(prep, options)
-        if not loc.converged:
-            notes.append(f"local solver stopped after {loc.iterations} iterations without "
-                         f"converging (gradient norm {loc.gradient_norm:.3g})")
-        if options.mode == "local":
-            est = estimate_from_rotations(problem, prep.reduced, R)
-            res = _result(prep, R, Certificate.local_only(est.cost), "local",
-                          "converged" if loc.converged else "not converged", 0.0, notes, est)
-        else:
-            t0 = time.perf_counter()
-            Z, lam_s = fast_certificate_matrix(prep.Qs, R)
-            est = estimate_from_rotations(problem, prep.reduced, R)
-            cert = _certify(prep, options, Z, lam_s, est.cost)
-            prep.timing["certify"] = time.perf_counter() - t0
-            if not cert.certified and cert.lambda_min >= -options.certificate.null_tol:
-                # PSD but a larger null space: try the handedness multipliers (cheap 1-D search)
-                t1 = time.perf_counter()
-                Z2, _ = strengthen_certificate(Z, R, null_tol=options.certificate.null_tol)
-                cert2 = _certify(prep, options, Z2, lam_s, est.cost)
-                prep.timing["strengthen"] = time.perf_counter() - t1
-                if cert2.certified:
-                    cert = cert2
-                    notes.append("fast certificate strengthened with handedness multipliers")
-            if cert.certified or not options.fallback_to_sdp:
-                res = _result(prep, R, cert, "fast",
-                              "converged" if loc.converged else "not converged", 0.0, notes,
-                              est)
-            else:
-                notes.append(f"fast certificate inconclusive ({cert.message}); fell back to the "
-                             "SDP relaxation")
-                res = _solve_sdp(prep, options, notes)
-                res.mode = "fast"
+        res = _solve_fast(prep, options, notes)
+    _check_identifiability(prep, options, res)
     res.timing_s["total"] = time.perf_counter() - t_start
     return res
+
+
+def _downgrade(res: CalibrationResult, status: Status, message: str) -> None:
+    """Replace a certificate's status and message by a more specific one (keeping its numbers);
+    the certified part, if any, is quoted in the message."""
+    cert = res.certificate
+    if cert.status in (Status.SOLVER_FAILED, Status.LOCAL_ONLY):
+        res.notes.append(message)
+        return
+    if cert.status is Status.CERTIFIED_OPTIMAL:
+        tail = (f" With that, the rest is certified optimal "
+                f"(rho_hat={cert.suboptimality_bound:.3g}).")
+    else:
+        tail = f" [{cert.message}]"
+    cert.message = message + tail
+    cert.status = status
+
+
+def _check_identifiability(prep: _Prepared, options: SolveOptions,
+                           res: CalibrationResult) -> None:
+    """Statuses the certificate alone cannot know: translation directions fixed by default, an
+    unobservable scale, a non-positive unknown scale, a rotation the data do not determine."""
+    problem = prep.problem
+    gauge = prep.gauge
+    reasons: list[str] = []
+    cert = res.certificate
+    if not cert.certified and cert.null_space_dim > 1:
+        words = _rotation_gauge_words(prep, res, options.certificate.null_tol)
+        if words:
+            reasons.append(words)
+    if gauge is not None and not gauge.empty:
+        t = np.concatenate([res.X, res.Y])[:, :3, 3].reshape(-1)
+        for i, d in enumerate(gauge.directions):
+            d.value_m = float(gauge.V_w[:, i] @ t)
+        res.unobservable = list(gauge.directions)
+        words = "; ".join(d.describe(x_names=problem.x_names) for d in gauge.directions)
+        if any(d.involves_scale for d in gauge.directions):
+            reasons.append(words)
+        elif gauge.pinned:
+            res.notes.append(f"{words}: fixed by the given priors (certificate with the priors)")
+            for p, row in gauge.prior_rows:
+                got = float(row @ t)
+                if abs(got - p.value_m) > 1e-4:
+                    res.notes.append(f"prior {p.frame} {np.round(p.axis, 3).tolist()} = "
+                                     f"{p.value_m:.4f} m: estimate {got:.4f} m (the priors "
+                                     "disagree with each other or with the data)")
+        else:
+            reasons.append(f"{words}. It was set by default (the cameras' translations along it "
+                           "are zero on average); give a prior for it (a known translation "
+                           "component of one of these frames)")
+    if problem.unknown_scale and not res.scale > options.min_scale:
+        reasons.append(f"the estimated scale alpha = {res.scale:.4g} is not above the floor "
+                       f"{options.min_scale:g}: the data do not determine the scale (too much "
+                       "noise, outliers, or too little translation relative to the tags)")
+    if reasons:
+        _downgrade(res, Status.NOT_IDENTIFIABLE, "not identifiable: " + "; ".join(reasons) + ".")
+
+
+def _rotation_gauge_words(prep: _Prepared, res: CalibrationResult, null_tol: float) -> str:
+    """Words for rotation directions the data do not determine (near-null directions of the
+    Riemannian Hessian of the reduced cost at the estimate, at a minimum), or ``""``."""
+    R = np.concatenate([res.X, res.Y])[:, :3, :3]
+    try:
+        _, _, H = _grad_hess(prep.Qs, R)
+        w, V = np.linalg.eigh(H)
+    except NUMERICAL_ERRORS:
+        return ""
+    # flat directions of the scaled cost: the Riemannian Hessian is ~4 Z on the tangent space
+    # (|d vec(R w^)/d w|^2 = 2), so a second null direction of Z that is a rotation of the frames
+    # shows as an eigenvalue of H within a few null_tol
+    if w[0] < -10.0 * null_tol:  # a saddle point, not a flat minimum
+        return ""
+    weak = np.where(np.abs(w) <= 10.0 * null_tol)[0]
+    names = prep.problem.frame_names
+    parts = []
+    for i in weak:
+        v = V[:, i].reshape(-1, 3)
+        frames = [f for f in range(len(names)) if np.linalg.norm(v[f]) >= 0.1]
+        # right perturbation R exp(w^): the axis in the frame's parent is R w (sign canonical:
+        # the largest component of the first frame's axis positive)
+        par = [R[f] @ v[f] for f in frames]
+        if par and par[0][int(np.argmax(np.abs(par[0])))] < 0:
+            par = [-a for a in par]
+        axes = {axis_words(a) for a in par}
+        about = axes.pop() if len(axes) == 1 else "different axes"
+        parts.append(f"rotation of {', '.join(names[f] for f in frames)} about {about} (in "
+                     "their carriers) not determined by the data")
+    return "; ".join(parts)

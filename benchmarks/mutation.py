@@ -1,0 +1,337 @@
+"""Mutation testing of the certification logic: do the tests notice when it is wrong?
+
+A small AST mutator (no third-party tool): each mutant changes ONE thing in one of the target
+modules -- an arithmetic or comparison operator, a boolean connective, a ``not``, a numeric
+constant (x100, /100, +-1, 0 <-> 1), ``min`` <-> ``max``, an ``abs`` dropped, a unary minus
+dropped, ``True`` <-> ``False`` -- in a private copy of the repository, and runs the tests that
+reach the certificate (``pytest -x -q`` on the files in ``TESTS``). A mutant is *killed* when a
+test fails (or the run exceeds the timeout), *survives* otherwise. Survivors are listed, each
+either killed later by a new test or argued equivalent in ``EQUIVALENT`` (one line each).
+
+Targets: ``rwhec_ros/core/certificate.py`` and ``rwhec_ros/core/verified.py`` (every line but
+docstrings), and the status decisions of ``rwhec_ros/core/solve.py`` (the functions in
+``SOLVE_FUNCTIONS``).
+
+Usage (from the repository root; prints Markdown, ~1-2 h on 2 cores)::
+
+    python benchmarks/mutation.py --jobs 2 > benchmarks/mutation.md
+    python benchmarks/mutation.py --list             # the mutants only, no test runs
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import copy
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TARGETS = {
+    "rwhec_ros/core/certificate.py": None,  # every function and class
+    "rwhec_ros/core/verified.py": None,
+    "rwhec_ros/core/solve.py": {
+        "_certify", "_failed_certificate", "_solve_fast", "_solve_sdp", "_check_identifiability",
+        "_downgrade", "_rotation_gauge_words", "_estimate",
+    },
+}
+
+#: The tests that reach each target, fastest first (``pytest -x`` stops at the first failure).
+TESTS = {
+    "rwhec_ros/core/certificate.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
+                                      "test/core/test_solve.py"],
+    "rwhec_ros/core/verified.py": ["test/core/test_certificate.py", "test/core/test_verified.py",
+                                   "test/core/test_gauge.py"],
+    "rwhec_ros/core/solve.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
+                                "test/core/test_solve.py"],
+}
+
+#: Mutants argued equivalent (no observable change), keyed by (file, source line, mutation).
+EQUIVALENT: dict[tuple[str, str, str], str] = {}
+
+
+@dataclass
+class Mutant:
+    file: str
+    lineno: int
+    source: str
+    description: str
+    text: str  # the mutated module
+
+
+class _Sites(ast.NodeVisitor):
+    """Collect mutation sites (node path + kind) inside the target functions."""
+
+    def __init__(self, functions: set[str] | None, docstrings: set[int]):
+        self.functions = functions
+        self.docstrings = docstrings
+        self.stack: list[str] = []
+        self.sites: list[tuple[ast.AST, str]] = []
+
+    def _active(self) -> bool:
+        return self.functions is None or any(f in self.functions for f in self.stack)
+
+    def visit_FunctionDef(self, node):
+        self.stack.append(node.name)
+        self.generic_visit(node)
+        self.stack.pop()
+
+    visit_AsyncFunctionDef = visit_FunctionDef
+
+    def visit_ClassDef(self, node):
+        self.stack.append(node.name)
+        self.generic_visit(node)
+        self.stack.pop()
+
+    def generic_visit(self, node):
+        if self._active() and id(node) not in self.docstrings:
+            if isinstance(node, (ast.BinOp, ast.Compare, ast.BoolOp, ast.UnaryOp)):
+                self.sites.append((node, type(node).__name__))
+            elif isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and \
+                    not isinstance(node.value, str):
+                self.sites.append((node, "Constant"))
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
+                    node.func.id in ("min", "max", "abs"):
+                self.sites.append((node, "Call"))
+        super().generic_visit(node)
+
+
+_BIN_SWAP = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult,
+             ast.Pow: ast.Mult, ast.FloorDiv: ast.Mult}
+_CMP_SWAP = {ast.Lt: [ast.LtE, ast.Gt], ast.LtE: [ast.Lt, ast.Gt], ast.Gt: [ast.GtE, ast.Lt],
+             ast.GtE: [ast.Gt, ast.Lt], ast.Eq: [ast.NotEq], ast.NotEq: [ast.Eq],
+             ast.Is: [ast.IsNot], ast.IsNot: [ast.Is], ast.In: [ast.NotIn],
+             ast.NotIn: [ast.In]}
+
+
+def _variants(node: ast.AST, kind: str) -> list[tuple[str, callable]]:
+    """(description, function mutating a deep copy of ``node`` in place) pairs."""
+    out = []
+    if kind == "BinOp" and type(node.op) in _BIN_SWAP:
+        new = _BIN_SWAP[type(node.op)]
+        out.append((f"{type(node.op).__name__} -> {new.__name__}",
+                    lambda n, new=new: setattr(n, "op", new())))
+    elif kind == "Compare":
+        for i, op in enumerate(node.ops):
+            for new in _CMP_SWAP.get(type(op), []):
+                def f(n, i=i, new=new):
+                    n.ops[i] = new()
+                out.append((f"{type(op).__name__} -> {new.__name__}", f))
+    elif kind == "BoolOp":
+        new = ast.Or if isinstance(node.op, ast.And) else ast.And
+        out.append((f"{type(node.op).__name__} -> {new.__name__}",
+                    lambda n, new=new: setattr(n, "op", new())))
+    elif kind == "UnaryOp" and isinstance(node.op, (ast.Not, ast.USub)):
+        out.append((f"drop {type(node.op).__name__}", "REPLACE_WITH_OPERAND"))
+    elif kind == "Constant":
+        v = node.value
+        if isinstance(v, bool):
+            out.append((f"{v} -> {not v}", lambda n: setattr(n, "value", not n.value)))
+        elif isinstance(v, int):
+            out.append((f"{v} -> {v + 1}", lambda n: setattr(n, "value", n.value + 1)))
+            out.append((f"{v} -> {v - 1}", lambda n: setattr(n, "value", n.value - 1)))
+        elif isinstance(v, float):
+            if v == 0.0:
+                out.append(("0.0 -> 1.0", lambda n: setattr(n, "value", 1.0)))
+            else:
+                out.append((f"{v!r} -> x100", lambda n: setattr(n, "value", n.value * 100)))
+                out.append((f"{v!r} -> /100", lambda n: setattr(n, "value", n.value / 100)))
+    elif kind == "Call":
+        name = node.func.id
+        if name in ("min", "max"):
+            new = "max" if name == "min" else "min"
+            out.append((f"{name} -> {new}", lambda n, new=new: setattr(n.func, "id", new)))
+        elif name == "abs" and len(node.args) == 1:
+            out.append(("drop abs", "REPLACE_WITH_ARG"))
+    return out
+
+
+class _Replace(ast.NodeTransformer):
+    def __init__(self, target_index: int, nodes: list[ast.AST], how):
+        self.target = nodes[target_index]
+        self.how = how
+
+    def visit(self, node):
+        if node is self.target:
+            if self.how == "REPLACE_WITH_OPERAND":
+                return node.operand
+            if self.how == "REPLACE_WITH_ARG":
+                return node.args[0]
+            self.how(node)
+            return node
+        return super().visit(node)
+
+
+def _docstring_ids(tree: ast.AST) -> set[int]:
+    ids = set()
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(body, list) and body and isinstance(body[0], ast.Expr) and \
+                isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str):
+            ids.add(id(body[0].value))
+    return ids
+
+
+def generate(file: str, functions: set[str] | None) -> list[Mutant]:
+    src = (ROOT / file).read_text()
+    lines = src.splitlines()
+    tree = ast.parse(src)
+    visitor = _Sites(functions, _docstring_ids(tree))
+    visitor.visit(tree)
+    mutants = []
+    for node, kind in visitor.sites:
+        for desc, how in _variants(node, kind):
+            tree2 = copy.deepcopy(tree)
+            # find the corresponding node in the copy by walking in the same order
+            nodes1 = list(ast.walk(tree))
+            nodes2 = list(ast.walk(tree2))
+            target = nodes2[nodes1.index(node)]
+            tree2 = _Replace(0, [target], how).visit(tree2)
+            ast.fix_missing_locations(tree2)
+            text = ast.unparse(tree2)
+            if text == ast.unparse(tree):
+                continue
+            line = lines[node.lineno - 1].strip()
+            mutants.append(Mutant(file, node.lineno, line, desc, text))
+    return mutants
+
+
+def _prepare_copy(dst: Path) -> None:
+    shutil.copytree(ROOT / "rwhec_ros", dst / "rwhec_ros",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(ROOT / "test", dst / "test", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", dst / "pyproject.toml")
+    shared = ROOT.parent / "shared"
+    if shared.exists() and not (dst.parent / "shared").exists():
+        try:
+            (dst.parent / "shared").symlink_to(shared)
+        except OSError:
+            pass
+
+
+def run_mutant(m: Mutant, workdir: Path, timeout: float) -> tuple[str, float]:
+    target = workdir / m.file
+    original = (ROOT / m.file).read_text()
+    target.write_text(m.text)
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", OMP_NUM_THREADS="1",
+               OPENBLAS_NUM_THREADS="1")
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
+                               *TESTS[m.file]], cwd=workdir, env=env, capture_output=True,
+                              timeout=timeout)
+        outcome = "survived" if proc.returncode == 0 else "killed"
+    except subprocess.TimeoutExpired:
+        outcome = "killed (timeout)"
+    finally:
+        target.write_text(original)
+    return outcome, time.perf_counter() - t0
+
+
+def baseline(workdir: Path, files: list[str]) -> dict[str, float]:
+    """Seconds of the unmutated test run of each target (it must pass)."""
+    times = {}
+    for f in files:
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                               *TESTS[f]], cwd=workdir, capture_output=True)
+        if proc.returncode != 0:
+            sys.exit("the unmutated tests fail:\n" + proc.stdout.decode()[-3000:])
+        times[f] = time.perf_counter() - t0
+    return times
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--jobs", type=int, default=1, help="parallel test runs (default 1)")
+    ap.add_argument("--list", action="store_true", help="list the mutants, run nothing")
+    ap.add_argument("--file", action="append", help="only these target files")
+    ap.add_argument("--limit", type=int, default=0, help="at most this many mutants (0: all)")
+    args = ap.parse_args(argv)
+    files = args.file or list(TARGETS)
+    mutants = [m for f in files for m in generate(f, TARGETS[f])]
+    if args.limit:
+        mutants = mutants[: args.limit]
+    if args.list:
+        for m in mutants:
+            print(f"{m.file}:{m.lineno}: {m.description}    | {m.source}")
+        print(f"{len(mutants)} mutants", file=sys.stderr)
+        return 0
+    tmp = Path(tempfile.mkdtemp(prefix="rwhec_mut_"))
+    workdirs = []
+    for j in range(max(1, args.jobs)):
+        w = tmp / f"w{j}" / "repo"
+        w.parent.mkdir(parents=True)
+        _prepare_copy(w)
+        workdirs.append(w)
+    t_base = baseline(workdirs[0], files)
+    timeout = max(120.0, 5 * max(t_base.values()))
+    results: list[tuple[Mutant, str, float]] = [None] * len(mutants)  # type: ignore[list-item]
+    free = list(range(len(workdirs)))
+
+    def task(i: int):
+        w = free.pop()
+        try:
+            outcome, dt = run_mutant(mutants[i], workdirs[w], timeout)
+        finally:
+            free.append(w)
+        results[i] = (mutants[i], outcome, dt)
+        done = sum(r is not None for r in results)
+        print(f"[{done}/{len(mutants)}] {mutants[i].file}:{mutants[i].lineno} "
+              f"{mutants[i].description}: {outcome} ({dt:.0f} s)", file=sys.stderr)
+
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=len(workdirs)) as ex:
+        list(ex.map(task, range(len(mutants))))
+    total = time.perf_counter() - t0
+    shutil.rmtree(tmp, ignore_errors=True)
+    report(results, t_base, total)
+    return 0
+
+
+def report(results, t_base: dict[str, float], total: float) -> None:
+    print("# Mutation testing of the certification logic\n")
+    print("Generated by `python benchmarks/mutation.py` (see its docstring for the mutation "
+          f"operators). Whole run: {total / 60:.0f} min. Tests run per mutant (`pytest -x`), and "
+          "the time of the unmutated run here:\n")
+    for f, t in t_base.items():
+        print(f"- `{f}`: " + ", ".join(f"`{x}`" for x in TESTS[f]) + f" ({t:.0f} s)")
+    print()
+    print("| module | mutants | killed | survived | argued equivalent | score (killed / "
+          "non-equivalent) |")
+    print("|---|---|---|---|---|---|")
+    by_file: dict[str, list] = {}
+    for m, outcome, _ in results:
+        by_file.setdefault(m.file, []).append((m, outcome))
+    all_k = all_n = 0
+    for f, rs in by_file.items():
+        killed = sum(o.startswith("killed") for _, o in rs)
+        surv = [(m, o) for m, o in rs if o == "survived"]
+        eq = sum((m.file, m.source, m.description) in EQUIVALENT for m, _ in surv)
+        non_eq = len(rs) - eq
+        all_k += killed
+        all_n += non_eq
+        print(f"| `{f}` | {len(rs)} | {killed} | {len(surv)} | {eq} | "
+              f"{100 * killed / max(non_eq, 1):.1f} % |")
+    print(f"| **all** | {len(results)} | {all_k} | {len(results) - all_k} | "
+          f"{len(results) - all_k - (all_n - all_k)} | **{100 * all_k / max(all_n, 1):.1f} %** |")
+    print("\n## Surviving mutants\n")
+    print("| location | mutation | source line | equivalent because |")
+    print("|---|---|---|---|")
+    for m, outcome, _ in results:
+        if outcome == "survived":
+            why = EQUIVALENT.get((m.file, m.source, m.description), "**not argued: a gap**")
+            src = m.source.replace("|", "\\|")
+            print(f"| `{m.file}:{m.lineno}` | {m.description} | `{src}` | {why} |")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,381 @@
+"""Translations (and scale) the data do not determine, and the prior that fixes them.
+
+The translations enter the MLE cost (eq. (33)) through the block ``Q_ee`` of ``Q`` (eq. (42))
+that the Schur reduction (eq. (47)-(48)) inverts: ``e`` = the translations ``t`` of every frame,
+and ``alpha`` too for unknown scale. Its eigenvectors are the directions of the translations
+and their eigenvalues ``w`` the information the data carry about them: the negative
+log-likelihood is ``x^T Q x``, its Hessian ``2 Q``, so the predicted standard deviation of the
+translations along an eigenvector is ``1 / sqrt(2 w)`` metres. The block depends on the pose
+stream's rotations ``R_A`` and on ``sigma`` only, not on the measurements ``B``.
+
+A direction is **unobservable** when its predicted standard deviation exceeds
+``max_std_m`` (the data do not determine it usefully) or its eigenvalue is below
+``w_max / max_condition`` (the Schur reduction could not be computed reliably in floating point).
+The classic case is motion about one axis (paper Section 6): a ground robot that only yaws, or an
+arm turning one joint. Then ``R_A a = a`` for the axis ``a`` and moving every translation by the
+same amount along ``a`` leaves each residual ``R_A t_X + t_A - t_Y - R_Y t_B`` unchanged: the
+heights of the cameras relative to the tags are not observable.
+
+Such directions are fixed by a **prior** and the certificate then applies to the problem with
+the prior (a MAP problem, cf. paper Section 9.2): for the unobservable coordinates
+``omega = V_w^T t`` the value that best satisfies the user's :class:`TranslationPrior` s (known
+components of a frame's translation, e.g. a camera's height), in least squares given the
+observable part ``P_obs t``, or -- for what no user prior pins -- the documented default: the
+camera (Y) frames' translations along the direction are zero on average (then the tag (X)
+frames'). This rule is linear, ``omega = K (c - P^T P_obs t)``, so the constraint
+``(V_w^T + K P^T P_obs) t = K c`` is imposed as the quadratic penalty
+``rho |G t - b h|^2`` (``h`` the homogenising variable: ``s = 1`` for known scale, ``alpha``
+for unknown scale, whose translations are ``alpha t``), with ``rho`` the largest eigenvalue of
+``Q_ee``. The penalty vanishes for every observable configuration once ``omega`` follows the
+rule, so it does not bias the observable part beyond what the tiny information along the
+unobservable direction would.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+
+from .cost import StateLayout
+from .problem import Problem
+
+__all__ = [
+    "TranslationPrior",
+    "GaugeOptions",
+    "UnobservableDirection",
+    "GaugeFix",
+    "find_unobservable_directions",
+    "build_gauge_fix",
+    "axis_words",
+]
+
+_AXIS_NAMES = ("x", "y", "z")
+
+
+@dataclass(frozen=True)
+class TranslationPrior:
+    """A known component of a frame's translation: ``axis . t_frame = value_m``.
+
+    Attributes
+    ----------
+    frame : str
+        Name of an X or Y frame of the problem.
+    axis : ndarray, shape (3,)
+        Unit vector in the frame's parent (its carrier: X frames in the tag carrier, Y frames in
+        the camera carrier); ``0, 1, 2`` (or ``"x"``, ``"y"``, ``"z"``) for a coordinate axis.
+    value_m : float
+        The component in metres.
+    """
+
+    frame: str
+    axis: np.ndarray
+    value_m: float
+
+    def __post_init__(self) -> None:
+        ax = self.axis
+        if isinstance(ax, str):
+            if ax not in _AXIS_NAMES:
+                raise ValueError(f"prior {self.frame}: axis must be x, y or z, got {ax!r}")
+            ax = _AXIS_NAMES.index(ax)
+        if isinstance(ax, (int, np.integer)):
+            if not 0 <= int(ax) <= 2:
+                raise ValueError(f"prior {self.frame}: axis index must be 0, 1 or 2, got {ax}")
+            vec = np.zeros(3)
+            vec[int(ax)] = 1.0
+        else:
+            vec = np.asarray(ax, dtype=float).reshape(-1)
+            if vec.shape != (3,) or not np.all(np.isfinite(vec)) or np.linalg.norm(vec) < 1e-9:
+                raise ValueError(f"prior {self.frame}: axis must be a non-zero 3-vector, got "
+                                 f"{np.asarray(ax).tolist()}")
+            vec = vec / np.linalg.norm(vec)
+        if not np.isfinite(self.value_m):
+            raise ValueError(f"prior {self.frame}: value_m must be finite, got {self.value_m!r}")
+        object.__setattr__(self, "axis", vec)
+        object.__setattr__(self, "value_m", float(self.value_m))
+
+
+@dataclass
+class GaugeOptions:
+    """When a translation direction counts as unobservable.
+
+    Attributes
+    ----------
+    max_std_m : float
+        Largest predicted standard deviation [m] of the translations along a direction (from the
+        stated noise) for it to count as determined by the data (1.0 m).
+    max_condition : float
+        Largest ratio ``w_max / w`` of the translation block's eigenvalues that the Schur reduction
+        and its error bound handle in double precision (1e8); weaker directions are treated as
+        unobservable whatever ``max_std_m`` says.
+    priors : tuple of TranslationPrior
+        Known translation components used to fix unobservable directions.
+    """
+
+    max_std_m: float = 1.0
+    max_condition: float = 1e8
+    priors: tuple[TranslationPrior, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.max_std_m) and self.max_std_m > 0):
+            raise ValueError(f"max_std_m: must be finite and > 0, got {self.max_std_m!r}")
+        if not (np.isfinite(self.max_condition) and self.max_condition > 1):
+            raise ValueError(f"max_condition: must be finite and > 1, got {self.max_condition!r}")
+        self.priors = tuple(self.priors)
+        for i, p in enumerate(self.priors):
+            if not isinstance(p, TranslationPrior):
+                raise ValueError(f"priors[{i}]: expected TranslationPrior, got {type(p).__name__}")
+
+
+@dataclass
+class UnobservableDirection:
+    """A direction of the translations (and scale) that the data do not determine.
+
+    Attributes
+    ----------
+    components : dict of str to ndarray (3,)
+        Per frame, its part of the unit direction (in the frame's parent); frames whose part is
+        negligible (< 1e-3) are left out.
+    std_m : float
+        Predicted standard deviation along the direction from the data alone (``inf`` when the
+        data carry no information at all).
+    involves_scale : bool
+        The unknown scale ``alpha`` is part of the direction (unknown scale only): the scale is
+        not determined either.
+    fixed_by : str
+        ``"prior"`` when the user's priors pin it, else ``"default"``.
+    value_m : float
+        After the solve: the component ``V^T t`` of the returned translations along the direction.
+    """
+
+    components: dict[str, np.ndarray]
+    std_m: float
+    involves_scale: bool = False
+    fixed_by: str = "default"
+    value_m: float = float("nan")
+
+    def frames(self) -> list[str]:
+        return list(self.components)
+
+    def describe(self, x_parent: str = "the tag carrier", y_parent: str = "the camera carrier",
+                 x_names: tuple[str, ...] = ()) -> str:
+        """One sentence in words, e.g. ``translation along rig z of cam0, cam1 and along world z
+        of tag_0 not determined by the data (predicted std 3.1e+03 m)``."""
+        groups: dict[tuple[str, str], list[str]] = {}
+        for name, vec in self.components.items():
+            parent = x_parent if name in x_names else y_parent
+            groups.setdefault((parent, axis_words(vec)), []).append(name)
+        parts = [f"along {parent} {axis} of {', '.join(names)}"
+                 for (parent, axis), names in groups.items()]
+        std = "no information" if not np.isfinite(self.std_m) else \
+            f"predicted std {self.std_m:.3g} m"
+        text = "translation " + " and ".join(parts) + f" not determined by the data ({std})"
+        if self.involves_scale:
+            text += "; the scale is not determined either"
+        return text
+
+    def to_dict(self) -> dict:
+        return {
+            "frames": {k: [float(x) for x in v] for k, v in self.components.items()},
+            "std_m": float(self.std_m) if np.isfinite(self.std_m) else None,
+            "involves_scale": bool(self.involves_scale),
+            "fixed_by": self.fixed_by,
+            "value_m": float(self.value_m),
+        }
+
+
+def axis_words(vec: np.ndarray) -> str:
+    """``"z"``, ``"-x"`` for a vector within 2 deg of a coordinate axis, else the rounded vector."""
+    v = np.asarray(vec, float)
+    v = v / max(np.linalg.norm(v), 1e-300)
+    i = int(np.argmax(np.abs(v)))
+    if abs(v[i]) >= np.cos(np.deg2rad(2.0)):
+        return ("-" if v[i] < 0 else "") + _AXIS_NAMES[i]
+    return "[" + ", ".join(f"{x:+.2f}" for x in v) + "]"
+
+
+def _eliminated(layout: StateLayout, unknown_scale: bool) -> np.ndarray:
+    """Indices of the block the Schur reduction eliminates: ``t`` (and ``alpha``)."""
+    n_t = layout.n_t
+    return np.arange(n_t + 1) if unknown_scale else np.arange(n_t)
+
+
+def _block(Q, idx: np.ndarray) -> np.ndarray:
+    if sp.issparse(Q):
+        return sp.csr_matrix(Q)[idx][:, idx].toarray()
+    return np.asarray(Q, float)[np.ix_(idx, idx)]
+
+
+def find_unobservable_directions(
+    Q, layout: StateLayout, problem: Problem, options: GaugeOptions | None = None
+) -> tuple[np.ndarray, np.ndarray, list[UnobservableDirection], float]:
+    """Eigen-analysis of the translation block ``Q_ee`` of the unscaled ``Q`` (eq. (42)).
+
+    Returns ``(V_w, w_w, directions, w_max)``: the unobservable unit directions (m, k) over the
+    eliminated variables (``m = 3 (M + P)``, ``+ 1`` with unknown scale: ``alpha`` last), their
+    eigenvalues (k,), their descriptions, and the largest eigenvalue of ``Q_ee`` (an upper
+    bound on it when no direction is weak: the eigendecomposition is skipped when a Cholesky
+    factorisation shows every eigenvalue above both thresholds).
+    """
+    opts = options or GaugeOptions()
+    idx = _eliminated(layout, problem.unknown_scale)
+    E = _block(Q, idx)
+    E = 0.5 * (E + E.T)
+    info_floor = 1.0 / (2.0 * opts.max_std_m**2)
+    # quick exit (the usual case): E - tau I positive definite with tau above both thresholds,
+    # using an upper bound on w_max (largest absolute row sum), so no eigenvalue can be weak
+    w_max_ub = float(np.abs(E).sum(axis=1).max(initial=0.0))
+    tau = max(info_floor, w_max_ub / opts.max_condition)
+    try:
+        scipy.linalg.cholesky(E - tau * np.eye(E.shape[0]), check_finite=False)
+        return np.zeros((E.shape[0], 0)), np.zeros(0), [], w_max_ub
+    except (np.linalg.LinAlgError, ValueError):
+        pass
+    w, V = np.linalg.eigh(E)
+    w_max = float(max(w[-1], 0.0)) if w.size else 0.0
+    weak = (w <= w_max / opts.max_condition) | (w < info_floor)
+    V_w, w_w = V[:, weak].copy(), w[weak]
+    names = problem.frame_names
+    directions = []
+    for i in range(V_w.shape[1]):
+        v = V_w[:, i]
+        # canonical sign: the largest-magnitude translation entry positive
+        big = int(np.argmax(np.abs(v[: 3 * len(names)])))
+        if v[big] < 0:
+            v = -v
+            V_w[:, i] = v
+        comps = {}
+        for f, name in enumerate(names):
+            part = v[3 * f: 3 * f + 3]
+            if np.linalg.norm(part) >= 1e-3:
+                comps[name] = part.copy()
+        std = 1.0 / np.sqrt(2.0 * w_w[i]) if w_w[i] > 0 else float("inf")
+        involves_scale = bool(problem.unknown_scale and abs(v[-1]) > 0.1)
+        directions.append(UnobservableDirection(comps, float(std), involves_scale))
+    return V_w, w_w, directions, w_max
+
+
+@dataclass
+class GaugeFix:
+    """The penalty ``rho |G t - b h|^2`` that fixes the unobservable directions (module docstring).
+
+    Attributes
+    ----------
+    directions : list of UnobservableDirection
+    G : ndarray, shape (k, 3 (M + P))
+        Rows of the linear rule on the (metric, or ``alpha``-scaled) translations.
+    b : ndarray, shape (k,)
+        Its right-hand side (metres).
+    rho : float
+        Weight of the penalty.
+    V_w : ndarray, shape (3 (M + P), k)
+        The unobservable directions (translation part, orthonormal).
+    pinned : bool
+        Every direction is pinned by user priors (not only by the default rule).
+    prior_rows : list of (TranslationPrior, ndarray (3 (M + P),))
+        The user priors as linear functionals on ``t``.
+    notes : list of str
+        What was fixed and how, in words.
+    """
+
+    directions: list[UnobservableDirection]
+    G: np.ndarray
+    b: np.ndarray
+    rho: float
+    V_w: np.ndarray
+    pinned: bool
+    prior_rows: list = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def empty(self) -> bool:
+        return not self.directions
+
+    def penalty_matrix(self, layout: StateLayout) -> sp.csr_matrix:
+        """The penalty as a quadratic form on the state ``x`` of eq. (44) (sparse, size of Q)."""
+        n_t, h = layout.n_t, layout.alpha
+        k = self.G.shape[0]
+        Gx = np.zeros((k, n_t + 1))
+        Gx[:, :n_t] = self.G
+        Gx[:, n_t] = -self.b  # h sits right after the translations (index alpha = n_t)
+        blk = self.rho * (Gx.T @ Gx)
+        idx = np.r_[np.arange(n_t), h]
+        rows = np.repeat(idx, idx.size)
+        cols = np.tile(idx, idx.size)
+        return sp.csr_matrix((blk.ravel(), (rows, cols)), shape=(layout.size, layout.size))
+
+    def penalty_value(self, t: np.ndarray, h: float = 1.0) -> float:
+        """``rho |G (h t) - b h|^2`` for metric translations ``t`` (n, 3) and homogeniser ``h``
+        (``alpha`` for unknown scale, whose state holds ``alpha t``)."""
+        r = h * (self.G @ np.asarray(t, float).reshape(-1) - self.b)
+        return float(self.rho * r @ r)
+
+
+def build_gauge_fix(
+    problem: Problem,
+    V_w: np.ndarray,
+    w_w: np.ndarray,
+    directions: list[UnobservableDirection],
+    w_max: float,
+    priors: tuple[TranslationPrior, ...] = (),
+) -> GaugeFix:
+    """The penalty fixing ``directions`` by the user's ``priors`` and the default rule.
+
+    Raises ``ValueError`` for a prior on a frame the problem does not have.
+    """
+    n = problem.n_frames
+    n_t = 3 * n
+    names = problem.frame_names
+    index = {name: i for i, name in enumerate(names)}
+    k = V_w.shape[1]
+    Vt = V_w[:n_t]  # drop the alpha part (unknown scale), re-orthonormalise
+    if k:
+        Vt, _ = np.linalg.qr(Vt)
+    rows, vals, weights = [], [], []
+    prior_rows = []
+    for i, p in enumerate(priors):
+        if p.frame not in index:
+            raise ValueError(f"priors[{i}]: unknown frame {p.frame!r}; frames: {list(names)}")
+        row = np.zeros(n_t)
+        f = index[p.frame]
+        row[3 * f: 3 * f + 3] = p.axis
+        rows.append(row)
+        vals.append(p.value_m)
+        weights.append(1.0)
+        prior_rows.append((p, row))
+    n_user = len(rows)
+    # default rule: camera (Y) frames' translations zero on average along the direction, then the
+    # tag (X) frames' (a far smaller weight, so it only decides what the cameras cannot)
+    for f in range(n):
+        w_def = 1e-6 if f >= problem.M else 1e-12
+        for c in range(3):
+            row = np.zeros(n_t)
+            row[3 * f + c] = 1.0
+            rows.append(row)
+            vals.append(0.0)
+            weights.append(w_def)
+    if k == 0:
+        return GaugeFix([], np.zeros((0, n_t)), np.zeros(0), 0.0, Vt, True, prior_rows)
+    P = np.array(rows)  # (r, n_t)
+    c = np.array(vals)
+    W = np.array(weights)
+    A = P @ Vt  # (r, k)
+    pinned = False
+    if n_user:
+        s = np.linalg.svd(A[:n_user], compute_uv=False)
+        pinned = bool(s.size >= k and s[k - 1] >= 1e-3)
+    if pinned:  # the user's priors alone decide (no pull towards the default)
+        P, c, W, A = P[:n_user], c[:n_user], W[:n_user], A[:n_user]
+    P_obs = np.eye(n_t) - Vt @ Vt.T
+    Mk = A.T @ (W[:, None] * A)
+    K = np.linalg.solve(Mk, (A * W[:, None]).T)  # (k, r)
+    G = Vt.T + K @ (P @ P_obs)
+    b = K @ c
+    notes = []
+    for i, d in enumerate(directions):
+        by_user = n_user and np.linalg.norm(A[:n_user, i]) >= 1e-3
+        d.fixed_by = "prior" if pinned or by_user else "default"
+    rho = float(max(w_max, 1.0))
+    return GaugeFix(directions, G, b, rho, Vt, pinned, prior_rows, notes)

@@ -1,0 +1,266 @@
+"""The certification function on crafted certificate matrices with known answers.
+
+``Z = V diag(w) V^T`` with a random orthogonal ``V`` and chosen eigenvalues ``w``; scale 1, an
+exact reduction (no translations), ``lambda_s = 1``. Each test pins one decision of
+:func:`rwhec_ros.core.certificate.certify_from_Z` (the tolerances, the dual bound of eq. (71), the
+solver-status and non-finite paths) so that changing it makes a test fail.
+"""
+
+import numpy as np
+import pytest
+
+from rwhec_ros.core.certificate import (
+    CertificateOptions,
+    ExactReduction,
+    certificate_matrix,
+    certify,
+    certify_from_Z,
+)
+from rwhec_ros.core.cost import StateLayout, build_cost_matrices, reduce_cost
+from rwhec_ros.core.local_solver import (
+    fast_certificate_matrix,
+    fast_certificate_multipliers,
+    handedness_direction,
+    handedness_multipliers,
+    refine_rotations,
+)
+from rwhec_ros.core.relaxation import so3_constraint_matrices
+from rwhec_ros.core.result import Status
+from rwhec_ros.core.synthetic import random_instance, random_rotations
+
+N_ROT = 2  # two rotations: Z is 19 x 19 and |y|^2 = 3 n + 1 = 7
+D = 9 * N_ROT + 1
+
+
+def _crafted(w, seed=0):
+    rng = np.random.default_rng(seed)
+    V, _ = np.linalg.qr(rng.standard_normal((len(w), len(w))))
+    Z = V @ np.diag(w) @ V.T
+    return 0.5 * (Z + Z.T)
+
+
+def _spectrum(*smallest):
+    w = np.linspace(0.05, 1.0, D)
+    w[: len(smallest)] = smallest
+    return w
+
+
+def _cert(w, p=1.0, lambda_s=1.0, **kw):
+    return certify_from_Z(_crafted(w), lambda_s, p, 1.0, N_ROT, **kw)
+
+
+def test_clear_gap_is_certified():
+    c = _cert(_spectrum(0.0))
+    assert c.status is Status.CERTIFIED_OPTIMAL, c.message
+    assert c.null_space_dim == 1
+    assert abs(c.suboptimality_bound) < 1e-12
+
+
+def test_negative_eigenvalue_with_small_gap_is_not_certified():
+    """lambda_min = -1e-3 < 0 and no second null direction: the bound lambda_s + 7 lambda_min
+    leaves rho_hat ~7e-3 (the suboptimality test alone decides)."""
+    c = _cert(_spectrum(-1e-3))
+    assert c.null_space_dim == 1
+    assert c.status is Status.NOT_TIGHT
+    assert c.suboptimality_bound == pytest.approx(7e-3 / (1 - 7e-3), rel=1e-6)
+
+
+def test_second_eigenvalue_above_null_tol_is_certified():
+    """A second eigenvalue of 1e-5 is above null_tol = 1e-6 (a 100x looser null_tol would count
+    it and refuse the certificate)."""
+    c = _cert(_spectrum(0.0, 1e-5))
+    assert c.status is Status.CERTIFIED_OPTIMAL, c.message
+
+
+def test_second_eigenvalue_below_null_tol_is_not_certified():
+    """A second eigenvalue of 5e-8 <= null_tol: two null directions, not certified (a 100x tighter
+    null_tol would miss it)."""
+    c = _cert(_spectrum(0.0, 5e-8))
+    assert c.null_space_dim == 2
+    assert c.status is Status.NOT_TIGHT
+
+
+def test_tiny_positive_smallest_eigenvalue_still_certified():
+    c = _cert(_spectrum(1e-7))
+    assert c.status is Status.CERTIFIED_OPTIMAL, c.message
+    assert c.null_space_dim == 1
+
+
+@pytest.mark.parametrize("rho,certified", [(0.5e-6, True), (2e-6, False)])
+def test_rho_hat_just_below_and_above_tolerance(rho, certified):
+    """p = d (1 + rho): certified iff rho <= rho_tol = 1e-6 (100x looser/tighter flips one)."""
+    c = _cert(_spectrum(0.0), p=1.0 + rho)
+    assert c.suboptimality_bound == pytest.approx(rho, rel=1e-3)
+    assert c.certified is certified
+
+
+def test_dual_bound_is_eq_71_to_machine_precision():
+    """With lambda_min < 0 the bound is lambda_s + (3 n + 1) lambda_min (eq. (71) with the norm of
+    a feasible point), lowered only by the verified-eigenvalue margin (~1e-15 here)."""
+    lam_min = -3e-4
+    lambda_s = 2.5
+    c = _cert(_spectrum(lam_min), p=2.6, lambda_s=lambda_s)
+    eq71 = lambda_s + (3 * N_ROT + 1) * lam_min
+    assert c.dual_bound <= eq71
+    assert c.dual_bound == pytest.approx(eq71, abs=1e-12)
+    assert c.lambda_min == pytest.approx(lam_min, abs=1e-14)
+    assert c.lambda_min_lower <= lam_min
+
+
+def test_positive_lambda_min_does_not_raise_the_bound():
+    """min(0, lambda_min): a positive smallest eigenvalue must not increase d above lambda_s."""
+    c = _cert(_spectrum(0.2), p=1.0, lambda_s=1.0)
+    assert c.dual_bound <= 1.0
+    assert c.dual_bound == pytest.approx(1.0, abs=1e-12)
+
+
+def test_scale_multiplies_the_bound():
+    c = certify_from_Z(_crafted(_spectrum(0.0)), 1.0, 50.0, 50.0, N_ROT)
+    assert c.dual_bound == pytest.approx(50.0, rel=1e-12)
+    assert c.certified
+
+
+def test_cost_floor_is_the_denominator_for_zero_cost():
+    """Noise-free data: d = p = 0; rho_hat = (p - d) / max(d, floor) stays finite."""
+    c = certify_from_Z(_crafted(_spectrum(0.0)), 0.0, 1e-12, 1.0, N_ROT, cost_floor=1e-3)
+    assert np.isfinite(c.suboptimality_bound) and c.certified
+
+
+@pytest.mark.parametrize("status", ["optimal_inaccurate", "max_iterations", "infeasible"])
+def test_solver_status_other_than_optimal_is_inaccurate(status):
+    c = _cert(_spectrum(0.0), solver_ok=False, solver_status=status)
+    assert c.status is Status.SOLVER_INACCURATE
+    assert status in c.message
+    assert np.isfinite(c.dual_bound)  # the numbers are still reported
+
+
+def test_nan_multipliers_are_solver_failed():
+    c = certify_from_Z(_crafted(_spectrum(0.0)), float("nan"), 1.0, 1.0, N_ROT)
+    assert c.status is Status.SOLVER_FAILED
+    Z = _crafted(_spectrum(0.0))
+    Z[0, 1] = Z[1, 0] = np.inf
+    assert certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT).status is Status.SOLVER_FAILED
+
+
+def test_non_default_tolerances_are_honoured():
+    loose = CertificateOptions(rho_tol=1e-2)
+    assert _cert(_spectrum(0.0), p=1.001, options=loose).certified
+    assert not _cert(_spectrum(0.0), p=1.001).certified
+    wide = CertificateOptions(null_tol=1e-3)
+    c = _cert(_spectrum(0.0, 1e-4), options=wide)
+    assert c.null_space_dim == 2 and not c.certified
+    few = CertificateOptions(n_eigenvalues=3)
+    assert len(_cert(_spectrum(0.0), options=few).eigenvalues) == 3
+
+
+@pytest.mark.parametrize("field,value", [("rho_tol", 0.0), ("null_tol", -1.0),
+                                         ("rho_tol", float("nan")), ("n_eigenvalues", 1)])
+def test_bad_options_are_refused(field, value):
+    with pytest.raises(ValueError, match=field):
+        CertificateOptions(**{field: value})
+
+
+def test_unverifiable_reduction_is_ill_conditioned():
+    c = _cert(_spectrum(0.0), reduced=ExactReduction(D, verified=False))
+    assert c.status is Status.ILL_CONDITIONED
+    assert "translation block" in c.message
+
+
+def test_schur_residual_lowers_the_bound():
+    """||F||^2 / l_e times |y|^2 = 7 is subtracted: residual 1e-3, block bound 1 -> 7e-6."""
+    red = ExactReduction(D, residual_norm=1e-3, block_lower=1.0)
+    c = _cert(_spectrum(0.0), reduced=red)
+    assert c.dual_bound == pytest.approx(1.0 - 7e-6, abs=1e-12)
+    assert not c.certified  # rho_hat 7e-6 > 1e-6
+
+
+def test_rounding_rows_lower_the_bound():
+    """The rounding bound enters as min(sum of rows, |y|^2 * largest row sum)."""
+    rows = np.zeros(D)
+    rows[3] = 1e-7
+    c = _cert(_spectrum(0.0), z_err_rows=rows)
+    assert 1.0 - 1e-6 < c.dual_bound < 1.0 - 1e-7 + 1e-12
+
+
+def test_homogeneous_trivial_s_judged_on_rotations():
+    """Unknown scale: Z has a zero last row/column (e_s a trivial null vector); uniqueness is
+    judged on the rotation block, which has one null direction -> certified."""
+    w = _spectrum(0.0)[:-1]
+    Zr = _crafted(w)
+    Z = np.zeros((D, D))
+    Z[:-1, :-1] = Zr
+    c = certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT, homogeneous=True)
+    assert c.certified, c.message
+    assert "sign of s" in c.message
+    c2 = certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT, homogeneous=False)
+    assert c2.null_space_dim == 2 and not c2.certified
+
+
+def test_mid_size_z_takes_the_index_range_path():
+    """A 301 x 301 Z (33 rotations + s) runs the index-range eigensolve in the certificate."""
+    n = 33
+    d = 9 * n + 1
+    w = np.linspace(0.05, 1.0, d)
+    w[0] = 0.0
+    c = certify_from_Z(_crafted(w, seed=1), 1.0, 1.0, 1.0, n)
+    assert c.certified, c.message
+    w[1] = -1e-4
+    c = certify_from_Z(_crafted(w, seed=1), 1.0, 1.0, 1.0, n)
+    assert not c.certified
+
+
+def test_fast_multipliers_reproduce_the_fast_certificate_matrix():
+    """K(lambda) of the fast multipliers is Diag(Gamma_l (x) I, lambda_s - sum tr Gamma_l): the
+    constraint-set form and the closed form agree, and Z z = 0 at a critical point."""
+    rng = np.random.default_rng(4)
+    problem, gt = random_instance(rng, 2, 1, n_per_edge=12, sigma=0.01, kappa=200)
+    layout = StateLayout(problem.M, problem.P)
+    Q, _ = build_cost_matrices(problem)
+    red = reduce_cost(Q, layout, False)
+    Qs = red.Qr / 100.0
+    R = random_rotations(rng, 3)
+    n = 3
+    cons = so3_constraint_matrices(np.arange(n) * 9, 9 * n + 1, 9 * n)
+    lam = fast_certificate_multipliers(Qs, R)
+    Z1, _ = certificate_matrix(Qs, cons, lam)
+    Z2, lam_s = fast_certificate_matrix(Qs, R)
+    np.testing.assert_allclose(Z1, Z2, atol=1e-12 * np.abs(Qs).max())
+    assert lam[-1] == pytest.approx(lam_s)
+    D_ = cons.apply(handedness_multipliers(R))
+    np.testing.assert_allclose(D_, handedness_direction(R), atol=1e-15)
+    z = np.concatenate([np.swapaxes(R, 1, 2).reshape(-1), [1.0]])
+    np.testing.assert_allclose(D_ @ z, 0.0, atol=1e-12)  # the handedness direction keeps Z z
+
+
+def test_symmetrisation_and_subtraction_of_certificate_matrix():
+    """Z = Q' - K: a symmetric Q' and K give exactly Q' - K (the 1/2 (Z + Z^T) is exact)."""
+    rng = np.random.default_rng(5)
+    n = 2
+    cons = so3_constraint_matrices(np.arange(n) * 9, D, D - 1)
+    A = rng.standard_normal((D, D))
+    Qs = A @ A.T
+    lam = rng.standard_normal(cons.m)
+    Z, err = certificate_matrix(Qs, cons, lam)
+    np.testing.assert_allclose(Z, Qs - cons.apply(lam), rtol=0, atol=1e-13 * np.abs(Qs).max())
+    assert np.all(err >= 0) and err.max() < 1e-12 * np.abs(Qs).max() * D
+
+
+def test_certify_with_real_reduction_matches_certify_from_z():
+    rng = np.random.default_rng(6)
+    problem, gt = random_instance(rng, 1, 2, n_per_edge=15, sigma=0.01, kappa=200)
+    layout = StateLayout(problem.M, problem.P)
+    Q, _ = build_cost_matrices(problem)
+    red = reduce_cost(Q, layout, False)
+    assert red.verified and red.block_lower > 0 and red.residual_norm >= 0
+    scale = 10.0
+    Qs = red.Qr / scale
+    R = refine_rotations(Qs, np.concatenate([gt.X, gt.Y])[:, :3, :3]).R  # the optimum
+    lam = fast_certificate_multipliers(Qs, R)
+    cons = so3_constraint_matrices(np.arange(3) * 9, 28, 27)
+    c = certify(red, scale, Qs, cons, lam, lam[-1] * scale)
+    Z, err = certificate_matrix(Qs, cons, lam)
+    c2 = certify_from_Z(Z, lam[-1], lam[-1] * scale, scale, 3, reduced=red, z_err_rows=err)
+    assert c.dual_bound == c2.dual_bound and c.status is c2.status
+    assert c.certified, c.message
+    # the margins are tiny on well-conditioned data
+    assert sum(c.margins.values()) < 1e-8 * lam[-1] * scale
