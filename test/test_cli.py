@@ -314,6 +314,7 @@ def test_demo_end_to_end_and_report_subcommand(tmp_path):
 
 SOLVING = ("csv", "bag", "dataset", "demo")
 SHARED = {"output", "force", "config", "node_name", "mode", "min_pairs", "robust", "report",
+          "prior",
           "quiet"}
 
 
@@ -431,3 +432,60 @@ def test_installed_console_script():
                           timeout=120)
     assert done.returncode == EXIT_BAD_INPUT
     assert "rwhec-calibrate csv: error: not a directory" in done.stderr
+
+
+# --- priors for translations the data do not determine (issue 10) -----------------------------
+
+
+def _planar_dataset(tmp_path, seed=1):
+    """A ground robot (rig yaws about z and drives in xy): camera heights relative to the tags
+    are not determined by the data."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "test" / "core"))
+    from test_gauge import _planar_rig
+
+    problem, X, Y = _planar_rig(np.random.default_rng(seed), jitter=1e-6)
+    return Dataset.from_problem(problem).save(tmp_path / "planar.yaml"), X, Y
+
+
+def test_planar_motion_without_prior_names_the_height(tmp_path):
+    path, X, Y = _planar_dataset(tmp_path)
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "-q"])
+    doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
+    assert doc["status"] == "not_identifiable" and not doc["certified"]
+    assert "translation along rig z of cam0, cam1 and along world z of tag_0, tag_1" in stdout
+    assert "give a prior" in stdout
+    assert doc["unobservable"][0]["fixed_by"] == "default"
+    assert set(doc["unobservable"][0]["frames"]) == {"cam0", "cam1", "tag_0", "tag_1"}
+
+
+def test_planar_motion_with_a_prior_is_certified(tmp_path):
+    path, X, Y = _planar_dataset(tmp_path)
+    height = float(Y[0, 2, 3])
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "-q",
+                                "--prior", f"cam0.z={height!r}"])
+    assert code == EXIT_CERTIFIED, stdout + stderr
+    doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
+    assert doc["certified"] and doc["unobservable"][0]["fixed_by"] == "prior"
+    frames = {f["name"]: np.asarray(f["matrix"]) for f in doc["frames"]}
+    assert frames["cam0"][2, 3] == pytest.approx(height, abs=1e-5)
+    # the other heights follow from the data (1 cm noise, 80 pairs)
+    assert frames["tag_1"][2, 3] == pytest.approx(X[1, 2, 3], abs=0.02)
+    assert doc["config"]["priors.frames"] == ["cam0"]
+
+
+@pytest.mark.parametrize("text", ["cam0=0.4", "cam0.w=0.4", "cam0.z=abc", ".z=1", "cam0.z=nan"])
+def test_bad_prior_syntax_is_bad_input(tmp_path, text):
+    path, _, _ = _planar_dataset(tmp_path)
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "--prior", text])
+    assert code == EXIT_BAD_INPUT
+    assert "--prior" in stdout + stderr and "FRAME.AXIS=VALUE" in stdout + stderr
+
+
+def test_prior_on_an_unknown_frame_is_bad_input(tmp_path):
+    path, _, _ = _planar_dataset(tmp_path)
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "--prior",
+                                "cam9.z=0.3"])
+    assert code == EXIT_BAD_INPUT
+    assert "no frame 'cam9'" in stdout + stderr

@@ -55,6 +55,7 @@ def test_examples_present():
         "arm_eye_in_hand.yaml",
         "fixed_cameras_handheld_target.yaml",
         "mobile_rig_mocap.yaml",
+        "mobile_robot_floor.yaml",
         "demo.yaml",
     } <= names
 
@@ -323,3 +324,41 @@ def test_flatten_parameters():
 def test_read_parameter_file_returns_dotted_names(tmp_path):
     path = write_params(tmp_path, minimal())
     assert read_parameter_file(path) == minimal()
+
+
+# --- priors (issue 10) --------------------------------------------------------------------------
+
+
+def test_ground_robot_example_has_height_priors():
+    cfg = load_config(CONFIG_DIR / "mobile_robot_floor.yaml")
+    assert cfg.priors.entries == (("cam_front", "z", 0.62), ("cam_left", "z", 0.48),
+                                  ("cam_right", "z", 0.48))
+    assert cfg.solver.unobservable_std_m == 1.0 and cfg.solver.min_scale == 0.01
+    assert cfg.pose_source.invert  # T_map_base_link -> A = T_base_link_map
+
+
+@pytest.mark.parametrize("priors,message", [
+    ({"frames": ["cam0"], "axes": ["z", "x"], "values_m": [0.4]}, "same length"),
+    ({"frames": ["cam0"], "axes": ["w"], "values_m": [0.4]}, "priors.axes[0]"),
+    ({"frames": ["cam9"], "axes": ["z"], "values_m": [0.4]}, "priors.frames[0]"),
+    ({"frames": ["cam0", "cam0"], "axes": ["z", "z"], "values_m": [0.4, 0.5]}, "given twice"),
+    ({"frames": ["cam0"], "axes": ["z"], "values_m": [float("inf")]}, "priors.values_m[0]"),
+])
+def test_bad_priors_are_refused(tmp_path, priors, message):
+    params = yaml.safe_load((CONFIG_DIR / "demo.yaml").read_text())
+    inner = next(iter(params.values()))["ros__parameters"]
+    inner["priors"] = priors
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump(params))
+    with pytest.raises(ValueError, match=re.escape(message)):
+        load_config(path)
+
+
+def test_priors_on_tag_frames_are_accepted(tmp_path):
+    params = yaml.safe_load((CONFIG_DIR / "demo.yaml").read_text())
+    inner = next(iter(params.values()))["ros__parameters"]
+    tag = f"tag_{inner['tags']['ids'][0]}"
+    inner["priors"] = {"frames": [tag], "axes": ["z"], "values_m": [1.25]}
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump(params))
+    assert load_config(path).priors.entries == ((tag, "z", 1.25),)

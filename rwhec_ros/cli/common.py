@@ -11,6 +11,7 @@ new ``calibration_<UTC stamp>`` directory under the configuration's ``output.dir
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ __all__ = [
     "SolveSettings",
     "check_positive",
     "solver_overrides",
+    "prior_overrides",
     "config_from_parameters",
     "read_config",
     "output_paths",
@@ -147,6 +149,31 @@ def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
+def prior_overrides(args: argparse.Namespace, base: Mapping[str, Any]) -> dict[str, Any]:
+    """``priors.*`` parameters: those of ``base`` with every ``--prior FRAME.AXIS=VALUE`` added
+    or replacing the same frame and axis ({} without ``--prior``)."""
+    given = getattr(args, "prior", None)
+    if not given:
+        return {}
+    entries = dict(((f, a), float(x)) for f, a, x in zip(
+        base.get("priors.frames", ()), base.get("priors.axes", ()),
+        base.get("priors.values_m", ()), strict=False))
+    for text in given:
+        left, sep, value = str(text).partition("=")
+        frame, dot, axis = left.strip().rpartition(".")
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not sep or not dot or not frame or axis not in ("x", "y", "z") or \
+                not math.isfinite(number):
+            raise BadInput(f"--prior: expected FRAME.AXIS=VALUE with AXIS x, y or z and a "
+                           f"number in metres (e.g. cam0.z=0.45), got {text!r}")
+        entries[(frame, axis)] = number
+    return {"priors.frames": [f for f, _ in entries], "priors.axes": [a for _, a in entries],
+            "priors.values_m": list(entries.values())}
+
+
 @dataclass(frozen=True)
 class SolveSettings:
     """Solver settings and output root of one run: the command line, else the (possibly partial)
@@ -156,19 +183,33 @@ class SolveSettings:
     min_pairs: int
     robust: bool
     output_root: str
+    priors: tuple[tuple[str, str, float], ...] = ()
+    unobservable_std_m: float = 1.0
+    min_scale: float = 0.01
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
         p = {**dict(parameters), **solver_overrides(args)}
+        p.update(prior_overrides(args, p))
+        priors = tuple(zip(p.get("priors.frames", ()), p.get("priors.axes", ()),
+                           (float(x) for x in p.get("priors.values_m", ())), strict=False))
         return SolveSettings(mode=str(p.get("solver.mode", "fast")),
                              min_pairs=int(p.get("solver.min_pairs", 3)),
                              robust=bool(p.get("solver.reject_outliers", False)),
-                             output_root=str(p.get("output.directory", DEFAULT_OUTPUT)))
+                             output_root=str(p.get("output.directory", DEFAULT_OUTPUT)),
+                             priors=priors,
+                             unobservable_std_m=float(p.get("solver.unobservable_std_m", 1.0)),
+                             min_scale=float(p.get("solver.min_scale", 0.01)))
 
     def parameters(self) -> dict[str, Any]:
-        """The ``solver.*`` parameters of these settings."""
+        """The ``solver.*`` and ``priors.*`` parameters of these settings."""
         return {"solver.mode": self.mode, "solver.min_pairs": self.min_pairs,
-                "solver.reject_outliers": self.robust}
+                "solver.reject_outliers": self.robust,
+                "solver.unobservable_std_m": self.unobservable_std_m,
+                "solver.min_scale": self.min_scale,
+                "priors.frames": [f for f, _, _ in self.priors],
+                "priors.axes": [a for _, a, _ in self.priors],
+                "priors.values_m": [x for _, _, x in self.priors]}
 
 
 def config_from_parameters(flat: Mapping[str, Any], where: str):
@@ -190,6 +231,7 @@ def read_config(args: argparse.Namespace, overrides: Mapping[str, Any] | None = 
         return None
     flat = read_parameter_file(args.config, args.node_name)
     flat.update(overrides or {})
+    flat.update(prior_overrides(args, flat))
     return config_from_parameters(flat, f"config file {str(args.config)!r}")
 
 
@@ -268,11 +310,18 @@ def solve_and_write(
     from ..session import solve_problem, static_transforms_launch, summary
     from ..session.solving import analyze_at_solution
 
+    frames = list(dataset.y_names) + list(dataset.x_names)
+    for f, a, x in settings.priors:
+        if f not in frames:
+            raise BadInput(f"prior {f}.{a}={x:g}: no frame {f!r} in the data; frames: {frames}")
     say.progress(f"solving: {problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
                  f"{settings.mode}" + (", outlier rejection" if settings.robust else ""))
     try:
         result, dropped, _ = solve_problem(problem, mode=settings.mode,
-                                           reject_outliers=settings.robust)
+                                           reject_outliers=settings.robust,
+                                           priors=settings.priors,
+                                           unobservable_std_m=settings.unobservable_std_m,
+                                           min_scale=settings.min_scale)
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
         say(f"solver failed: {type(exc).__name__}: {exc}")
         return EXIT_NO_SOLUTION

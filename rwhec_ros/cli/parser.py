@@ -48,6 +48,11 @@ def _add_solver(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robust", action="store_true",
                    help="reject outliers first: per-edge RANSAC on eq. (70), then GNC-TLS "
                         "(default: the configuration's solver.reject_outliers, else off)")
+    p.add_argument("--prior", action="append", default=None, metavar="FRAME.AXIS=VALUE",
+                   help="a known translation component [m] of a frame in its carrier, e.g. "
+                        "cam0.z=0.45 (repeatable); fixes a translation the data do not "
+                        "determine, such as heights on a ground robot (default: the "
+                        "configuration's priors.*, else none)")
     p.add_argument("--report", action="store_true",
                    help="also write report.png and report.html (default: off)")
     p.add_argument("-q", "--quiet", action="store_true",

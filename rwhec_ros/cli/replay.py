@@ -18,6 +18,7 @@ from .common import (
     check_positive,
     config_from_parameters,
     output_paths,
+    prior_overrides,
     read_config,
     solver_overrides,
 )
@@ -158,6 +159,7 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
         flat.update({k: v for k, v in settings.to_parameters().items()
                      if not k.startswith(RIG_PARAMETER_PREFIXES)})
     flat.update(overrides)
+    flat.update(prior_overrides(args, flat))
     config = config_from_parameters(flat, "demo")
     session = CalibrationSession(config)
     for cam in rig.cameras:

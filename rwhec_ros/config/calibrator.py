@@ -18,6 +18,7 @@ from .sections import (
     NoiseConfig,
     OutputConfig,
     PoseSourceConfig,
+    PriorsConfig,
     RosConfig,
     SolverConfig,
     SyncConfig,
@@ -56,6 +57,7 @@ class CalibratorConfig:
     output: OutputConfig
     ros: RosConfig
     parameters: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    priors: PriorsConfig = field(default_factory=PriorsConfig)
 
     # --- names ------------------------------------------------------------------------------
     @property
@@ -227,7 +229,10 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         mode=check_choice(v, "solver.mode", SOLVER_MODES),
         min_pairs=check_positive_int(v, "solver.min_pairs", 1),
         reject_outliers=v["solver.reject_outliers"],
+        unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
+        min_scale=check_positive(v, "solver.min_scale"),
     )
+    priors = _build_priors(v, names, tags)
     if not v["output.directory"]:
         raise ValueError("output.directory: must not be empty")
     output = OutputConfig(
@@ -255,7 +260,33 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         output=output,
         ros=ros,
         parameters=plain,
+        priors=priors,
     )
+
+
+def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], tags: TagsConfig
+                  ) -> PriorsConfig:
+    """``priors.frames/axes/values_m``: parallel arrays of the same length, axes x/y/z, frames
+    among the cameras and the tag frames, finite values."""
+    frames, axes, values = v["priors.frames"], v["priors.axes"], v["priors.values_m"]
+    if not (len(frames) == len(axes) == len(values)):
+        raise ValueError(
+            f"priors.axes: priors.frames, priors.axes and priors.values_m must have the same "
+            f"length, got {len(frames)}, {len(axes)} and {len(values)}")
+    known = list(camera_names) + [tags.frame_name(t) for t in tags.ids]
+    entries = []
+    for i, (f, a, x) in enumerate(zip(frames, axes, values, strict=True)):
+        if f not in known:
+            raise ValueError(f"priors.frames[{i}]: {f!r} is neither a camera nor a tag frame; "
+                             f"known: {known}")
+        if a not in ("x", "y", "z"):
+            raise ValueError(f"priors.axes[{i}]: expected 'x', 'y' or 'z', got {a!r}")
+        if not math.isfinite(x):
+            raise ValueError(f"priors.values_m[{i}]: must be finite, got {x!r}")
+        if (f, a) in {(e[0], e[1]) for e in entries}:
+            raise ValueError(f"priors.frames[{i}]: {f}.{a} given twice")
+        entries.append((f, a, float(x)))
+    return PriorsConfig(tuple(entries))
 
 
 def _build_tags(v: dict[str, Any]) -> TagsConfig:

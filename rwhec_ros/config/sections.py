@@ -112,11 +112,22 @@ class DetectionConfig:
 
 @dataclass(frozen=True)
 class SolverConfig:
-    """Solver mode (``fast``/``sdp``/``local``), minimum pairs per edge, outlier switch."""
+    """Solver mode (``fast``/``sdp``/``local``), minimum pairs per edge, outlier switch, and
+    when a translation direction or the scale counts as not determined by the data."""
 
     mode: str
     min_pairs: int
     reject_outliers: bool
+    unobservable_std_m: float = 1.0
+    min_scale: float = 0.01
+
+
+@dataclass(frozen=True)
+class PriorsConfig:
+    """Known translation components ``(frame, axis, value_m)`` that fix unobservable directions
+    (:class:`rwhec_ros.core.gauge.TranslationPrior`; the axis is of the frame's carrier)."""
+
+    entries: tuple[tuple[str, str, float], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -138,6 +138,19 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("solver.reject_outliers", "bool", False,
               doc="outlier rejection: per-edge RANSAC on eq. (70) (paper Sec. 9.1), then a "
                   "GNC-TLS robust solve, re-certified on the inlier set"),
+    ParamSpec("solver.unobservable_std_m", "double", 1.0,
+              doc="a translation direction whose predicted std [m] exceeds this is not "
+                  "determined by the data (e.g. motion about one axis): it is fixed by "
+                  "priors.* or the default and the result says so"),
+    ParamSpec("solver.min_scale", "double", 0.01,
+              doc="unknown scale: an estimate at or below this floor is never certified"),
+    ParamSpec("priors.frames", "string_array", (),
+              doc="frames (camera names or tag frames) with a known translation component, "
+                  "parallel to priors.axes and priors.values_m"),
+    ParamSpec("priors.axes", "string_array", (),
+              doc="'x', 'y' or 'z': the axis of the frame's carrier for each priors.frames entry"),
+    ParamSpec("priors.values_m", "double_array", (),
+              doc="the known translation components [m] (fix unobservable directions only)"),
     ParamSpec("output.directory", "string", "rwhec_output",
               doc="results, data sets and static-tf launch files go here (never overwritten)"),
     ParamSpec("output.frame_suffix", "string", "_calibrated",

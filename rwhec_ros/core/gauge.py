@@ -160,12 +160,17 @@ class UnobservableDirection:
         return list(self.components)
 
     def describe(self, x_parent: str = "the tag carrier", y_parent: str = "the camera carrier",
-                 x_names: tuple[str, ...] = ()) -> str:
+                 x_names: tuple[str, ...] = (), parents: dict[str, str] | None = None) -> str:
         """One sentence in words, e.g. ``translation along rig z of cam0, cam1 and along world z
-        of tag_0 not determined by the data (predicted std 3.1e+03 m)``."""
+        of tag_0 not determined by the data (predicted std 3.1e+03 m)``. ``parents`` (frame ->
+        name of its carrier) overrides ``x_parent``/``y_parent``."""
         groups: dict[tuple[str, str], list[str]] = {}
-        for name, vec in self.components.items():
+        # cameras (Y) first, then tags (X), each in problem order
+        ordered = sorted(self.components.items(), key=lambda kv: kv[0] in x_names)
+        for name, vec in ordered:
             parent = x_parent if name in x_names else y_parent
+            if parents and name in parents:
+                parent = parents[name]
             groups.setdefault((parent, axis_words(vec)), []).append(name)
         parts = [f"along {parent} {axis} of {', '.join(names)}"
                  for (parent, axis), names in groups.items()]

@@ -415,8 +415,10 @@ class CalibrationSession:
                 identifiability=ident,
             )
         try:
-            result, dropped, notes = solve_problem(problem, mode=c.solver.mode,
-                                                   reject_outliers=c.solver.reject_outliers)
+            result, dropped, notes = solve_problem(
+                problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
+                priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
+                min_scale=c.solver.min_scale)
             excl.update(dropped)
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(

@@ -40,6 +40,12 @@ def summary(result: CalibrationResult, problem, excluded: dict, config) -> str:
             f"{parent}->{child}: t=[{t[0]:.4f} {t[1]:.4f} {t[2]:.4f}] "
             f"q=[{q[0]:.4f} {q[1]:.4f} {q[2]:.4f} {q[3]:.4f}]"
         )
+    parents = {name: pc[0] for name, pc in frames.items()}
+    for d in result.unobservable:
+        how = ("fixed by the priors" if d.fixed_by == "prior" else
+               "set by default (the cameras' mean along it is 0): not calibrated, give a prior "
+               "(priors.* or --prior FRAME.AXIS=VALUE)")
+        parts.append(f"{d.describe(parents=parents, x_names=result.x_names)}: {how}")
     if excluded:
         parts.append("excluded: " + ", ".join(f"{k}: {v}" for k, v in excluded.items()))
     missing = [n for n in config.y_names + config.x_names if n not in problem.frame_names]

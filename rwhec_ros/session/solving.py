@@ -7,6 +7,7 @@ from ..core.result import CalibrationResult
 from ..data.results import plain
 
 __all__ = [
+    "solve_options",
     "solve_problem",
     "make_tracker",
     "analyze_at_solution",
@@ -42,17 +43,45 @@ def report_dict(report) -> dict | None:
     return plain(report.to_dict())
 
 
+def solve_options(
+    problem, *, mode: str = "fast", priors=(), unobservable_std_m: float = 1.0,
+    min_scale: float = 0.01,
+):
+    """:class:`~rwhec_ros.core.solve.SolveOptions` for ``problem`` with the translation priors
+    ``(frame, axis, value_m)`` of the frames it has (returns the options and a note per prior
+    whose frame has no usable edge)."""
+    from ..core.gauge import GaugeOptions, TranslationPrior
+    from ..core.solve import SolveOptions
+
+    kept, notes = [], []
+    for frame, axis, value in priors:
+        if frame in problem.frame_names:
+            kept.append(TranslationPrior(frame, axis, value))
+        else:
+            notes.append(f"prior {frame}.{axis} = {value:g} m not used: {frame} has no usable edge")
+    gauge = GaugeOptions(max_std_m=unobservable_std_m, priors=tuple(kept))
+    return SolveOptions(mode=mode, gauge=gauge, min_scale=min_scale), notes
+
+
 def solve_problem(
-    problem, *, mode: str = "fast", reject_outliers: bool = False
+    problem, *, mode: str = "fast", reject_outliers: bool = False, priors=(),
+    unobservable_std_m: float = 1.0, min_scale: float = 0.01,
 ) -> tuple[CalibrationResult, dict[str, str], list[str]]:
     """The solve step shared by the session and the CLI: ``solve`` in ``mode``, or with
     ``reject_outliers`` RANSAC (paper Section 9.1) + GNC-TLS re-certified on the inlier set
-    (:func:`rwhec_ros.core.outliers.robust_solve`). Returns (result, dropped edges, notes)."""
-    from ..core.solve import SolveOptions, solve
+    (:func:`rwhec_ros.core.outliers.robust_solve`). ``priors`` (``(frame, axis, value_m)``) and
+    ``unobservable_std_m`` fix translation directions the data do not determine
+    (:mod:`rwhec_ros.core.gauge`); ``min_scale`` is the unknown scale's floor. Returns (result,
+    dropped edges, notes)."""
+    from ..core.solve import solve
 
-    options = SolveOptions(mode=mode)
+    options, prior_notes = solve_options(problem, mode=mode, priors=priors,
+                                         unobservable_std_m=unobservable_std_m,
+                                         min_scale=min_scale)
     if not reject_outliers:
-        return solve(problem, options), {}, []
+        result = solve(problem, options)
+        result.notes.extend(prior_notes)
+        return result, {}, list(prior_notes)
     from ..core.outliers import RobustOptions, robust_solve
 
     robust = robust_solve(problem, options=RobustOptions(solve=options))
@@ -60,8 +89,8 @@ def solve_problem(
     if robust.ransac is not None:
         dropped = {str(edge): f"outlier rejection: {reason}" for edge, reason in
                    robust.ransac.dropped}
-    notes = [f"outlier rejection: {len(robust.rejected)} of {problem.n_measurements} pairs "
-             f"rejected ({len(dropped)} edges dropped)"]
+    notes = prior_notes + [f"outlier rejection: {len(robust.rejected)} of "
+                           f"{problem.n_measurements} pairs rejected ({len(dropped)} edges "
+                           "dropped)"]
     robust.result.notes.extend(notes)
     return robust.result, dropped, notes
-

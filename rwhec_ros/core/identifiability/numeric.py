@@ -237,6 +237,20 @@ def _polish(cost: _ManifoldCost, R, t_abs, alpha, max_iterations: int, step_tol:
     return R, t_abs, alpha, f, grad, H, d, it
 
 
+def _null_axis(M: np.ndarray) -> str:
+    """Words for the main direction of the columns of ``M`` (3, k): ``"z"`` or ``[...]``."""
+    from ..gauge import axis_words
+
+    u, sv, _ = np.linalg.svd(M)
+    v = u[:, 0]
+    if v[int(np.argmax(np.abs(v)))] < 0:
+        v = -v
+    words = axis_words(v)
+    if sv.size > 1 and sv[1] > 0.3 * sv[0]:
+        words += " and other directions"
+    return words
+
+
 def numeric_check(
     problem: Problem,
     *,
@@ -302,9 +316,14 @@ def numeric_check(
         trans_null = Pnull[ts].sum() > part_tol
         if rot_null or trans_null:
             undetermined.append(name)
-            what = " and ".join(w for w, b in (("rotation", rot_null),
-                                               ("translation", trans_null)) if b)
-            reasons.append(f"{name}: {what} not determined (null direction of the Hessian)")
+            what = []
+            if trans_null:  # translation coordinates are in the frame's carrier
+                what.append("translation along " + _null_axis(U[ts][:, null] / d[ts, None]))
+            if rot_null:  # right perturbation R exp(w^): the axis in the carrier is R w
+                what.append("rotation about " + _null_axis(R[f_idx] @ (U[rs][:, null]
+                                                                       / d[rs, None])))
+            reasons.append(f"{name}: {' and '.join(what)} (in its carrier) not determined "
+                           "(null direction of the Hessian)")
             frame_status[name] = IdentifiabilityStatus.INSUFFICIENT
             rot_std[name] = float("inf") if rot_null else float(
                 np.degrees(np.sqrt(np.linalg.eigvalsh(C[rs, rs])[-1])))
