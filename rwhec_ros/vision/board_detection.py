@@ -13,15 +13,21 @@ Per board (:func:`estimate_board`):
    (``duplicate_id``).
 2. **enough corners** -- fewer than the target's ``min_corners`` (or collinear ChArUco corners)
    reject the board (``too_few_corners``); a partly occluded board is fine otherwise.
-3. **pose** -- ``SOLVEPNP_IPPE`` over all points (undistorted), both solutions LM-polished, the
-   flip check of :mod:`rwhec_ros.vision.planar_pose` (``ambiguous_pose``), then the detector's
-   reprojection and obliquity gates.
+3. **pose** -- ``SOLVEPNP_IPPE`` over all points (undistorted), both solutions LM-polished;
+   while the worst point (for a grid: the worst tag, a wrong quad or a wrong id) reprojects
+   worse than ``max(0.5 px, 3 x 1.4826 x`` the median residual), it is dropped and the pose
+   solved again, keeping at least ``min_corners`` and three quarters of the points
+   (:attr:`TargetObservation.outlier_corners`); then the flip check of
+   :mod:`rwhec_ros.vision.planar_pose` (``ambiguous_pose``) and the detector's reprojection and
+   obliquity gates.
 4. **precision** (:func:`points_precision`) -- first-order covariance of the pose from the
    reprojection Jacobian of all points, with the per-coordinate pixel noise estimated from the
-   residual: ``sigma_px = max(pixel_noise_floor_px, rms sqrt(2N / (2N - 6)))`` (``2N``
-   coordinates, 6 pose parameters). ``sigma`` is the square root of the largest eigenvalue of the
-   translation block (origin of the board, camera axes), ``sigma_rot`` that of the rotation block
-   (rotation about the board origin), ``kappa = 1 / (2 sigma_rot^2)``; floors as for single tags.
+   residual: ``sigma_px = max(pixel_noise_floor_px, rms sqrt(N / (2N - 6)))`` (``rms`` over
+   the N points of the 2D residual norm: ``E[N rms^2] = (2N - 6) sigma_px^2``, 6 pose
+   parameters; ``sqrt(2) rms`` for one tag, as in :mod:`rwhec_ros.vision.detection`).
+   ``sigma`` is the square root of the largest eigenvalue of the translation block (origin of
+   the board, camera axes), ``sigma_rot`` that of the rotation block (rotation about the board
+   origin), ``kappa = 1 / (2 sigma_rot^2)``; floors as for single tags.
    A partly seen board gets a larger ``sigma`` when its origin lies away from the corners seen.
 """
 
@@ -79,7 +85,7 @@ def points_precision(
     if n < 4:
         raise ValueError(f"object_points must hold at least 4 points, got {n}")
     dof = 2 * n - 6
-    sigma_px = max(float(pixel_noise_floor_px), float(rms_px) * np.sqrt(2.0 * n / dof))
+    sigma_px = max(float(pixel_noise_floor_px), float(rms_px) * np.sqrt(n / dof))
     K = np.asarray(intrinsics.K)
     RX = X @ T[:3, :3].T  # target points about the origin, camera axes
     p = RX + T[:3, 3]
@@ -124,6 +130,29 @@ def _saddle_corners(gray: np.ndarray, quad: np.ndarray, spec: AprilGridSpec) -> 
     return out if np.all(np.isfinite(out)) else quad
 
 
+def _edge_cells(spec: AprilGridSpec) -> float:
+    """``cells`` argument of :func:`refine_corners_edges` for grid tags: its profiles may reach
+    one of *these* cells into the border and into the gap, i.e. ``min(border_bits, gap cells)``
+    tag cells (Kalibr: 2), which keeps them wide enough for the blur of small tags."""
+    reach = max(1.0, min(float(spec.border_bits), np.floor(spec.tag_spacing * spec.cells)))
+    return spec.cells / reach
+
+
+def _worst_outlier(residuals: np.ndarray, per_marker: bool, *, factor: float = 3.0,
+                   floor_px: float = 0.5) -> np.ndarray | None:
+    """Indices of the points to drop next: those of the worst marker (grid: a tag's 4 corners)
+    or the worst point (ChArUco) when its residual exceeds ``max(floor_px, factor s)``,
+    ``s = 1.4826 median |r|`` over all points; None when nothing stands out."""
+    r = np.linalg.norm(np.asarray(residuals, dtype=float).reshape(-1, 2), axis=1)
+    limit = max(floor_px, factor * 1.4826 * float(np.median(r)))
+    if per_marker:
+        worst = int(np.argmax(r.reshape(-1, 4).max(axis=1)))
+        idx = np.arange(4 * worst, 4 * worst + 4)
+    else:
+        idx = np.array([int(np.argmax(r))])
+    return idx if float(r[idx].max()) > limit else None
+
+
 def _aprilgrid_points(gray, spec: AprilGridSpec, markers, intrinsics, config, name, rejections):
     obj, img, ideal, used = [], [], [], []
     for marker_id, quad in markers:
@@ -138,7 +167,7 @@ def _aprilgrid_points(gray, spec: AprilGridSpec, markers, intrinsics, config, na
             quad = _saddle_corners(gray, quad, spec)
         q_ideal = None
         if config.corner_refinement == "edge":
-            refined = refine_corners_edges(gray, quad, intrinsics, spec.cells)
+            refined = refine_corners_edges(gray, quad, intrinsics, _edge_cells(spec))
             if refined is not None:
                 q_ideal, quad = refined
         if q_ideal is None:
@@ -240,11 +269,28 @@ def estimate_board(
                       f"{len(obj)} corners < min_corners {target.min_corners}")
     if note:
         return reject(RejectReason.TOO_FEW_CORNERS, note)
-    try:
-        pose = solve_planar_pose(
+    def solve(obj, img, ideal):
+        return solve_planar_pose(
             obj, img, ideal, intrinsics, square=False, refine=config.refine_pose,
             min_ratio=config.flip_min_ratio, min_separation_deg=config.flip_min_separation_deg,
             prediction_margin=config.flip_prediction_margin, predicted=predicted)
+
+    n_total = len(obj)
+    per_marker = isinstance(board, AprilGridSpec)
+    try:
+        pose = solve(obj, img, ideal)
+        # Drop the worst marker / point while it stands out, at most a quarter of the points.
+        while pose.T is not None:
+            drop = _worst_outlier(intrinsics.project_points(obj, pose.T) - img, per_marker)
+            if (drop is None or len(obj) - len(drop) < target.min_corners
+                    or n_total - len(obj) + len(drop) > n_total // 4):
+                break
+            keep = np.ones(len(obj), dtype=bool)
+            keep[drop] = False
+            obj, img, ideal = obj[keep], img[keep], ideal[keep]
+            if per_marker:
+                used = tuple(m for i, m in enumerate(used) if keep[4 * i])
+            pose = solve(obj, img, ideal)
     except (cv2.error, np.linalg.LinAlgError, ValueError) as exc:
         return reject(RejectReason.POSE_FAILED, str(exc).strip()[:200])
     if pose.T is None:
@@ -273,4 +319,5 @@ def estimate_board(
         name=name, kind=target.kind, T_cam_target=T, reprojection_rms_px=rms,
         obliquity_deg=obliquity, marker_ids=used, image_points=img, object_points=obj,
         sigma=sigma, kappa=kappa, pose_status=pose.status.value, flip_ratio=pose.ratio,
+        outlier_corners=n_total - len(obj),
     ), rejections

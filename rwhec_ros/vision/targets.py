@@ -169,6 +169,8 @@ class TargetObservation:
         ``"unique"`` or ``"resolved_by_prediction"``.
     flip_ratio : float
         ``e_alt / e_best`` of the two IPPE poses (inf when only one was in front).
+    outlier_corners : int
+        Boards: corners left out as outliers (not in ``image_points``).
     """
 
     name: str
@@ -183,6 +185,7 @@ class TargetObservation:
     kappa: float | None = None
     pose_status: str = "unique"
     flip_ratio: float = float("inf")
+    outlier_corners: int = 0
 
     @property
     def n_corners(self) -> int:

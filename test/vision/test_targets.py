@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rwhec_ros.core.lie import invert_transform, make_transform, rotation_distance
-from rwhec_ros.vision.board_detection import points_precision
+from rwhec_ros.vision.board_detection import estimate_board, points_precision
 from rwhec_ros.vision.boards import AprilGridSpec, CharucoSpec
 from rwhec_ros.vision.detection import DetectorConfig, RejectReason, pose_precision
 from rwhec_ros.vision.intrinsics import CameraIntrinsics
@@ -114,6 +114,27 @@ def test_duplicate_board_markers_are_dropped():
     assert reasons[-1] == RejectReason.TOO_FEW_CORNERS.value
 
 
+def test_a_misplaced_grid_tag_is_dropped_as_outlier():
+    """Given marker corners (no image refinement): one tag 3 px off (a wrong quad) is left out
+    and the pose comes from the others."""
+    grid = AprilGridSpec(3, 3, 0.05, 0.3, corner_squares=False)
+    T = invert_transform(look_at([0.1, 0.05, 0.8], [0.0, 0.0, 0.0], up=[0, 1, 0]))
+    rng = np.random.default_rng(3)
+    markers = [(i, CAM.project_points(grid.marker_object_points(i), T)
+                + rng.normal(0.0, 0.05, (4, 2))) for i in grid.marker_ids]
+    markers[4] = (markers[4][0], markers[4][1] + [3.0, -2.0])
+    config = DetectorConfig(corner_refinement="subpix")  # corners used as given
+    gray = np.zeros((CAM.height, CAM.width), np.uint8)
+    obs, rejections = estimate_board(gray, TargetSpec("g", board=grid), markers, CAM, config)
+    assert rejections == [] and obs.outlier_corners == 4 and 4 not in obs.marker_ids
+    dt, dr = errors(obs.T_cam_target, T)
+    # 32 corners, 0.05 px noise: within 4 standard deviations of the covariance model.
+    sigma, kappa = points_precision(obs.object_points, T, CAM, obs.reprojection_rms_px,
+                                    sigma_floor_m=1e-12, rotation_std_floor_deg=1e-9)
+    assert dt < 4000 * sigma and np.deg2rad(dr) < 4 / np.sqrt(2 * kappa), (dt, dr)
+    assert obs.reprojection_rms_px < 0.1
+
+
 def test_kalibr_corner_squares_need_the_extra_threshold_passes():
     """6 cm Kalibr tags at 2.2 m (~25 px): with aruco's default threshold alone the corner
     squares hide almost every tag; the extra passes recover most of them."""
@@ -150,9 +171,9 @@ def test_points_precision_matches_monte_carlo_scatter():
         r_err.append(cv2.Rodrigues(dR)[0].ravel())
     cov_t = np.cov(np.array(t_err).T)
     cov_r = np.cov(np.array(r_err).T)
-    # rms chosen so that sigma_px = rms sqrt(2N/(2N-6)) equals the true noise.
+    # The expected RMS of the 2D residuals for this noise: E[N rms^2] = (2N - 6) noise^2.
     n = len(obj)
-    rms = noise_px / np.sqrt(2 * n / (2 * n - 6))
+    rms = noise_px * np.sqrt((2 * n - 6) / n)
     sigma, kappa = points_precision(obj, T, CAM, rms, pixel_noise_floor_px=1e-9,
                                     sigma_floor_m=1e-12, rotation_std_floor_deg=1e-9)
     sigma_rot = 1.0 / np.sqrt(2.0 * kappa)
