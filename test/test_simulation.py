@@ -7,7 +7,6 @@ import pytest
 
 from rwhec_ros.core.lie import invert_transform, rotation_angle, rotation_distance, so3_log
 from rwhec_ros.simulation import SimulatedRig, Trajectory, demo_rig, simulated_stream
-from rwhec_ros.simulation.rig import render_with_boards
 from rwhec_ros.vision.boards import AprilGridSpec, CharucoSpec
 from rwhec_ros.vision.target_detector import TargetDetector
 from rwhec_ros.vision.targets import TargetSpec
@@ -117,7 +116,7 @@ def test_render_with_boards_puts_each_board_at_its_tag_pose():
             break
         T_world_rig = rig.T_world_rig(t)
         for cam in rig.cameras:
-            img = render_with_boards(rig, cam, T_world_rig, boards, rng, supersample=2)
+            img = rig.render(cam, T_world_rig, rng, supersample=2, boards=boards)
             for o in det.detect(img, rig.intrinsics[cam]).observations:
                 j = {"board0": 0, "board1": 1, "tag_2": 2}[o.name]
                 T = rig.T_cam_tag(cam, j, T_world_rig)
@@ -129,4 +128,4 @@ def test_render_with_boards_puts_each_board_at_its_tag_pose():
                 seen.add(o.name)
     assert seen == {"board0", "board1", "tag_2"}
     with pytest.raises(ValueError, match="boards"):
-        render_with_boards(rig, "cam0", rig.T_world_rig(0.0), {17: boards[0]})
+        rig.render("cam0", rig.T_world_rig(0.0), boards={17: boards[0]})

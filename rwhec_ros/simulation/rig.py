@@ -34,7 +34,6 @@ __all__ = [
     "Trajectory",
     "SimulatedRig",
     "demo_rig",
-    "render_with_boards",
 ]
 
 #: PoseStamped topic of the demo (``header.frame_id`` = world, pose of the rig).
@@ -172,16 +171,33 @@ class SimulatedRig:
         noise_std: float = 2.0,
         blur_sigma: float = 0.6,
         supersample: int = 3,
+        boards: Mapping[int, AprilGridSpec | CharucoSpec] | None = None,
     ) -> np.ndarray:
         """(H, W) uint8 image of ``camera`` at rig pose ``T_world_rig`` (true pose).
 
         Tags partly outside the image are left out entirely (a simple stand-in for a detector
         that rejects cut tags). Noise needs ``rng``; ``noise_std=0`` gives a noise-free image.
+
+        ``boards`` (tag id -> layout) puts a board in place of those tags, its frame
+        (:mod:`rwhec_ros.vision.boards`: centre of the pattern) at the tag's pose, so
+        ``X_j = T_world_tag[j]`` and ``B = T_cam_tag(camera, j, T_world_rig)`` stay the truth
+        with the same trajectory and images. A board is drawn when its centre is in front of
+        the camera and its face toward it, also when only partly in view (a board gives a pose
+        from the corners seen).
         """
-        tags = self.visible_tags(camera, T_world_rig)
+        boards = dict(boards or {})
+        unknown = sorted(set(boards) - set(self.tag_ids))
+        if unknown:
+            raise ValueError(f"boards: tag ids {unknown} are not in the rig ({self.tag_ids})")
+        items: list[RenderedTag | RenderedBoard] = [
+            t for t in self.visible_tags(camera, T_world_rig) if t.tag_id not in boards]
+        for tag_id, board in boards.items():
+            T = self.T_cam_tag(camera, tag_id, T_world_rig)
+            if T[2, 3] > 0.05 and float(T[:3, 2] @ T[:3, 3]) < 0:
+                items.append(RenderedBoard(board, T))
         return render_tags(
             self.intrinsics[camera],
-            tags,
+            items,
             self.family,
             blur_sigma=blur_sigma,
             noise_std=noise_std if rng is not None else 0.0,
@@ -241,44 +257,4 @@ def demo_rig(
         T_world_tag=T_world_tag,
         tag_size=float(tag_size),
         trajectory=trajectory if trajectory is not None else Trajectory(),
-    )
-
-
-def render_with_boards(
-    rig: SimulatedRig,
-    camera: str,
-    T_world_rig: np.ndarray,
-    boards: Mapping[int, AprilGridSpec | CharucoSpec],
-    rng: np.random.Generator | None = None,
-    *,
-    noise_std: float = 2.0,
-    blur_sigma: float = 0.6,
-    supersample: int = 3,
-) -> np.ndarray:
-    """(H, W) uint8 image of ``camera`` with a board in place of each tag ``j`` of ``boards``.
-
-    The board frame (:mod:`rwhec_ros.vision.boards`: centre of the pattern) sits at the tag's
-    pose, so ``X_j = T_world_tag[j]`` and ``B = rig.T_cam_tag(camera, j, T_world_rig)`` stay
-    the truth, with the same trajectory and images as the single-tag scene. Boards are drawn
-    when their centre is in front of the camera and their face toward it, also when only partly
-    in view (a board gives a pose from the corners seen); tags not in ``boards`` are drawn as
-    :meth:`SimulatedRig.render` draws them. Noise needs ``rng``.
-    """
-    unknown = sorted(set(boards) - set(rig.tag_ids))
-    if unknown:
-        raise ValueError(f"boards: tag ids {unknown} are not in the rig ({rig.tag_ids})")
-    items: list[RenderedTag | RenderedBoard] = [
-        t for t in rig.visible_tags(camera, T_world_rig) if t.tag_id not in boards]
-    for tag_id, board in boards.items():
-        T = rig.T_cam_tag(camera, tag_id, T_world_rig)
-        if T[2, 3] > 0.05 and float(T[:3, 2] @ T[:3, 3]) < 0:
-            items.append(RenderedBoard(board, T))
-    return render_tags(
-        rig.intrinsics[camera],
-        items,
-        rig.family,
-        blur_sigma=blur_sigma,
-        noise_std=noise_std if rng is not None else 0.0,
-        rng=rng,
-        supersample=supersample,
     )
