@@ -203,17 +203,17 @@ def corner_square_table(distances=(0.6, 1.2, 1.7, 2.2, 2.8)) -> list[str]:
 def end_to_end_table(room_radius: float = 2.0, image_rate_hz: float = 2.0,
                      duration_s: float = 24.0) -> list[str]:
     """Demo rig (3 cameras, 640x480, f = 500 px) among 6 targets ``room_radius`` away: camera
-    errors of a calibration from single 40 cm tags vs 40 cm boards at the same poses, same
-    trajectory and images (rendered at ``image_rate_hz``). A preview through the core solver
-    (every detection one pair, per-detection sigma/kappa), not through the session."""
+    errors of a calibration from single tags (25 cm as in the demo, 40 cm) vs 40 cm boards at
+    the same poses, same trajectory and images (rendered at ``image_rate_hz``). A preview
+    through the core solver (every detection one pair, per-detection sigma/kappa), not through
+    the session."""
     from rwhec_ros.core.problem import Edge, Problem
     from rwhec_ros.core.solve import SolveOptions, solve
     from rwhec_ros.simulation import demo_rig
 
-    plate = 0.40
-    rig = demo_rig(n_cameras=3, n_tags=6, room_radius=room_radius, tag_size=plate)
     # One board per target position, each with its own marker ids.
     layouts = {
+        "single tags (25 cm, the demo's)": None,
         "single tags (40 cm)": None,
         "AprilGrid 3x3 (43 cm)": lambda j: AprilGridSpec(3, 3, tag_size=0.12, tag_spacing=0.3,
                                                          first_id=100 + 9 * j),
@@ -226,6 +226,8 @@ def end_to_end_table(room_radius: float = 2.0, image_rate_hz: float = 2.0,
             "| mean camera error: R (deg) / t (mm) |", "|---|---|---|---|---|"]
     stamps = np.arange(0.0, duration_s, 1.0 / image_rate_hz)
     for label, make in layouts.items():
+        plate = 0.25 if "25 cm" in label else 0.40
+        rig = demo_rig(n_cameras=3, n_tags=6, room_radius=room_radius, tag_size=plate)
         rng = np.random.default_rng(0)
         boards = {} if make is None else {j: make(j) for j in rig.tag_ids}
         targets = [TargetSpec(f"t{j}", board=boards[j]) if boards else
