@@ -5,7 +5,9 @@ dictionary and border width: the single tags' family with one-bit borders, a Kal
 two-bit borders, a ChArUco board's ArUco dictionary), then hands each target its markers:
 
 * single tags to :meth:`rwhec_ros.vision.detection.TagDetector.estimate_markers` (edge
-  refinement, IPPE_SQUARE, flip check, gates, precision model of that module);
+  refinement, IPPE_SQUARE, flip check, gates, precision model of that module); a marker kind
+  used by single tags only is searched by that detector's candidate search (decimated on large
+  images, ``DetectorConfig.decimate``), kinds with boards at full resolution;
 * boards to :func:`rwhec_ros.vision.board_detection.estimate_board`.
 
 Markers of no target are reported as ``not_in_configuration`` (by the kind they were found in);
@@ -92,6 +94,12 @@ class TargetDetector:
             for marker in t.marker_ids():
                 group[marker] = t
         self._claimed = {(d, m) for (d, _), g in self._groups.items() for m in g}
+        # A marker kind holding single tags only goes through TagDetector's candidate search
+        # (decimated on large images, DetectorConfig.decimate); kinds with boards are searched
+        # at full resolution (grid tags are small: decimation would lose them first).
+        self._tag_search_only = {
+            key for key, owners in self._groups.items()
+            if all(t.board is None for t in owners.values())}
         self._detectors: dict[tuple[str, int], list[cv2.aruco.ArucoDetector]] = {}
         for (dictionary, bits), owners in self._groups.items():
             squares = any(getattr(t.board, "corner_squares", False) for t in owners.values())
@@ -102,7 +110,8 @@ class TargetDetector:
                 if c is not None:
                     params.adaptiveThreshConstant = c
                 passes.append(cv2.aruco.ArucoDetector(get_dictionary(dictionary), params))
-            self._detectors[(dictionary, bits)] = passes
+            if (dictionary, bits) not in self._tag_search_only:
+                self._detectors[(dictionary, bits)] = passes
         self._charuco = {t.name: charuco_detector(t.board, self.config)
                          for t in self.targets if isinstance(t.board, CharucoSpec)}
 
@@ -146,7 +155,10 @@ class TargetDetector:
         single_quads: list[np.ndarray] = []
         for (dictionary, bits), owners in self._groups.items():
             try:
-                markers = _merged_markers(self._detectors[(dictionary, bits)], img)
+                if (dictionary, bits) in self._tag_search_only:
+                    markers = list(zip(*self._tags.detect_markers(img), strict=True))
+                else:
+                    markers = _merged_markers(self._detectors[(dictionary, bits)], img)
             except cv2.error as exc:  # an OpenCV failure on a valid image: report, do not raise
                 result.rejections.append(TargetRejection(
                     "", RejectReason.DETECTOR_ERROR.value, str(exc).strip()[:200]))
