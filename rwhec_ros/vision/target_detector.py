@@ -47,7 +47,8 @@ __all__ = ["TargetDetector"]
 
 
 class TargetDetector:
-    """Detector of a set of targets (module docstring).
+    """Detector of a set of targets (module docstring). Holds ``cv2`` detector objects: not
+    thread-safe, use one per thread (like :class:`~rwhec_ros.vision.detection.TagDetector`).
 
     Parameters
     ----------
