@@ -16,13 +16,15 @@ here and match ``config/demo.yaml``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..core.lie import invert_transform, make_transform, so3_exp
+from ..vision.boards import AprilGridSpec, CharucoSpec
 from ..vision.intrinsics import CameraIntrinsics
-from ..vision.render import RenderedTag, look_at, render_tags
+from ..vision.render import RenderedBoard, RenderedTag, look_at, render_tags
 
 __all__ = [
     "DEMO_POSE_TOPIC",
@@ -169,16 +171,33 @@ class SimulatedRig:
         noise_std: float = 2.0,
         blur_sigma: float = 0.6,
         supersample: int = 3,
+        boards: Mapping[int, AprilGridSpec | CharucoSpec] | None = None,
     ) -> np.ndarray:
         """(H, W) uint8 image of ``camera`` at rig pose ``T_world_rig`` (true pose).
 
         Tags partly outside the image are left out entirely (a simple stand-in for a detector
         that rejects cut tags). Noise needs ``rng``; ``noise_std=0`` gives a noise-free image.
+
+        ``boards`` (tag id -> layout) puts a board in place of those tags, its frame
+        (:mod:`rwhec_ros.vision.boards`: centre of the pattern) at the tag's pose, so
+        ``X_j = T_world_tag[j]`` and ``B = T_cam_tag(camera, j, T_world_rig)`` stay the truth
+        with the same trajectory and images. A board is drawn when its centre is in front of
+        the camera and its face toward it, also when only partly in view (a board gives a pose
+        from the corners seen).
         """
-        tags = self.visible_tags(camera, T_world_rig)
+        boards = dict(boards or {})
+        unknown = sorted(set(boards) - set(self.tag_ids))
+        if unknown:
+            raise ValueError(f"boards: tag ids {unknown} are not in the rig ({self.tag_ids})")
+        items: list[RenderedTag | RenderedBoard] = [
+            t for t in self.visible_tags(camera, T_world_rig) if t.tag_id not in boards]
+        for tag_id, board in boards.items():
+            T = self.T_cam_tag(camera, tag_id, T_world_rig)
+            if T[2, 3] > 0.05 and float(T[:3, 2] @ T[:3, 3]) < 0:
+                items.append(RenderedBoard(board, T))
         return render_tags(
             self.intrinsics[camera],
-            tags,
+            items,
             self.family,
             blur_sigma=blur_sigma,
             noise_std=noise_std if rng is not None else 0.0,
