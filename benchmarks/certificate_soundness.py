@@ -533,7 +533,8 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--select", action="append", default=None, metavar="N[:CATS[:SHAPES]]",
                     help="a selection of instances (repeatable; replaces --n/--categories/"
                          "--shapes), e.g. --select 800 --select 300:few_pairs:1X1Y")
-    ap.add_argument("--mode", default="fast", choices=("fast", "sdp"))
+    ap.add_argument("--mode", default=None, choices=("fast", "sdp"),
+                    help="solver mode (default fast; with --replay, each file's saved mode)")
     ap.add_argument("--sdp", type=int, default=0,
                     help="also solve the first N selected instances in mode sdp")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
@@ -566,14 +567,15 @@ def main(argv: list[str] | None = None) -> int:
         args.save_failures.mkdir(parents=True, exist_ok=True)
     if args.replay:
         files = sorted(str(p) for p in args.replay.glob("*.npz"))
-        tasks = [(f, args.mode, ck, args.check_all, None) for f in files]
+        tasks = [(f, args.mode or Instance.load(Path(f))[1].get("mode", "fast"), ck,
+                  args.check_all, None) for f in files]
         what = f"replay of {len(files)} saved instances from `{args.replay}`"
     else:
         idx = _select(args.seed, args.select, args.start)
-        tasks = [((args.seed, i), args.mode, ck, args.check_all, args.save_failures)
-                 for i in idx]
+        mode = args.mode or "fast"
+        tasks = [((args.seed, i), mode, ck, args.check_all, args.save_failures) for i in idx]
         tasks += [((args.seed, i), "sdp", ck, args.check_all, args.save_failures)
-                  for i in idx[: args.sdp] if args.mode != "sdp"]
+                  for i in idx[: args.sdp] if mode != "sdp"]
         what = (f"{len(idx)} instances (seed {args.seed}, indices from {args.start}, "
                 f"selections {' + '.join(args.select)})"
                 + (f" + {min(args.sdp, len(idx))} in mode sdp" if args.sdp else ""))
