@@ -484,9 +484,12 @@ def report(records: list[dict], header: list[str], limit: int = 30) -> str:
 # --- driver -------------------------------------------------------------------------------------
 
 def _git_head() -> str:
+    """The last commit that changed ``rwhec_ros/`` (the solver under test), and whether the
+    working tree modifies it."""
     try:
         root = HERE.parent
-        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"],
+        head = subprocess.run(["git", "-C", str(root), "log", "-1", "--format=%h", "--",
+                               "rwhec_ros"],
                               capture_output=True, text=True, check=True).stdout.strip()
         dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "rwhec_ros"],
                                capture_output=True, text=True, check=True).stdout.strip()
