@@ -159,6 +159,16 @@ class UnobservableDirection:
     def frames(self) -> list[str]:
         return list(self.components)
 
+    def component_of(self, translations: dict[str, np.ndarray]) -> float:
+        """The component along this direction (its translation part, normalised) of the frames'
+        translations ``{name: t (3,)}``, in metres."""
+        norm2 = sum(float(v @ v) for v in self.components.values())
+        if norm2 <= 0.0:
+            return float("nan")
+        return float(sum(v @ np.asarray(translations[n], float)
+                         for n, v in self.components.items() if n in translations)
+                     / np.sqrt(norm2))
+
     def describe(self, x_parent: str = "the tag carrier", y_parent: str = "the camera carrier",
                  x_names: tuple[str, ...] = (), parents: dict[str, str] | None = None) -> str:
         """One sentence in words, e.g. ``translation along rig z of cam0, cam1 and along world z
@@ -298,6 +308,10 @@ class GaugeFix:
     def empty(self) -> bool:
         return not self.directions
 
+    @property
+    def has_penalty(self) -> bool:
+        return self.G.shape[0] > 0
+
     def penalty_matrix(self, layout: StateLayout) -> sp.csr_matrix:
         """The penalty as a quadratic form on the state ``x`` of eq. (44) (sparse, size of Q)."""
         n_t, h = layout.n_t, layout.alpha
@@ -334,10 +348,16 @@ def build_gauge_fix(
     n_t = 3 * n
     names = problem.frame_names
     index = {name: i for i, name in enumerate(names)}
-    k = V_w.shape[1]
-    Vt = V_w[:n_t]  # drop the alpha part (unknown scale), re-orthonormalise
-    if k:
-        Vt, _ = np.linalg.qr(Vt)
+    # the translation parts of the directions (the alpha part dropped for unknown scale) and an
+    # orthonormal basis of their span: with unknown scale there can be more directions than
+    # translation dimensions, and a direction of the scale alone has no translation part
+    T_parts = V_w[:n_t]
+    if T_parts.shape[1]:
+        U, sv, _ = np.linalg.svd(T_parts, full_matrices=False)
+        Vt = U[:, sv > 1e-6 * max(float(sv.max(initial=0.0)), 1e-300)]
+    else:
+        Vt = np.zeros((n_t, 0))
+    k = Vt.shape[1]
     rows, vals, weights = [], [], []
     prior_rows = []
     for i, p in enumerate(priors):
@@ -362,7 +382,8 @@ def build_gauge_fix(
             vals.append(0.0)
             weights.append(w_def)
     if k == 0:
-        return GaugeFix([], np.zeros((0, n_t)), np.zeros(0), 0.0, Vt, True, prior_rows)
+        return GaugeFix(list(directions), np.zeros((0, n_t)), np.zeros(0), 0.0, Vt,
+                        not directions, prior_rows)
     P = np.array(rows)  # (r, n_t)
     c = np.array(vals)
     W = np.array(weights)
@@ -380,7 +401,8 @@ def build_gauge_fix(
     b = K @ c
     notes = []
     for i, d in enumerate(directions):
-        by_user = n_user and np.linalg.norm(A[:n_user, i]) >= 1e-3
+        t_part = T_parts[:, i] / max(float(np.linalg.norm(T_parts[:, i])), 1e-300)
+        by_user = n_user and np.linalg.norm(P[:n_user] @ t_part) >= 1e-3
         d.fixed_by = "prior" if pinned or by_user else "default"
     rho = float(max(w_max, 1.0))
     return GaugeFix(directions, G, b, rho, Vt, pinned, prior_rows, notes)

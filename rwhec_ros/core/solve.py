@@ -159,7 +159,7 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
     Q, Q_rot = build_cost_matrices(problem)
     V_w, w_w, directions, w_max = find_unobservable_directions(Q, layout, problem, options.gauge)
     gauge = build_gauge_fix(problem, V_w, w_w, directions, w_max, options.gauge.priors)
-    if not gauge.empty:
+    if gauge.has_penalty:
         pen = gauge.penalty_matrix(layout)
         Q = (sp.csr_matrix(Q) + pen).tocsr() if sp.issparse(Q) else Q + pen.toarray()
     reduced = reduce_cost(Q, layout, problem.unknown_scale)
@@ -190,7 +190,7 @@ def _estimate(prep: _Prepared, R: np.ndarray):
     est = estimate_from_rotations(prep.problem, prep.reduced, R)
     X, Y = est.split(prep.problem.M)
     p = direct_cost(prep.problem, X, Y, est.alpha)
-    if prep.gauge is not None and not prep.gauge.empty:
+    if prep.gauge is not None and prep.gauge.has_penalty:
         p += prep.gauge.penalty_value(est.t, est.alpha if prep.problem.unknown_scale else 1.0)
     return est, p
 
@@ -477,8 +477,10 @@ def _check_identifiability(prep: _Prepared, options: SolveOptions,
             reasons.append(words)
     if gauge is not None and not gauge.empty:
         t = np.concatenate([res.X, res.Y])[:, :3, 3].reshape(-1)
-        for i, d in enumerate(gauge.directions):
-            d.value_m = float(gauge.V_w[:, i] @ t)
+        translations = {name: T[:3, 3] for name, T in zip(
+            problem.frame_names, np.concatenate([res.X, res.Y]), strict=True)}
+        for d in gauge.directions:
+            d.value_m = d.component_of(translations)
         res.unobservable = list(gauge.directions)
         words = "; ".join(d.describe(x_names=problem.x_names) for d in gauge.directions)
         if any(d.involves_scale for d in gauge.directions):

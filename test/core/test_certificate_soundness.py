@@ -5,8 +5,8 @@ The checker tests validate the benchmark's own machinery (its cost is the produc
 Jacobians are right, its search finds known optima, its verdict catches fabricated false
 certificates). The soundness tests run the product on a seeded sample and on the saved failure
 cases of ``benchmarks/soundness_failures/`` (both failed on the solver before the certificate
-rewrite of issue 10; the saved cases include two crashes of the rewritten solver, hence the
-``xfail`` on that test).
+rewrite of issue 10; the saved cases include two crashes of an early version of the rewrite,
+fixed since: more unobservable directions than translation dimensions with unknown scale).
 """
 
 import sys
@@ -217,8 +217,6 @@ def test_quick_soundness_sample():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason="issue 10: two saved 1X1Y unknown-scale instances with 2 "
-                   "pairs crash the rewritten solver (IndexError in solve._check_identifiability)")
 def test_saved_failures_are_fixed():
     """Every saved failure of the baseline (benchmarks/soundness_failures), solved in mode
     ``fast`` (``--replay`` of the benchmark also runs the saved mode and the full checker): no
