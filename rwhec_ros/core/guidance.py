@@ -40,6 +40,7 @@ import numpy as np
 from .information import Information, information_matrix, pair_terms, scatter_information
 from .lie import invert_transform, make_transform, so3_exp
 from .problem import Problem
+from .solve import blas_threads
 from .uncertainty import UncertaintyOptions, covariance_of, frame_covariances
 
 __all__ = ["GuidanceOptions", "MotionCandidate", "Guidance", "suggest_next_motion"]
@@ -213,15 +214,19 @@ class Guidance:
                 "worst_ratio": float(self.worst_ratio), "worst": self.worst}
 
 
-def _assess(C: np.ndarray, names: tuple[str, ...], opts: GuidanceOptions, scale_null: bool
-            ) -> tuple[int, float, float, str, int]:
+def _ratios(C: np.ndarray, opts: GuidanceOptions) -> np.ndarray:
+    """Stds over their targets (..., F, 6) from per-frame covariances (..., F, 6, 6) in the
+    reporting convention (NaN on unobservable axes stays NaN)."""
+    d = np.diagonal(C, axis1=-2, axis2=-1)
+    st = np.sqrt(np.maximum(d[..., :3], 0.0)) / opts.target_std_translation_m
+    sr = np.degrees(np.sqrt(np.maximum(d[..., 3:], 0.0))) / opts.target_std_rotation_deg
+    return np.concatenate([st, sr], axis=-1)
+
+
+def _assess(ratios: np.ndarray, names: tuple[str, ...], opts: GuidanceOptions,
+            scale_null: bool) -> tuple[int, float, float, str, int]:
     """(unobservable axes, worst std / target, sum of (std / target)^2 over the observable
-    axes, words for the worst, its frame index or -1) from per-frame covariances (F, 6, 6)
-    with NaN on unobservable axes (reporting convention)."""
-    d = np.diagonal(C, axis1=1, axis2=2)
-    st = np.sqrt(np.maximum(d[:, :3], 0.0)) / opts.target_std_translation_m
-    sr = np.degrees(np.sqrt(np.maximum(d[:, 3:], 0.0))) / opts.target_std_rotation_deg
-    ratios = np.concatenate([st, sr], axis=1)  # (F, 6), NaN: unobservable
+    axes, words for the worst, its frame index or -1) from :func:`_ratios` (F, 6)."""
     n_unobs = int(np.isnan(ratios).sum()) + int(scale_null)
     if not np.isfinite(ratios).any():
         return n_unobs, float("nan"), float("nan"), "nothing observable", -1
@@ -290,53 +295,62 @@ def _bases(problem: Problem, info: Information, opts: GuidanceOptions, frames_in
     return existing, new
 
 
-def _candidate_terms(info: Information, base: _Base, kind: str, axis: int, amount: float,
-                     opts: GuidanceOptions):
+def _candidate_terms(info: Information, base: _Base, motions: list, opts: GuidanceOptions):
+    """The information of every motion on ``base``, one group of pairs per motion."""
     T = make_transform(info.R, info.t)
-    A = _sweep(base.A0, kind, axis, amount, opts)
+    A = np.concatenate([_sweep(base.A0, kind, axis, amount, opts)
+                        for kind, axis, amount in motions])
     n = A.shape[0]
     X = np.broadcast_to(T[base.j], (n, 4, 4))
     Y = np.broadcast_to(T[info.layout.M + base.k], (n, 4, 4))
     B = invert_transform(Y) @ A @ X
     B[:, :3, 3] *= info.alpha
-    return pair_terms(A, B, np.full(n, base.sigma), np.full(n, base.kappa), X, Y, info.alpha)
+    starts = np.arange(len(motions)) * int(opts.poses_per_motion)
+    return pair_terms(A, B, np.full(n, base.sigma), np.full(n, base.kappa), X, Y, info.alpha,
+                      starts)
 
 
-def _evaluate(problem, info, cov, base_cov, bases, opts, touch_null: set[int]):
+def _evaluate(problem, info, cov, base_ratios, bases, opts, touch_null: set[int]):
     """Score every motion on every base (module docstring: Woodbury or full recomputation)."""
     lay = info.layout
     motions = [("rotate", a, v) for v in opts.angles_deg for a in range(3)] + \
               [("translate", a, v) for v in opts.translations_m for a in range(3)]
     idx_f = lay.frame_indices(np.arange(lay.n_frames))
-    Tm = np.zeros((lay.n_frames, 6, 6))
-    Tm[:, :3, :3] = np.eye(3)
-    Tm[:, 3:, 3:] = info.R
+    C_ff = cov.sigma[idx_f[:, :, None], idx_f[:, None, :]]  # (F, 6, 6), internal coordinates
+    unobs = np.isnan(base_ratios)
+    keep = np.r_[0:6, 7:13] if not lay.unknown_scale else np.arange(13)
     out = []
     for b in bases:
         S = lay.pair_indices(np.array([b.j]), np.array([b.k]))[0]
         full = bool({b.j, lay.M + b.k} & touch_null) or cov.pinned
-        for kind, axis, amount in motions:
-            terms = _candidate_terms(info, b, kind, axis, amount, opts)
-            if full:
-                dH, dQ = scatter_information(lay, np.array([b.j]), np.array([b.k]), terms)
+        terms = _candidate_terms(info, b, motions, opts)
+        if full:
+            ratios = []
+            for m in range(len(motions)):
+                one = dataclasses.replace(terms, hessian=terms.hessian[m:m + 1],
+                                          translation_block=terms.translation_block[m:m + 1])
+                dH, dQ = scatter_information(lay, np.array([b.j]), np.array([b.k]), one)
                 new = dataclasses.replace(info, H=info.H + dH, Q_ee=info.Q_ee + dQ)
                 c2 = covariance_of(new, problem, opts.uncertainty)
                 C, _, _, scale_null = frame_covariances(c2, new, opts.uncertainty.axis_tol)
-            else:
-                h = terms.hessian[0]
-                if not lay.unknown_scale:
-                    keep = np.r_[0:6, 7:13]
-                    h = h[np.ix_(keep, keep)]
-                W = cov.sigma[:, S]
-                K = np.linalg.solve(np.eye(S.size) + h @ cov.sigma[np.ix_(S, S)], h)
-                Wf = W[idx_f]  # (F, 6, s)
-                Cf = cov.sigma[idx_f[:, :, None], idx_f[:, None, :]] - Wf @ K @ \
-                    np.swapaxes(Wf, 1, 2)
-                C = np.where(np.isnan(base_cov), np.nan, Tm @ Cf @ np.swapaxes(Tm, 1, 2))
-                scale_null = False
-            n_unobs, ratio, total, words, _ = _assess(C, info.names, opts, scale_null)
+                ratios.append((_ratios(C, opts), scale_null))
+        else:  # Woodbury on the edge's coordinates S, all motions at once
+            h = terms.hessian[:, keep][:, :, keep]  # (m, s, s)
+            K = np.linalg.solve(np.eye(S.size) + h @ cov.sigma[np.ix_(S, S)], h)
+            Wf = cov.sigma[:, S][idx_f]  # (F, 6, s)
+            Cf = C_ff - np.einsum("fis,mst,fjt->mfij", Wf, K, Wf, optimize=True)
+            d_t = np.diagonal(Cf[:, :, :3, :3], axis1=2, axis2=3)
+            d_r = np.einsum("fij,mfjk,fik->mfi", info.R, Cf[:, :, 3:, 3:], info.R,
+                            optimize=True)  # diag(R C R^T): rotations in the parent
+            d = np.concatenate([d_t, d_r], axis=2)  # (m, F, 6)
+            Cd = np.zeros(d.shape + (6,))
+            Cd[..., np.arange(6), np.arange(6)] = d  # diagonal covariances for _ratios
+            r = np.where(unobs, np.nan, _ratios(Cd, opts))
+            ratios = [(r[m], False) for m in range(len(motions))]
+        for (kind, axis, amount), (rat, scale_null) in zip(motions, ratios, strict=True):
+            n_unobs, worst, total, words, _ = _assess(rat, info.names, opts, scale_null)
             out.append(MotionCandidate(problem.x_names[b.j], problem.y_names[b.k], kind, axis,
-                                       amount, b.new_edge, n_unobs, ratio, words, total))
+                                       amount, b.new_edge, n_unobs, worst, words, total))
     return out
 
 
@@ -394,6 +408,12 @@ def suggest_next_motion(
         Number of candidates kept in :attr:`Guidance.candidates`.
     """
     opts = options or GuidanceOptions()
+    with blas_threads(opts.uncertainty.blas_threads):
+        return _suggest(problem, result, opts, info, top)
+
+
+def _suggest(problem: Problem, result, opts: GuidanceOptions, info: Information | None,
+             top: int) -> Guidance:
     if tuple(result.x_names) != problem.x_names or tuple(result.y_names) != problem.y_names:
         raise ValueError(f"result frames {list(result.x_names)} / {list(result.y_names)} do not "
                          f"match the problem's {list(problem.x_names)} / {list(problem.y_names)}")
@@ -401,19 +421,20 @@ def suggest_next_motion(
         info = information_matrix(problem, result.X, result.Y, result.scale)
     cov = covariance_of(info, problem, opts.uncertainty)
     C, ut, ur, scale_null = frame_covariances(cov, info, opts.uncertainty.axis_tol)
-    n_unobs, ratio, _, worst, worst_frame = _assess(C, info.names, opts, scale_null)
+    base_ratios = _ratios(C, opts)
+    n_unobs, ratio, _, worst, worst_frame = _assess(base_ratios, info.names, opts, scale_null)
     touch_null = {f for f in range(info.layout.n_frames) if ut[f].any() or ur[f].any()}
     if scale_null:
         touch_null = set(range(info.layout.n_frames))
     existing, new = _bases(problem, info, opts, touch_null)
-    cands = _evaluate(problem, info, cov, C, existing, opts, touch_null)
+    cands = _evaluate(problem, info, cov, base_ratios, existing, opts, touch_null)
     best_existing = _rank(cands)[0] if cands else None
     weak_help = (best_existing is None or best_existing.score[0] > 0
                  or best_existing.worst_ratio > 0.9 * ratio)
     if not new and opts.new_edges and weak_help and worst_frame >= 0 and ratio > 1:
         _, new = _bases(problem, info, opts, {worst_frame})
     if new:
-        cands += _evaluate(problem, info, cov, C, new, opts, touch_null)
+        cands += _evaluate(problem, info, cov, base_ratios, new, opts, touch_null)
     cands = _rank(cands)
     best = cands[0] if cands and (cands[0].n_unobservable, _finite(cands[0].worst_ratio)) < (
         n_unobs, _finite(ratio)) else None
@@ -432,6 +453,10 @@ def suggest_next_motion(
             after = f"all observable, largest std {best.worst}"
         else:
             after = f"largest std {best.worst}"
+            gain = 1.0 - best.worst_ratio / ratio
+            if gain < 0.1:
+                after += (f"; only {100 * gain:.0f} % lower: other frames are about as "
+                          "uncertain, one motion cannot fix them all")
         message = f"{best.words(opts)} ({now}; predicted after it: {after})"
     return Guidance(needed=needed, message=message, best=best, candidates=cands[:top],
                     n_unobservable=n_unobs, worst_ratio=ratio, worst=worst)

@@ -47,6 +47,7 @@ import scipy.linalg
 from .gauge import GaugeOptions, axis_words, build_gauge_fix, unobservable_directions_of_block
 from .information import Information, information_matrix
 from .problem import Problem
+from .solve import blas_threads
 
 __all__ = [
     "CONVENTION",
@@ -86,11 +87,16 @@ class UncertaintyOptions:
     axis_tol : float
         An axis of a frame is unobservable when the unit null directions have a component of at
         least this along it (1e-3, the threshold of the gauge's frame components).
+    blas_threads : int or None
+        BLAS threads while computing (1, as :attr:`~rwhec_ros.core.solve.SolveOptions.
+        blas_threads`: a 145x145 Cholesky took 0.4 s with multi-threaded OpenBLAS on the busy
+        2-core machine, against 1 ms single-threaded); ``None`` leaves the library's setting.
     """
 
     gauge: GaugeOptions = field(default_factory=GaugeOptions)
     null_tol: float = 1e-8
     axis_tol: float = 1e-3
+    blas_threads: int | None = 1
 
     def __post_init__(self) -> None:
         for name in ("null_tol", "axis_tol"):
@@ -439,7 +445,8 @@ def uncertainty_from_information(info: Information, problem: Problem,
     """:class:`Uncertainty` from an information matrix (see :func:`frame_uncertainty`)."""
     opts = options or UncertaintyOptions()
     t0 = time.perf_counter()
-    cov = covariance_of(info, problem, opts)
+    with blas_threads(opts.blas_threads):
+        cov = covariance_of(info, problem, opts)
     C, ut, ur, scale_null = frame_covariances(cov, info, opts.axis_tol)
     lay = info.layout
     dof = 6 * info.n_pairs - cov.rank
@@ -490,8 +497,9 @@ def frame_uncertainty(problem: Problem, result, options: UncertaintyOptions | No
     if tuple(result.x_names) != problem.x_names or tuple(result.y_names) != problem.y_names:
         raise ValueError(f"result frames {list(result.x_names)} / {list(result.y_names)} do not "
                          f"match the problem's {list(problem.x_names)} / {list(problem.y_names)}")
-    info = information_matrix(problem, result.X, result.Y, result.scale)
-    unc = uncertainty_from_information(info, problem, options)
+    with blas_threads((options or UncertaintyOptions()).blas_threads):
+        info = information_matrix(problem, result.X, result.Y, result.scale)
+        unc = uncertainty_from_information(info, problem, options)
     n_res = len(getattr(result, "unobservable", []) or [])
     n_gauge = sum(1 for w in unc.unobservable if w.startswith("translation"))
     if not unc.conditioned_on_priors and n_res != n_gauge:

@@ -98,7 +98,8 @@ class CrossValidation:
     edges : list of EdgeValidation
         In problem order.
     in_sample, held_out : ResidualStats
-        Over all pairs (held out: all pairs that were held out once).
+        Over the pairs that were held out (each once), in-sample and held out; edges never
+        held out count in neither (see their :class:`EdgeValidation`).
     fold_status : list of str
         The certificate status of each fold's solve.
     notes : list of str
@@ -205,12 +206,12 @@ def cross_validate(
                     held_t[e_idx].append(rt)
                     held_a[e_idx].append(ang)
     edges = []
-    all_in_t, all_in_a = [], []
+    all_in_t, all_in_a = [np.zeros((0, 3))], [np.zeros(0)]
     for e_idx, e in enumerate(problem.edges):
         rt, ang = _edge_residuals(problem, result.X, result.Y, result.scale, e_idx)
-        all_in_t.append(rt)
-        all_in_a.append(ang)
         if held_t[e_idx]:
+            all_in_t.append(rt)
+            all_in_a.append(ang)
             held = ResidualStats.of(np.concatenate(held_t[e_idx]), np.concatenate(held_a[e_idx]))
             note = ""
         else:

@@ -38,6 +38,7 @@ def test_small_edges_are_never_held_out():
     assert cv.edges[0].held_out is None and "kept for training" in cv.edges[0].note
     assert cv.edges[0].in_sample.n == 4
     assert all(e.held_out is not None for e in cv.edges[1:])
+    assert cv.in_sample.n == cv.held_out.n == problem.n_measurements - 4
 
 
 def test_cross_validation_is_reproducible_and_plausible():
@@ -47,6 +48,7 @@ def test_cross_validation_is_reproducible_and_plausible():
     cv2 = cross_validate(problem, np.random.default_rng(3), result=res)
     assert cv1.to_dict() == cv2.to_dict()
     assert len(cv1.fold_status) == 5 and cv1.held_out.n == problem.n_measurements
+    assert cv1.in_sample.n == cv1.held_out.n  # the totals compare the same pairs
     yaml.safe_dump(cv1.to_dict())
     for e in cv1.edges:
         # noise only: held-out residuals somewhat above in-sample (N = 120 pairs, p = 24:
