@@ -37,7 +37,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .information import Information, information_matrix, pair_terms, scatter_information
+from .information import (
+    Information,
+    check_result_frames,
+    information_matrix,
+    pair_terms,
+    scatter_information,
+)
 from .lie import invert_transform, make_transform, so3_exp
 from .problem import Problem
 from .solve import blas_threads
@@ -414,9 +420,7 @@ def suggest_next_motion(
 
 def _suggest(problem: Problem, result, opts: GuidanceOptions, info: Information | None,
              top: int) -> Guidance:
-    if tuple(result.x_names) != problem.x_names or tuple(result.y_names) != problem.y_names:
-        raise ValueError(f"result frames {list(result.x_names)} / {list(result.y_names)} do not "
-                         f"match the problem's {list(problem.x_names)} / {list(problem.y_names)}")
+    check_result_frames(problem, result)
     if info is None:
         info = information_matrix(problem, result.X, result.Y, result.scale)
     cov = covariance_of(info, problem, opts.uncertainty)

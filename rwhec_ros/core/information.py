@@ -48,6 +48,7 @@ __all__ = [
     "information_matrix",
     "scatter_information",
     "information_from_cost_matrix",
+    "check_result_frames",
 ]
 
 _I3 = np.eye(3)
@@ -286,6 +287,14 @@ class Information:
     chi2: float
     n_pairs: int
     edge_chi2: np.ndarray
+
+
+def check_result_frames(problem: Problem, result) -> None:
+    """``ValueError`` unless ``result`` (a CalibrationResult) has ``problem``'s X and Y frames in
+    the same order."""
+    if tuple(result.x_names) != problem.x_names or tuple(result.y_names) != problem.y_names:
+        raise ValueError(f"result frames {list(result.x_names)} / {list(result.y_names)} do not "
+                         f"match the problem's {list(problem.x_names)} / {list(problem.y_names)}")
 
 
 def _check_estimate(problem: Problem, X, Y, alpha: float) -> tuple[np.ndarray, float]:

@@ -45,7 +45,7 @@ import numpy as np
 import scipy.linalg
 
 from .gauge import GaugeOptions, axis_words, build_gauge_fix, unobservable_directions_of_block
-from .information import Information, information_matrix
+from .information import Information, check_result_frames, information_matrix
 from .problem import Problem
 from .solve import blas_threads
 
@@ -494,9 +494,7 @@ def frame_uncertainty(problem: Problem, result, options: UncertaintyOptions | No
         (:data:`CONVENTION`), unobservable axes as such, the variance factor.
     """
     t0 = time.perf_counter()
-    if tuple(result.x_names) != problem.x_names or tuple(result.y_names) != problem.y_names:
-        raise ValueError(f"result frames {list(result.x_names)} / {list(result.y_names)} do not "
-                         f"match the problem's {list(problem.x_names)} / {list(problem.y_names)}")
+    check_result_frames(problem, result)
     with blas_threads((options or UncertaintyOptions()).blas_threads):
         info = information_matrix(problem, result.X, result.Y, result.scale)
         unc = uncertainty_from_information(info, problem, options)

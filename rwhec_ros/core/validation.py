@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .information import pair_residuals
+from .information import check_result_frames, pair_residuals
 from .problem import Edge, Problem
 from .solve import SolveOptions, solve
 
@@ -184,8 +184,8 @@ def cross_validate(
     assign = fold_assignment(problem, folds, rng, min_pairs=min_pairs)
     if result is None:
         result = solve(problem, opts)
-    elif tuple(result.x_names) != problem.x_names or tuple(result.y_names) != problem.y_names:
-        raise ValueError("result: its frames do not match the problem's")
+    else:
+        check_result_frames(problem, result)
     held_t = [[] for _ in problem.edges]
     held_a = [[] for _ in problem.edges]
     status = []

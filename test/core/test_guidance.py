@@ -3,31 +3,23 @@
 import numpy as np
 import pytest
 import yaml
-from scipy.spatial.transform import Rotation
 
 from rwhec_ros.core.guidance import GuidanceOptions, suggest_next_motion
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import perturb_measurements, random_instance, random_transforms
+from rwhec_ros.core.synthetic import (
+    perturb_measurements,
+    planar_instance,
+    random_instance,
+    random_transforms,
+)
 from rwhec_ros.core.uncertainty import frame_uncertainty
 
 
-def _planar(seed=1, M=2, P=2, n=20):
-    """A ground robot: the rig (camera carrier) only yaws; A = T_rig_world."""
-    rng = np.random.default_rng(seed)
-    X, Y = random_transforms(rng, M), random_transforms(rng, P)
-    edges = []
-    for j in range(M):
-        for k in range(P):
-            yaw = rng.uniform(-np.pi, np.pi, n)
-            T_world_rig = make_transform(
-                Rotation.from_rotvec(np.outer(yaw, [0, 0, 1])).as_matrix(),
-                np.column_stack([rng.uniform(-2, 2, (n, 2)), np.zeros(n)]))
-            A = invert_transform(T_world_rig)
-            B = perturb_measurements(rng, invert_transform(Y[k]) @ A @ X[j], 0.01, 125.0)
-            edges.append(Edge.build(f"tag_{j}", f"cam{k}", A, B, sigma=0.01, kappa=125.0))
-    return Problem([f"tag_{j}" for j in range(M)], [f"cam{k}" for k in range(P)], edges)
+def _planar(seed=1):
+    """A ground robot that only yaws: camera and tag heights unobservable."""
+    return planar_instance(np.random.default_rng(seed))[0]
 
 
 def test_planar_motion_asks_for_a_tilt():

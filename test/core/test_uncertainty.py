@@ -14,7 +14,12 @@ from rwhec_ros.core.information import information_from_cost_matrix, information
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp, so3_log
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import perturb_measurements, random_instance, random_transforms
+from rwhec_ros.core.synthetic import (
+    perturb_measurements,
+    planar_instance,
+    random_instance,
+    random_transforms,
+)
 from rwhec_ros.core.uncertainty import UncertaintyOptions, frame_uncertainty
 
 
@@ -148,25 +153,13 @@ def test_rotating_the_parent_rotates_the_reported_axes(side):
                            moved_frames[0].std_translation_m, rtol=1e-3)
 
 
-def _planar_problem(seed=1, M=2, P=2, n=20):
-    """A ground robot yawing and driving in the plane: camera and tag heights unobservable."""
-    rng = np.random.default_rng(seed)
-    X, Y = random_transforms(rng, M), random_transforms(rng, P)
-    edges = []
-    for j in range(M):
-        for k in range(P):
-            yaw = rng.uniform(-np.pi, np.pi, n)
-            T_world_rig = make_transform(
-                Rotation.from_rotvec(np.outer(yaw, [0, 0, 1])).as_matrix(),
-                np.column_stack([rng.uniform(-2, 2, (n, 2)), np.zeros(n)]))
-            A = invert_transform(T_world_rig)
-            B = perturb_measurements(rng, invert_transform(Y[k]) @ A @ X[j], 0.01, 125.0)
-            edges.append(Edge.build(f"tag_{j}", f"cam{k}", A, B, sigma=0.01, kappa=125.0))
-    return Problem([f"tag_{j}" for j in range(M)], [f"cam{k}" for k in range(P)], edges)
+def _planar(seed=1):
+    """A ground robot that only yaws: camera and tag heights unobservable."""
+    return planar_instance(np.random.default_rng(seed))[0]
 
 
 def test_unobservable_heights_are_reported_as_such():
-    problem = _planar_problem()
+    problem = _planar()
     res = solve(problem)
     unc = frame_uncertainty(problem, res)
     assert not unc.observable and len(unc.unobservable) == 1
@@ -186,7 +179,7 @@ def test_unobservable_heights_are_reported_as_such():
 
 
 def test_priors_that_pin_the_heights_give_stds_given_the_priors():
-    problem = _planar_problem()
+    problem = _planar()
     gauge = GaugeOptions(priors=(TranslationPrior("cam0", "z", 0.3),))
     from rwhec_ros.core.solve import SolveOptions
 

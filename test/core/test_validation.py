@@ -80,7 +80,7 @@ def test_bad_arguments():
     with pytest.raises(ValueError, match="rng"):
         fold_assignment(problem, 5, 0)
     other, _ = random_instance(np.random.default_rng(1), 1, 1, n_per_edge=8)
-    with pytest.raises(ValueError, match="result"):
+    with pytest.raises(ValueError, match="do not match"):
         cross_validate(problem, np.random.default_rng(0), result=solve(other))
 
 
