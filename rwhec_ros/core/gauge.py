@@ -48,6 +48,7 @@ __all__ = [
     "UnobservableDirection",
     "GaugeFix",
     "find_unobservable_directions",
+    "unobservable_directions_of_block",
     "build_gauge_fix",
     "axis_words",
 ]
@@ -234,9 +235,18 @@ def find_unobservable_directions(
     bound on it when no direction is weak: the eigendecomposition is skipped when a Cholesky
     factorisation shows every eigenvalue above both thresholds).
     """
-    opts = options or GaugeOptions()
     idx = _eliminated(layout, problem.unknown_scale)
-    E = _block(Q, idx)
+    return unobservable_directions_of_block(_block(Q, idx), problem, options)
+
+
+def unobservable_directions_of_block(
+    E: np.ndarray, problem: Problem, options: GaugeOptions | None = None
+) -> tuple[np.ndarray, np.ndarray, list[UnobservableDirection], float]:
+    """:func:`find_unobservable_directions` on the translation block ``E = Q_ee`` itself
+    (m, m): ``m = 3 (M + P)`` translations (``alpha t`` for unknown scale) and then ``alpha``
+    (unknown scale only), as the Schur reduction eliminates them."""
+    opts = options or GaugeOptions()
+    E = np.asarray(E, float)
     E = 0.5 * (E + E.T)
     info_floor = 1.0 / (2.0 * opts.max_std_m**2)
     # quick exit (the usual case): E - tau I positive definite with tau above both thresholds,

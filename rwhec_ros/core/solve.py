@@ -22,6 +22,7 @@ cost. Numerical failures (Clarabel, eigensolvers, singular systems) become the s
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import time
 from dataclasses import dataclass, field
@@ -61,7 +62,7 @@ from .relaxation import (
 from .result import CalibrationResult, Certificate, Status
 from .sparsity import ArrowSplit, arrow_split, estimate_form_costs
 
-__all__ = ["SolveOptions", "solve", "MODES"]
+__all__ = ["SolveOptions", "solve", "MODES", "blas_threads"]
 
 MODES = ("sdp", "fast", "local")
 
@@ -421,10 +422,7 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
         CERTIFIED_OPTIMAL.
     """
     options = options or SolveOptions()
-    threads = options.blas_threads
-    if threads is None:
-        return _solve(problem, options)
-    with _blas_controller().limit(limits=threads, user_api="blas"):
+    with blas_threads(options.blas_threads):
         return _solve(problem, options)
 
 
@@ -432,6 +430,14 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
 def _blas_controller() -> ThreadpoolController:
     """One controller per process: scanning the loaded libraries costs ~3 ms, limiting is cheap."""
     return ThreadpoolController()
+
+
+def blas_threads(threads: int | None):
+    """Context manager limiting BLAS to ``threads`` threads (``None``: leave it as it is); see
+    :attr:`SolveOptions.blas_threads` for why one thread is the default everywhere."""
+    if threads is None:
+        return contextlib.nullcontext()
+    return _blas_controller().limit(limits=threads, user_api="blas")
 
 
 def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
