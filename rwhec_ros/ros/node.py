@@ -241,7 +241,11 @@ class CalibratorNode(Node):
             return
         cfg = review.config
         root = node_output_root(cfg.output.directory)
-        self.session.update_config(cfg, output_root=root)
+        try:
+            self.session.update_config(cfg, output_root=root)
+        except ValueError as exc:  # cannot happen after review_changes; never crash a callback
+            self.get_logger().error(f"parameter change not applied: {exc}")
+            return
         self.config, self.output_root = cfg, root
         self.get_logger().info(f"parameters changed: {review.reason}"
                                + (f"; outputs under {root}"
