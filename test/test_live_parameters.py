@@ -134,3 +134,17 @@ def test_restart_only_differences(cfg):
     flat["solver.min_pairs"] = 7
     other = type(cfg).from_parameters(flat)
     assert restart_only_differences(cfg, other) == ["cameras.cam0.image_topic"]
+
+
+def test_priors_are_live_but_must_stay_parallel():
+    cfg = load_config(DEMO_YAML.parent / "mobile_robot_floor.yaml")
+    review = review_changes(cfg, {"priors.values_m": [0.5, 0.5, 0.5]})
+    assert review.accepted and review.config.to_parameters()["priors.values_m"] == [0.5] * 3
+    # one array alone cannot add or remove a prior: refused, naming the arrays
+    review = review_changes(cfg, {"priors.frames": ["cam_front"]})
+    assert not review.accepted and "must have the same length" in review.reason
+    # all three together (one atomic set) can
+    frames = cfg.to_parameters()["priors.frames"][:1]
+    review = review_changes(cfg, {"priors.frames": frames, "priors.axes": ["z"],
+                                  "priors.values_m": [0.6]})
+    assert review.accepted, review.reason
