@@ -13,9 +13,12 @@ from rwhec_ros.config import (
     GLOBAL_SPECS,
     CalibratorConfig,
     flatten_parameters,
+    fully_qualified_name,
     load_config,
+    matching_sections,
     parameter_specs,
     read_parameter_file,
+    section_pattern,
 )
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
@@ -189,7 +192,8 @@ BAD = [
     ({"camera_carrier.frame": "/rig"}, "camera_carrier.frame"),
     ({"tags.frame_prefix": "cam", "tags.ids": [0, 1]}, "tags.frame_prefix"),
     ({"ros.image_qos": "best"}, "ros.image_qos"),
-    ({"output.directory": ""}, "output.directory"),
+    ({"ros.image_queue_depth": 0}, "ros.image_queue_depth"),
+    ({"output.directory": 3}, "output.directory"),
 ]
 
 
@@ -266,6 +270,7 @@ def test_exponent_floats_read_as_doubles(tmp_path):
 
 
 def test_wildcard_and_node_sections(tmp_path):
+    # ROS's rule: a section applies when its key matches the node's fully qualified name.
     p = minimal()
     path = tmp_path / "multi.yaml"
     path.write_text(
@@ -274,17 +279,90 @@ def test_wildcard_and_node_sections(tmp_path):
                 "/**": {"ros__parameters": {"solver.mode": "sdp"}},
                 "other_node": {"ros__parameters": {"rate_hz": 3.0}},
                 "/rig1/calibrator": {"ros__parameters": p},
-            }
+            },
+            sort_keys=False,
         )
     )
-    cfg = load_config(path)  # no node name: the 'calibrator' sections
+    cfg = load_config(path, node_name="/rig1/calibrator")
     assert cfg.solver.mode == "sdp"
-    assert load_config(path, node_name="/rig1/calibrator") == cfg
+    assert load_config(path, node_name="calibrator", namespace="rig1") == cfg
+    assert load_config(path, node_name="calibrator", namespace="/rig1/") == cfg
+    # without a namespace the node is /calibrator: only '/**' applies to it
     with pytest.raises(ValueError, match="cameras.names: missing"):
-        load_config(path, node_name="nobody")  # only '/**' applies to it
+        load_config(path)
+    with pytest.raises(ValueError, match="cameras.names: missing"):
+        load_config(path, node_name="calibrator", namespace="rig2")
     path.write_text(yaml.safe_dump({"other_node": {"ros__parameters": {"rate_hz": 3.0}}}))
-    with pytest.raises(ValueError, match="no section for node"):
+    with pytest.raises(ValueError, match="no section applies to node '/calibrator'.*'/\\*\\*'"):
         load_config(path, node_name="calibrator")
+
+
+@pytest.mark.parametrize(
+    "key, fqn, applies",
+    [
+        ("/**", "/calibrator", True),
+        ("/**", "/rig1/calibrator", True),
+        ("/**", "/a/b/other", True),
+        ("/**/calibrator", "/calibrator", True),
+        ("/**/calibrator", "/rig1/calibrator", True),
+        ("/**/calibrator", "/a/b/calibrator", True),
+        ("/**/calibrator", "/rig1/other", False),
+        ("/**/calibrator", "/rig1/calibrator2", False),
+        ("calibrator", "/calibrator", True),  # a bare key is /calibrator: no namespace
+        ("calibrator", "/rig1/calibrator", False),  # the failure of issue 17, item 1
+        ("/calibrator", "/calibrator", True),
+        ("/rig1/calibrator", "/rig1/calibrator", True),
+        ("/rig1/calibrator", "/calibrator", False),
+        ("/rig1/calibrator", "/rig2/calibrator", False),
+        ("/*/calibrator", "/rig1/calibrator", True),  # exactly one namespace level
+        ("/*/calibrator", "/calibrator", False),
+        ("/*/calibrator", "/a/b/calibrator", False),
+        ("rig1/*", "/rig1/calibrator", True),
+        ("/rig.1/calibrator", "/rigx1/calibrator", False),  # the rest is literal
+    ],
+)
+def test_section_keys_match_as_in_ros(key, fqn, applies):
+    assert bool(section_pattern(key).fullmatch(fqn)) is applies
+    assert matching_sections([key], fqn) == ([key] if applies else [])
+
+
+def test_later_matching_sections_override_earlier_ones(tmp_path):
+    # rclpy merges the matching sections in file order: the later one wins, whatever its key
+    p = minimal()
+    path = tmp_path / "order.yaml"
+    for first, second, expected in [("/**", "/**/calibrator", "local"),
+                                    ("/**/calibrator", "/**", "sdp")]:
+        values = {"/**": "sdp", "/**/calibrator": "local"}
+        doc = {first: {"ros__parameters": {**p, "solver.mode": values[first]}},
+               second: {"ros__parameters": {"solver.mode": values[second]}}}
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        assert load_config(path, "calibrator", "rig1").solver.mode == expected
+
+
+@pytest.mark.parametrize(
+    "name, namespace, fqn",
+    [("calibrator", "", "/calibrator"), ("calibrator", "rig1", "/rig1/calibrator"),
+     ("calibrator", "/a/b/", "/a/b/calibrator"), ("/rig1/calibrator", "", "/rig1/calibrator")],
+)
+def test_fully_qualified_name(name, namespace, fqn):
+    assert fully_qualified_name(name, namespace) == fqn
+
+
+@pytest.mark.parametrize("name, namespace", [("", ""), ("/", ""), ("/**", ""),
+                                             ("/rig1/calibrator", "rig2")])
+def test_fully_qualified_name_refuses(name, namespace):
+    with pytest.raises(ValueError, match="node name"):
+        fully_qualified_name(name, namespace)
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=[p.name for p in EXAMPLES])
+def test_examples_apply_under_any_namespace_and_node_name(path):
+    # shipped files use '/**' so that namespace:= and a renamed node still get them
+    assert list(yaml.safe_load(path.read_text())) == ["/**"]
+    cfg = load_config(path)
+    for name, namespace in [("calibrator", "rig1"), ("my_calibrator", ""),
+                            ("calibrator", "robots/rig2")]:
+        assert load_config(path, name, namespace) == cfg
 
 
 @pytest.mark.parametrize(

@@ -53,7 +53,9 @@ EXIT_NO_SOLUTION = 3
 
 PROG = "rwhec-calibrate"
 MODES = ("fast", "sdp", "local")
-#: Output root when no configuration names one (its ``output.directory``).
+#: Output root when no configuration names one (its ``output.directory``): ``./rwhec_output``,
+#: :data:`rwhec_ros.session.paths.DEFAULT_OUTPUT` (a literal here: the session package is slow
+#: to import and ``--help`` should not wait for it).
 DEFAULT_OUTPUT = "rwhec_output"
 
 
@@ -189,6 +191,8 @@ class SolveSettings:
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
+        from ..session.paths import plain_output_root
+
         p = {**dict(parameters), **solver_overrides(args)}
         p.update(prior_overrides(args, p))
         priors = tuple(zip(p.get("priors.frames", ()), p.get("priors.axes", ()),
@@ -196,7 +200,7 @@ class SolveSettings:
         return SolveSettings(mode=str(p.get("solver.mode", "fast")),
                              min_pairs=int(p.get("solver.min_pairs", 3)),
                              robust=bool(p.get("solver.reject_outliers", False)),
-                             output_root=str(p.get("output.directory", DEFAULT_OUTPUT)),
+                             output_root=str(plain_output_root(p.get("output.directory", ""))),
                              priors=priors,
                              unobservable_std_m=float(p.get("solver.unobservable_std_m", 1.0)),
                              min_scale=float(p.get("solver.min_scale", 0.01)))

@@ -35,8 +35,9 @@ def _add_config(p: argparse.ArgumentParser, help_text: str, *, required: bool = 
     p.add_argument("--config", type=Path, metavar="FILE", required=required, default=None,
                    help=help_text)
     p.add_argument("--node-name", metavar="NAME", default=None,
-                   help="section of the configuration file (default: its only section, else "
-                        "calibrator)")
+                   help="the node whose sections of the configuration file apply, by ROS's rule "
+                        "('/**', '/**/NAME', '/NAME'); a fully qualified /NS/NAME gives the "
+                        "namespace (default: the file's only section, else calibrator)")
 
 
 def _add_solver(p: argparse.ArgumentParser) -> None:

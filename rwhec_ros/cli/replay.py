@@ -10,7 +10,6 @@ from typing import Any
 import numpy as np
 
 from .common import (
-    DEFAULT_OUTPUT,
     BadInput,
     Printer,
     Progress,
@@ -108,10 +107,11 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     return code
 
 
-def demo_parameters(rig, *, output_directory: str, mode: str = "fast") -> dict[str, Any]:
+def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> dict[str, Any]:
     """Flat calibrator parameters for a simulated rig (the values of ``config/demo.yaml``, with
     the rig's cameras and tags): motion-capture ``PoseStamped`` ``world -> rig``, cameras on
-    ``rig``, tags in ``world``."""
+    ``rig``, tags in ``world``; ``output_directory`` as ``output.directory`` (``""``: the
+    default of :mod:`rwhec_ros.session.paths`)."""
     from ..simulation import DEMO_POSE_TOPIC, DEMO_RIG_FRAME, DEMO_WORLD_FRAME, demo_camera_topics
 
     flat: dict[str, Any] = {
@@ -154,7 +154,7 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
         rig = demo_rig(args.cameras, args.tags)
     except ValueError as exc:
         raise BadInput(str(exc)) from None
-    flat = demo_parameters(rig, output_directory=DEFAULT_OUTPUT)
+    flat = demo_parameters(rig)
     if settings is not None:
         flat.update({k: v for k, v in settings.to_parameters().items()
                      if not k.startswith(RIG_PARAMETER_PREFIXES)})

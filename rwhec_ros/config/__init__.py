@@ -3,10 +3,15 @@
 The same file serves ``ros2 run rwhec_ros calibrator --ros-args --params-file FILE`` and the CLI's
 ``--config FILE``::
 
-    calibrator:                 # node name (or "/**" for any node)
+    /**:                        # any node name in any namespace (ROS's wildcard)
       ros__parameters:
         camera_carrier: {frame: rig, moving: true}
         ...
+
+The top-level keys select the node as ROS does (:func:`~.parameter_file.section_pattern`):
+``/**`` any node, ``/**/calibrator`` the node ``calibrator`` in any namespace, ``calibrator`` only
+``/calibrator`` (no namespace), ``/rig1/calibrator`` only that node; the shipped files use
+``/**`` so that they work under any ``namespace:=`` and node name.
 
 Nested mappings are dotted parameter names (``camera_carrier.frame``), exactly as the ROS 2
 parameter-file parser flattens them. ROS parameters are scalars or homogeneous arrays only (no
@@ -46,7 +51,14 @@ file without ROS).
 
 from . import sections, specs
 from .calibrator import CalibratorConfig
-from .parameter_file import flatten_parameters, load_config, read_parameter_file
+from .parameter_file import (
+    flatten_parameters,
+    fully_qualified_name,
+    load_config,
+    matching_sections,
+    read_parameter_file,
+    section_pattern,
+)
 from .sections import *  # noqa: F403 - every section class, listed in sections.__all__
 from .specs import *  # noqa: F403 - the schema, listed in specs.__all__
 
@@ -55,6 +67,9 @@ __all__ = [
     "load_config",
     "read_parameter_file",
     "flatten_parameters",
+    "fully_qualified_name",
+    "section_pattern",
+    "matching_sections",
     *sections.__all__,
     *specs.__all__,
 ]

@@ -24,7 +24,7 @@ from .sections import (
     SyncConfig,
     TagsConfig,
 )
-from .specs import DEFAULT_NODE_NAME, IMAGE_QOS, POSE_SOURCE_TYPES, SOLVER_MODES
+from .specs import IMAGE_QOS, POSE_SOURCE_TYPES, SOLVER_MODES
 from .validation import (
     check_choice,
     check_frame,
@@ -114,8 +114,9 @@ class CalibratorConfig:
         """Flat dotted parameters (plain Python values) that rebuild this configuration."""
         return dict(self.parameters)
 
-    def to_yaml(self, node_name: str = DEFAULT_NODE_NAME) -> str:
-        """The configuration as a ROS 2 parameter file (nested mappings)."""
+    def to_yaml(self, node_name: str = "/**") -> str:
+        """The configuration as a ROS 2 parameter file (nested mappings) under the section key
+        ``node_name`` (default ``/**``: any node in any namespace)."""
         nested: dict[str, Any] = {}
         for key, value in self.to_parameters().items():
             node = nested
@@ -233,8 +234,6 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         min_scale=check_positive(v, "solver.min_scale"),
     )
     priors = _build_priors(v, names, tags)
-    if not v["output.directory"]:
-        raise ValueError("output.directory: must not be empty")
     output = OutputConfig(
         directory=v["output.directory"],
         frame_suffix=v["output.frame_suffix"],
@@ -244,6 +243,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
     ros = RosConfig(
         image_qos=check_choice(v, "ros.image_qos", IMAGE_QOS),
         diagnostics_period_s=check_positive(v, "ros.diagnostics_period_s"),
+        image_queue_depth=check_positive_int(v, "ros.image_queue_depth", 1),
     )
     plain = {k: (list(x) if isinstance(x, tuple) else x) for k, x in v.items() if x is not None}
     return dict(

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +12,14 @@ import yaml
 from .calibrator import CalibratorConfig
 from .specs import DEFAULT_NODE_NAME
 
-__all__ = ["flatten_parameters", "read_parameter_file", "load_config"]
+__all__ = [
+    "flatten_parameters",
+    "fully_qualified_name",
+    "section_pattern",
+    "matching_sections",
+    "read_parameter_file",
+    "load_config",
+]
 
 
 class _ParamLoader(yaml.SafeLoader):
@@ -60,13 +67,68 @@ def flatten_parameters(tree: Mapping[str, Any], prefix: str = "") -> dict[str, A
     return out
 
 
-def read_parameter_file(path: str | Path, node_name: str | None = None) -> dict[str, Any]:
+def fully_qualified_name(node_name: str = DEFAULT_NODE_NAME, namespace: str = "") -> str:
+    """The node's fully qualified name as ROS forms it: ``/<namespace>/<node_name>``.
+
+    A ``node_name`` that starts with ``/`` is taken as fully qualified already (``namespace``
+    must then be empty). Raises ``ValueError`` for an empty name or a name with a wildcard.
+    """
+    name = str(node_name).strip()
+    ns = str(namespace or "").strip().strip("/")
+    if not name or not name.strip("/") or "*" in name or "*" in ns:
+        raise ValueError(
+            f"node name: expected a node name such as 'calibrator' or '/rig1/calibrator', "
+            f"got node_name={node_name!r}, namespace={namespace!r}"
+        )
+    if name.startswith("/"):
+        if ns:
+            raise ValueError(
+                f"node name: {node_name!r} is fully qualified; do not also give namespace "
+                f"{namespace!r}"
+            )
+        return "/" + name.strip("/")
+    return "/" + "/".join(part for part in (ns, name.strip("/")) if part)
+
+
+def section_pattern(key: str) -> re.Pattern:
+    """The regular expression ROS matches a parameter-file section key against.
+
+    As rclpy/rclcpp do: the key gets a leading ``/``; ``/**`` stands for any number of
+    namespace levels (``(/\\w+)*``) and ``/*`` for exactly one (``(/\\w+)``); the rest is
+    literal and must match the whole fully qualified node name.
+    """
+    k = str(key)
+    if not k.startswith("/"):
+        k = "/" + k
+    out, i = "", 0
+    while i < len(k):
+        if k.startswith("/**", i):
+            out, i = out + r"(/\w+)*", i + 3
+        elif k.startswith("/*", i):
+            out, i = out + r"(/\w+)", i + 2
+        else:
+            out, i = out + re.escape(k[i]), i + 1
+    return re.compile(out)
+
+
+def matching_sections(keys: Sequence[str], fqn: str) -> list[str]:
+    """The section keys of a parameter file that apply to the node ``fqn``, in file order (ROS
+    applies them in this order: a later section overrides an earlier one)."""
+    return [k for k in keys if section_pattern(k).fullmatch(fqn)]
+
+
+def read_parameter_file(path: str | Path, node_name: str | None = None,
+                        namespace: str = "") -> dict[str, Any]:
     """Read a ROS 2 parameter YAML and return the flat parameters of one node.
 
-    Sections apply in the order the ROS parser applies them: ``/**`` (every node) first, then
-    ``/**/<node_name>``, ``<node_name>`` / ``/<node_name>`` or a namespaced ``/ns/<node_name>``.
-    With ``node_name=None`` a file with one section uses it, otherwise the sections for
-    :data:`DEFAULT_NODE_NAME` (``calibrator``) are used.
+    The sections are chosen by ROS's own rule (:func:`section_pattern`): for the node
+    ``/<namespace>/<node_name>`` every section whose key matches its fully qualified name applies,
+    in file order, a later one overriding an earlier one. ``/**`` matches every node,
+    ``/**/calibrator`` a ``calibrator`` in any namespace, ``calibrator`` (= ``/calibrator``) only
+    the node without namespace and ``/rig1/calibrator`` only that one. ``node_name`` may also be
+    fully qualified (``/rig1/calibrator``). With ``node_name=None`` and ``namespace`` empty, a
+    file with exactly one section uses that section whatever its key; otherwise the node is
+    :data:`DEFAULT_NODE_NAME` (``/calibrator``).
     """
     path = Path(path)
     try:
@@ -82,25 +144,17 @@ def read_parameter_file(path: str | Path, node_name: str | None = None) -> dict[
             f"config file {str(path)!r}: expected '<node_name>: ros__parameters: ...' at top level"
         )
     keys = [str(k) for k in doc]
-    if node_name is None and len(keys) == 1:
+    if node_name is None and not namespace and len(keys) == 1:
         selected = keys
     else:
-        node_name = DEFAULT_NODE_NAME if node_name is None else node_name
-        bare = node_name.strip("/").split("/")[-1]
-
-        def rank(k: str) -> int | None:
-            if k == "/**":
-                return 0
-            if k == f"/**/{bare}":
-                return 1
-            if k.strip("/") == bare or k.endswith("/" + bare):
-                return 2
-            return None
-
-        selected = sorted((k for k in keys if rank(k) is not None), key=rank)
+        fqn = fully_qualified_name(DEFAULT_NODE_NAME if node_name is None else node_name,
+                                   namespace)
+        selected = matching_sections(keys, fqn)
         if not selected:
             raise ValueError(
-                f"config file {str(path)!r}: no section for node {node_name!r}; sections: {keys}"
+                f"config file {str(path)!r}: no section applies to node {fqn!r} (sections: "
+                f"{keys}); ROS applies a section named '/**' (any node), "
+                f"'/**/{fqn.rsplit('/', 1)[-1]}' (that name in any namespace) or {fqn!r}"
             )
     flat: dict[str, Any] = {}
     for k in selected:
@@ -119,12 +173,15 @@ def read_parameter_file(path: str | Path, node_name: str | None = None) -> dict[
     return flat
 
 
-def load_config(path: str | Path, node_name: str | None = None) -> CalibratorConfig:
-    """Load and validate a configuration file without ROS (format: :mod:`rwhec_ros.config`).
+def load_config(path: str | Path, node_name: str | None = None,
+                namespace: str = "") -> CalibratorConfig:
+    """Load and validate a configuration file without ROS (format: :mod:`rwhec_ros.config`),
+    with the sections that apply to the node ``/<namespace>/<node_name>``
+    (:func:`read_parameter_file`).
 
     Raises ``ValueError`` naming the file and the dotted parameter for any problem.
     """
-    flat = read_parameter_file(path, node_name)
+    flat = read_parameter_file(path, node_name, namespace)
     try:
         return CalibratorConfig.from_parameters(flat)
     except ValueError as exc:

@@ -132,7 +132,8 @@ class PriorsConfig:
 
 @dataclass(frozen=True)
 class OutputConfig:
-    """Output directory and publication settings."""
+    """Output directory (as configured: the front end resolves it, see
+    :mod:`rwhec_ros.session.paths`) and publication settings."""
 
     directory: str
     frame_suffix: str
@@ -146,3 +147,4 @@ class RosConfig:
 
     image_qos: str
     diagnostics_period_s: float
+    image_queue_depth: int = 5

@@ -151,8 +151,11 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="'x', 'y' or 'z': the axis of the frame's carrier for each priors.frames entry"),
     ParamSpec("priors.values_m", "double_array", (),
               doc="the known translation components [m] (fix unobservable directions only)"),
-    ParamSpec("output.directory", "string", "rwhec_output",
-              doc="results, data sets and static-tf launch files go here (never overwritten)"),
+    ParamSpec("output.directory", "string", "",
+              doc="root of the output directories (one new per calibrate/save_dataset, never "
+                  "overwritten); '' = $ROS_HOME/rwhec_ros (~/.ros/rwhec_ros) for the node, "
+                  "./rwhec_output for the CLI; relative: under that directory for the node, "
+                  "under the current directory for the CLI"),
     ParamSpec("output.frame_suffix", "string", "_calibrated",
               doc="published child frame = <frame><suffix> unless set per camera"),
     ParamSpec("output.publish_tf", "bool", True, doc="publish results on /tf_static"),
@@ -161,6 +164,10 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("ros.image_qos", "string", "sensor_data",
               doc="image/camera_info QoS: 'sensor_data' (best effort) or 'reliable'"),
     ParamSpec("ros.diagnostics_period_s", "double", 1.0, doc="period of /diagnostics [s]"),
+    ParamSpec("ros.image_queue_depth", "int", 5,
+              doc="history depth of each image/camera_info subscription: a burst of more "
+                  "images than this between two executor turns is dropped by the middleware, "
+                  "uncounted"),
 )
 
 CAMERA_SPECS: tuple[ParamSpec, ...] = (

@@ -2,14 +2,16 @@
 
 Run::
 
-    ros2 run rwhec_ros calibrator --ros-args --params-file config/<file>.yaml
+    ros2 run rwhec_ros calibrator --ros-args \
+        --params-file $(ros2 pkg prefix --share rwhec_ros)/config/<file>.yaml
     ros2 service call /calibrate std_srvs/srv/Trigger
 
 Interfaces (relative names, so the node can be namespaced):
 
 * subscribes ``cameras.<name>.image_topic`` (``sensor_msgs/Image``) and
-  ``cameras.<name>.camera_info_topic`` (``sensor_msgs/CameraInfo``) with
-  ``qos_profile_sensor_data`` (``ros.image_qos: reliable`` for a reliable subscription), and
+  ``cameras.<name>.camera_info_topic`` (``sensor_msgs/CameraInfo``) best effort like
+  ``qos_profile_sensor_data`` (``ros.image_qos: reliable`` for a reliable subscription), history
+  depth ``ros.image_queue_depth``, and
   ``pose_source.topic`` (``geometry_msgs/PoseStamped``) or, with ``pose_source.type: tf``, looks
   ``T_parent_child`` up on tf at every image stamp (tf2 ``Buffer`` + ``TransformListener``);
 * services ``calibrate``, ``~/reset``, ``~/save_dataset`` (``std_srvs/Trigger``);
@@ -17,6 +19,14 @@ Interfaces (relative names, so the node can be namespaced):
   the configuration), ``~/suboptimality_bound`` (``std_msgs/Float64``) and ``~/result``
   (``std_msgs/String``, the result YAML), both transient local, and
   ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (per-edge pairs and identifiability).
+
+Outputs go under ``$ROS_HOME/rwhec_ros`` (``~/.ros/rwhec_ros``) unless ``output.directory``
+says otherwise (:mod:`rwhec_ros.session.paths`); the start-up log and every service answer name
+the absolute directory (:mod:`rwhec_ros.session.responses`). ``ros2 param set`` of a live
+parameter (``solver.*``, ``noise.sigma``/``kappa``, ``keyframe.min_*``, ``output.*``) takes effect
+as :mod:`rwhec_ros.config.live_parameters` says; any other change is refused with the reason.
+Start-up errors and Ctrl-C (also the double SIGINT of ``ros2 launch``) are handled by
+:func:`rwhec_ros.ros.process.run_node_program`: one line, no traceback, exit code 0 on Ctrl-C.
 
 Threading: sensor callbacks (reentrant group) only convert cheap messages or enqueue images;
 tag detection runs on a worker thread fed by a bounded drop-oldest queue; the services have their
@@ -32,14 +42,11 @@ import sys
 import threading
 import time
 
-import rclpy
 import tf2_ros
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -54,6 +61,7 @@ from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
 from ..config import DEFAULT_NODE_NAME
+from ..config.live_parameters import review_changes
 from ..messages import (
     diagnostic_rows,
     fill_message,
@@ -63,7 +71,15 @@ from ..messages import (
     transform_to_transform_stamped_fields,
 )
 from ..session import CalibrationSession, ImageQueue, MessageHandlers, QueueWorker
+from ..session.paths import node_output_root
+from ..session.responses import (
+    RESET_MESSAGE,
+    calibrate_message,
+    save_dataset_message,
+    should_publish_tf,
+)
 from .params import config_from_node
+from .process import rclpy_main
 
 __all__ = ["CalibratorNode", "main"]
 
@@ -97,7 +113,8 @@ class CalibratorNode(Node):
             self.destroy_node()
             raise
         cfg = self.config
-        self.session = CalibrationSession(cfg)
+        self.output_root = node_output_root(cfg.output.directory)
+        self.session = CalibrationSession(cfg, output_root=self.output_root)
         self._warn_lock = threading.Lock()
         self._warn_last: dict[str, float] = {}
         self._warn_suppressed: dict[str, int] = {}
@@ -119,11 +136,12 @@ class CalibratorNode(Node):
         ]
 
         # --- subscriptions ------------------------------------------------------------------------
-        if cfg.ros.image_qos == "sensor_data":
-            image_qos = qos_profile_sensor_data
-        else:
-            image_qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE,
-                                   history=HistoryPolicy.KEEP_LAST)
+        # qos_profile_sensor_data (best effort, volatile, keep last) with the configured depth
+        reliability = (qos_profile_sensor_data.reliability if cfg.ros.image_qos == "sensor_data"
+                       else ReliabilityPolicy.RELIABLE)
+        image_qos = QoSProfile(depth=cfg.ros.image_queue_depth, reliability=reliability,
+                               durability=DurabilityPolicy.VOLATILE,
+                               history=HistoryPolicy.KEEP_LAST)
         for cam in cfg.cameras:
             self.create_subscription(
                 Image, cam.image_topic,
@@ -163,13 +181,22 @@ class CalibratorNode(Node):
         self._result_pub = self.create_publisher(String, "~/result", latched)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._static_tf = tf2_ros.StaticTransformBroadcaster(self)
-        self.create_timer(cfg.ros.diagnostics_period_s, self._publish_diagnostics,
-                          callback_group=self._timer_group)
+        self._diag_timer = self.create_timer(cfg.ros.diagnostics_period_s,
+                                             self._publish_diagnostics,
+                                             callback_group=self._timer_group)
+
+        # --- run-time parameter changes (after every declaration: declaring calls these too) --
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        post = getattr(self, "add_post_set_parameters_callback", None)  # rclpy >= Iron
+        self._apply_in_post_set = post is not None
+        if post is not None:
+            post(self._on_parameters_set)
         self.get_logger().info(
             f"calibrating cameras {list(cfg.camera_names)} ({cfg.camera_carrier.frame}) and tags "
             f"{list(cfg.tags.ids)} ({cfg.tag_carrier.frame}); poses from "
             f"{cfg.pose_source.type} {cfg.pose_source.parent}->{cfg.pose_source.child}"
             + (f" on {cfg.pose_source.topic}" if cfg.pose_source.type == "topic" else "")
+            + f"; outputs under {self.output_root}"
         )
 
     # --- logging ------------------------------------------------------------------------------
@@ -185,6 +212,44 @@ class CalibratorNode(Node):
             skipped = self._warn_suppressed.pop(key, 0)
         more = f" (+{skipped} similar suppressed)" if skipped else ""
         self.get_logger().warning(text + more)
+
+    # --- parameters ---------------------------------------------------------------------------
+    def _review(self, params):
+        """The verdict on setting ``params`` against the configuration in use."""
+        return review_changes(self.config, {p.name: p.value for p in params})
+
+    def _on_set_parameters(self, params):
+        """Before rclpy stores new values: accept live parameters (validated), refuse the others
+        with the reason (``restart the node to change ...``)."""
+        from rcl_interfaces.msg import SetParametersResult
+
+        review = self._review(params)
+        if not review.accepted:
+            self.get_logger().warning(f"parameter change refused: {review.reason}")
+        elif not self._apply_in_post_set:
+            self._apply(review)
+        return SetParametersResult(successful=review.accepted, reason=review.reason)
+
+    def _on_parameters_set(self, params) -> None:
+        """After rclpy stored accepted values (every callback agreed): use them."""
+        review = self._review(params)
+        if review.accepted:
+            self._apply(review)
+
+    def _apply(self, review) -> None:
+        if not review.changed:
+            return
+        cfg = review.config
+        root = node_output_root(cfg.output.directory)
+        try:
+            self.session.update_config(cfg, output_root=root)
+        except ValueError as exc:  # cannot happen after review_changes; never crash a callback
+            self.get_logger().error(f"parameter change not applied: {exc}")
+            return
+        self.config, self.output_root = cfg, root
+        self.get_logger().info(f"parameters changed: {review.reason}"
+                               + (f"; outputs under {root}"
+                                  if "output.directory" in review.changed else ""))
 
     # --- sensor callbacks ---------------------------------------------------------------------
     def _on_image(self, camera: str, msg: Image) -> None:
@@ -222,16 +287,17 @@ class CalibratorNode(Node):
     # --- services -----------------------------------------------------------------------------
     def _on_calibrate(self, request, response):
         outcome = self.session.calibrate()
+        out = self.config.output
         response.success = bool(outcome.success)
-        response.message = outcome.message
         if not outcome.success:
-            self.get_logger().warning(f"calibrate: {outcome.message}")
+            response.message = calibrate_message(outcome, out, published=False)
+            self.get_logger().warning(f"calibrate: {response.message}")
             return response
         result = outcome.result
         self._bound_pub.publish(Float64(data=float(result.certificate.suboptimality_bound)))
         self._result_pub.publish(String(data=outcome.result_yaml))
-        out = self.config.output
-        if out.publish_tf and (result.certified or out.publish_uncertified):
+        published = should_publish_tf(outcome, out)
+        if published:
             stamp = self.get_clock().now().nanoseconds
             msgs = [
                 fill_message(TransformStamped(),
@@ -239,15 +305,14 @@ class CalibratorNode(Node):
                 for parent, child, T in self.session.published_transforms(result)
             ]
             self._static_tf.sendTransform(msgs)
-        elif out.publish_tf:
-            response.message += "; not published on /tf_static (not certified)"
+        response.message = calibrate_message(outcome, out, published=published)
         self.get_logger().info(f"calibrate: {response.message}")
         return response
 
     def _on_reset(self, request, response):
         self.session.reset()
         response.success = True
-        response.message = "session reset: poses, pairs and counters cleared"
+        response.message = RESET_MESSAGE
         return response
 
     def _on_save_dataset(self, request, response):
@@ -258,7 +323,8 @@ class CalibratorNode(Node):
             response.message = str(exc)
             return response
         response.success = True
-        response.message = path
+        response.message = save_dataset_message(path)
+        self.get_logger().info(f"save_dataset: {response.message}")
         return response
 
     # --- diagnostics --------------------------------------------------------------------------
@@ -286,32 +352,30 @@ class CalibratorNode(Node):
             )
         self._diag_pub.publish(msg)
 
-    def destroy_node(self) -> None:
+    def stop_activity(self) -> None:
+        """Stop the diagnostics timer and the detection workers (before the executor and the
+        node go away)."""
+        timer = getattr(self, "_diag_timer", None)
+        if timer is not None:
+            timer.cancel()
         for worker in getattr(self, "_workers", ()):
             worker.stop()
+
+    def destroy_node(self) -> None:
+        self.stop_activity()
         super().destroy_node()
 
 
+#: Seconds ``executor.shutdown`` waits for running callbacks (e.g. a solve) when stopping;
+#: ``ros2 launch`` escalates to SIGTERM after 5 s.
+EXECUTOR_SHUTDOWN_TIMEOUT_S = 3.0
+
+
 def main(args=None) -> int:
-    """Console script ``calibrator``: init, spin a MultiThreadedExecutor, shut down cleanly."""
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = CalibratorNode()
-        executor = MultiThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:  # invalid configuration: say which parameter, exit non-zero
-        get_logger(DEFAULT_NODE_NAME).fatal(f"invalid configuration: {exc}")
-        code = 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    """Console script ``calibrator``: init, spin a MultiThreadedExecutor, stop cleanly
+    (:func:`rwhec_ros.ros.process.rclpy_main`)."""
+    return rclpy_main(DEFAULT_NODE_NAME, CalibratorNode, args,
+                      shutdown_timeout_s=EXECUTOR_SHUTDOWN_TIMEOUT_S)
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ import numpy as np
 import yaml
 
 from ..config import CalibratorConfig
+from ..config.live_parameters import restart_only_differences
 from ..core.lie import invert_transform
 from ..core.result import CalibrationResult
 from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
@@ -25,6 +26,7 @@ from ..vision.detection import DetectorConfig, RejectReason, TagDetector
 from ..vision.intrinsics import CameraIntrinsics
 from .outcomes import ImageOutcome, SolveOutcome, edge_rows
 from .outputs import session_dataset, summary, write_session_outputs
+from .paths import plain_output_root
 from .solving import full_report, make_tracker, report_dict, solve_problem
 
 __all__ = ["CalibrationSession"]
@@ -42,6 +44,10 @@ class CalibrationSession:
         :meth:`CalibratorConfig.from_parameters`).
     now : callable returning datetime, optional
         Clock for the timestamped output names (default: current UTC time); injectable for tests.
+    output_root : str or Path, optional
+        Directory under which :meth:`calibrate` and :meth:`save_dataset` create their output
+        directories (the node passes :func:`~rwhec_ros.session.paths.node_output_root`);
+        default :func:`~rwhec_ros.session.paths.plain_output_root` of ``output.directory``.
 
     Notes
     -----
@@ -55,8 +61,11 @@ class CalibrationSession:
         config: CalibratorConfig,
         *,
         now: Callable[[], _dt.datetime] | None = None,
+        output_root: str | Path | None = None,
     ) -> None:
         self.config = config
+        self.output_root = (Path(output_root) if output_root is not None
+                            else plain_output_root(config.output.directory))
         self._now = now if now is not None else (lambda: _dt.datetime.now(_dt.timezone.utc))
         self._lock = threading.Lock()
         self._solve_lock = threading.Lock()
@@ -95,6 +104,40 @@ class CalibrationSession:
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()
         self._counters: collections.Counter = collections.Counter()
+
+    def update_config(self, config: CalibratorConfig, *,
+                      output_root: str | Path | None = None) -> None:
+        """Use ``config`` from now on; it may differ from the current one in live parameters only
+        (:mod:`rwhec_ros.config.live_parameters`), else ``ValueError`` naming them.
+
+        ``solver.*`` and ``output.*`` are read at the next :meth:`calibrate`; new ``noise.sigma``
+        and ``noise.kappa`` go at once to every kept pair (unless ``noise.from_reprojection``)
+        and the identifiability tracker is rebuilt with them; new keyframe thresholds apply to
+        the pairs offered from now on. ``output_root`` replaces the output root (default: the
+        plain-Python root of the new ``output.directory`` if it changed).
+        """
+        fixed = restart_only_differences(self.config, config)
+        if fixed:
+            raise ValueError(f"{fixed[0]}: cannot change in a running session "
+                             f"(restart-only parameters changed: {fixed})")
+        with self._lock:
+            old, self.config = self.config, config
+            if output_root is not None:
+                self.output_root = Path(output_root)
+            elif old.output.directory != config.output.directory:
+                self.output_root = plain_output_root(config.output.directory)
+            self._acc.keyframe_rotation_rad = config.keyframe.min_rotation_rad
+            self._acc.keyframe_translation_m = config.keyframe.min_translation_m
+            noise = config.noise
+            if not noise.from_reprojection and (noise.sigma, noise.kappa) != (
+                    old.noise.sigma, old.noise.kappa):
+                self._acc.set_precisions(noise.sigma, noise.kappa)
+                self._tracker = make_tracker(config.tags.unknown_scale)
+                for e in self._acc.edges().values():
+                    try:
+                        self._tracker.add_pairs(e.x, e.y, e.A, e.B, e.sigma, e.kappa)
+                    except ValueError:
+                        self._count("identifiability_rejected_pair", e.n)
 
     def _count(self, key: str, n: int = 1) -> None:
         self._counters[key] += n
@@ -457,8 +500,8 @@ class CalibrationSession:
         return doc
 
     def _output_dir(self, kind: str) -> Path:
-        """A new directory ``<output.directory>/<kind>_<UTC stamp>[_n]`` (never reused)."""
-        return new_output_dir(self.config.output.directory, kind, now=self._now())
+        """A new directory ``<output root>/<kind>_<UTC stamp>[_n]`` (never reused)."""
+        return new_output_dir(self.output_root, kind, now=self._now())
 
     def _write_outputs(self, result: CalibrationResult, text: str, dataset,
                        output_dir: str | Path | None = None,
@@ -478,7 +521,7 @@ class CalibrationSession:
     def save_dataset(self, path: str | Path | None = None) -> str:
         """Save the kept pairs (format of :mod:`rwhec_ros.data.dataset`) and return the path.
 
-        Default path: a new timestamped directory under ``output.directory``. Raises
+        Default path: a new timestamped directory under :attr:`output_root`. Raises
         ``ValueError`` when there is nothing to save or the data-set module is unavailable.
         """
         with self._lock:

@@ -377,6 +377,20 @@ class PairAccumulator:
             _BYTES_PER_SLOT * self.max_pairs_per_edge + _BYTES_PER_EDGE_OVERHEAD
         )
 
+    def set_precisions(self, sigma: float, kappa: float) -> int:
+        """Give every kept pair the precisions ``sigma`` [m] and ``kappa`` (paper eq. (14),
+        (16)), e.g. after the stated noise changed; returns the number of pairs changed.
+        Keyframe bookkeeping does not depend on them."""
+        for field_name, value in (("sigma", sigma), ("kappa", kappa)):
+            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value > 0):
+                raise ValueError(f"{field_name}: must be finite and > 0, got {value!r}")
+        n = 0
+        for store in self._edges.values():
+            store.sigma[: store.n] = float(sigma)
+            store.kappa[: store.n] = float(kappa)
+            n += store.n
+        return n
+
     def clear(self) -> None:
         """Forget every pair and edge (counters and listeners are kept)."""
         self._edges.clear()

@@ -6,6 +6,7 @@ demo simulation's messages on the configured topics and calls the services.
 
 from __future__ import annotations
 
+import re
 import threading
 import time
 from pathlib import Path
@@ -124,6 +125,82 @@ def test_invalid_configuration_names_the_parameter(context, tmp_path, changes, n
         CalibratorNode(context=context, parameter_overrides=overrides(tmp_path, **changes))
 
 
+def test_parameter_declarations_are_not_read_only(context, tmp_path):
+    # refusals come from the node's callback, with the reason, not from rclpy's read-only check
+    node = CalibratorNode(context=context, parameter_overrides=overrides(tmp_path))
+    try:
+        d = node.describe_parameter("sync.pose_buffer_size")
+        assert not d.read_only and d.description.endswith("[restart the node to change]")
+        assert node.describe_parameter("noise.from_reprojection").read_only is False
+    finally:
+        node.destroy_node()
+
+
+def test_parameter_callback_refuses_restart_only_and_applies_live(context, tmp_path,
+                                                                   monkeypatch):
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "ros_home"))
+    node = CalibratorNode(context=context, parameter_overrides=overrides(tmp_path))
+    try:
+        [res] = node.set_parameters([Parameter("cameras.names", value=["cam0"])])
+        assert not res.successful
+        assert res.reason.startswith("restart the node to change cameras.names: ")
+        assert list(node.get_parameter("cameras.names").value) == ["cam0", "cam1", "cam2"]
+        [res] = node.set_parameters([Parameter("sync.pose_buffer_size", value=10)])
+        assert not res.successful and "restart the node" in res.reason
+        assert node.get_parameter("sync.pose_buffer_size").value == 4000
+        [res] = node.set_parameters([Parameter("solver.min_pairs", value=0)])
+        assert not res.successful and "solver.min_pairs: must be >= 1" in res.reason
+        assert node.get_parameter("solver.min_pairs").value == 3
+
+        [res] = node.set_parameters([Parameter("solver.min_pairs", value=1000)])
+        assert res.successful, res.reason
+        assert node.get_parameter("solver.min_pairs").value == 1000
+        assert node.config.solver.min_pairs == 1000
+        assert node.session.config.solver.min_pairs == 1000  # used by the next calibrate
+        assert "solver.min_pairs=1000" in node.session.calibrate().message
+
+        [res] = node.set_parameters([Parameter("output.directory", value="rig1")])
+        assert res.successful, res.reason
+        assert node.output_root == tmp_path / "ros_home" / "rwhec_ros" / "rig1"
+        assert node.session.output_root == node.output_root
+        [res] = node.set_parameters([Parameter("use_sim_time", value=True)])
+        assert res.successful  # ROS's own parameters are not ours to refuse
+    finally:
+        node.destroy_node()
+
+
+def test_default_output_root_is_under_ros_home(context, tmp_path, monkeypatch):
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "ros_home"))
+    node = CalibratorNode(context=context,
+                          parameter_overrides=overrides(tmp_path, **{"output.directory": ""}))
+    try:
+        assert node.output_root == tmp_path / "ros_home" / "rwhec_ros"
+    finally:
+        node.destroy_node()
+
+
+def test_shipped_file_applies_under_a_namespace(context, tmp_path):
+    # the node /rig1/calibrator gets the '/**' section of config/demo.yaml (issue 17, item 1)
+    node = CalibratorNode(context=context, namespace="rig1", cli_args=[
+        "--ros-args", "--params-file", str(DEMO_YAML), "-p", f"output.directory:={tmp_path}"])
+    try:
+        assert node.get_fully_qualified_name() == "/rig1/calibrator"
+        assert node.config.camera_names == ("cam0", "cam1", "cam2")
+        assert node.output_root == tmp_path
+    finally:
+        node.destroy_node()
+
+
+def test_main_with_unreadable_params_file_is_one_line(capsys):
+    from rwhec_ros.ros.node import main
+
+    code = main(["calibrator", "--ros-args", "--params-file", "no/such/params.yaml"])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "cannot start ROS" in err and "parameter file 'no/such/params.yaml' not found" in err
+
+
 def test_calibrate_without_data_answers_false(running):
     node, helper, _ = running
     response = call(helper, "/calibrate")
@@ -177,6 +254,8 @@ def test_feed_topics_and_calibrate(running, tmp_path):
     response = call(helper, "/calibrate")
     assert response.success, response.message
     assert "CERTIFIED" in response.message
+    # the answer names the absolute output directory
+    assert re.search(rf"; files in {re.escape(str(tmp_path))}/calibration_\S+$", response.message)
     assert wait_for(lambda: received["bound"] and received["result"] and received["tf"])
     assert received["bound"][-1].data < 1e-4  # certified: relative suboptimality below tol
     children = {t.child_frame_id for m in received["tf"] for t in m.transforms}
@@ -184,5 +263,6 @@ def test_feed_topics_and_calibrate(running, tmp_path):
     assert wait_for(lambda: received["diag"])
     status = received["diag"][-1].status[0]
     assert isinstance(status.level, bytes) and len(status.level) == 1
-    assert call(helper, "/calibrator/save_dataset").success
+    saved = call(helper, "/calibrator/save_dataset")
+    assert saved.success and saved.message.startswith(f"data set written: {tmp_path}/dataset_")
     assert any(Path(node.config.output.directory).rglob("result.yaml"))

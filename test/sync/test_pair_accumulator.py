@@ -241,3 +241,25 @@ def test_edges_are_dataset_records_with_the_accumulator_tolerance():
     np.testing.assert_array_equal(ds.edges[0].A, A)
     with pytest.raises(ValueError, match=r"edge \(tag_0, cam_0\) A\[0\]: rotation block"):
         DatasetEdge("tag_0", "cam_0", e.stamps_ns, e.A, e.B, e.sigma, e.kappa)
+
+
+def test_set_precisions_rewrites_every_kept_pair_only():
+    rng = np.random.default_rng(5)
+    A = random_transforms(rng, 12)  # random poses: every one is a keyframe
+    B = pairs_for(rng, A)
+    acc = PairAccumulator()
+    for i in range(6):
+        acc.offer("tag_0", "cam_0", i * MS, A[i], B[i], 0.005, 400.0)
+        acc.offer("tag_1", "cam_0", i * MS, A[i + 6], B[i + 6], 0.005, 400.0)
+    assert acc.set_precisions(0.02, 50.0) == 12
+    for e in acc.edges().values():
+        assert np.all(e.sigma == 0.02) and np.all(e.kappa == 50.0)
+    acc.offer("tag_0", "cam_0", 10 * MS, A[0] @ make_transform(so3_exp([0.3, 0, 0]),
+                                                                np.zeros(3)), B[0], 0.007, 90.0)
+    e = acc.edges()[("tag_0", "cam_0")]
+    assert e.sigma[-1] == 0.007 and e.kappa[-1] == 90.0  # later pairs keep their own values
+    problem, _ = acc.to_problem(min_pairs=1)
+    assert sorted(set(np.concatenate([x.sigma for x in problem.edges]))) == [0.007, 0.02]
+    for bad, name in [((0.0, 1.0), "sigma"), ((0.01, np.inf), "kappa")]:
+        with pytest.raises(ValueError, match=name):
+            acc.set_precisions(*bad)

@@ -43,6 +43,16 @@ TARGETS = [TargetSpec("grid", board=GRID), TargetSpec("charuco", board=CHARUCO),
            TargetSpec("tag_7", tag_id=7, tag_size=0.1)]
 
 
+# OpenCV 4.11 (the newest 4.x that accepts numpy 1.26, as on a ROS 2 Jazzy machine; .ci/run's
+# second line) detects boards measurably worse than 4.12+ on these two images: the ChArUco pose
+# of the mixed image is 1.23 mm off (limit 1 mm) and the Kalibr grid with corner squares gives 8
+# of 20 tags (limit 15; 16 with OpenCV 4.14). Recorded here (strict: a fix makes them fail).
+OPENCV_BEFORE_4_12 = tuple(int(x) for x in cv2.__version__.split(".")[:2]) < (4, 12)
+_OLD_OPENCV = pytest.mark.xfail(OPENCV_BEFORE_4_12, strict=True,
+                                reason="board detection with OpenCV < 4.12 (see above)")
+
+
+@_OLD_OPENCV
 def test_mixed_tags_and_boards_in_one_image():
     img, truth = scene(np.random.default_rng(0))
     det = TargetDetector(TARGETS, DetectorConfig())
@@ -135,6 +145,7 @@ def test_a_misplaced_grid_tag_is_dropped_as_outlier():
     assert obs.reprojection_rms_px < 0.1
 
 
+@_OLD_OPENCV
 def test_kalibr_corner_squares_need_the_extra_threshold_passes():
     """6 cm Kalibr tags at 2.2 m (~25 px): with aruco's default threshold alone the corner
     squares hide almost every tag; the extra passes recover most of them."""
