@@ -45,6 +45,7 @@ and is meant for relative weighting, not as a calibrated covariance.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -329,10 +330,15 @@ class TagRejection:
 
 @dataclass
 class DetectionResult:
-    """Output of :meth:`TagDetector.detect` (both lists empty when nothing is seen)."""
+    """Output of :meth:`TagDetector.detect` (every list empty when nothing is seen).
+
+    ``skipped`` holds the configured ids that the candidate search found but that were left
+    unexamined because the caller asked only for other ids (``detect(..., only_ids=...)``).
+    """
 
     observations: list[TagObservation] = field(default_factory=list)
     rejections: list[TagRejection] = field(default_factory=list)
+    skipped: list[int] = field(default_factory=list)
 
     def by_id(self) -> dict[int, TagObservation]:
         """Accepted observations keyed by tag id."""
@@ -369,7 +375,13 @@ class TagDetector:
             fixed_min_perimeter="minMarkerPerimeterRate" in self.config.detector_parameters,
         )
 
-    def detect(self, gray: np.ndarray, intrinsics: CameraIntrinsics) -> DetectionResult:
+    def detect(
+        self,
+        gray: np.ndarray,
+        intrinsics: CameraIntrinsics,
+        *,
+        only_ids: Collection[int] | None = None,
+    ) -> DetectionResult:
         """Detect tags in an 8-bit grayscale image and estimate their poses.
 
         Parameters
@@ -378,11 +390,17 @@ class TagDetector:
             Image of the camera ``intrinsics`` (see :func:`rwhec_ros.vision.image.image_to_gray`).
         intrinsics : CameraIntrinsics
             Calibration of the camera; its size must match the image.
+        only_ids : collection of int, optional
+            Examine only these configured ids: the candidate search runs on the whole image as
+            always, but a configured tag outside ``only_ids`` gets no corner refinement, pose or
+            gates and is listed in ``DetectionResult.skipped`` (the live session passes the tags
+            whose pair the keyframe test could keep). Each tag is examined on its own, so the
+            observations of the ids examined are those of a full ``detect``.
 
         Returns
         -------
         DetectionResult
-            Accepted observations (ascending tag id) and rejections with reasons.
+            Accepted observations (ascending tag id), rejections with reasons and skipped ids.
 
         Raises
         ------
@@ -413,7 +431,12 @@ class TagDetector:
         counts: dict[int, int] = {}
         for tag_id in ids:
             counts[tag_id] = counts.get(tag_id, 0) + 1
+        wanted = None if only_ids is None else {int(i) for i in only_ids}
         for tag_id, quad in sorted(zip(ids, corners, strict=True), key=lambda p: p[0]):
+            if (wanted is not None and tag_id not in wanted
+                    and self.config.size_of(tag_id) is not None):
+                result.skipped.append(tag_id)
+                continue
             quad = np.asarray(quad, dtype=float).reshape(4, 2)
             if counts[tag_id] > 1:
                 result.rejections.append(
