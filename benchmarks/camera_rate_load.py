@@ -87,11 +87,13 @@ JPEG_QUALITY = 95
 
 
 class DetectTimer:
-    """Wraps ``TagDetector.detect``: calls, and process CPU time inside it (all threads of the
+    """Wraps ``TagDetector.detect`` (benchmark-only instrumentation): calls, wall time summed
+    over all threads (``total``) and process CPU time inside it (``cpu``: all threads of the
     process, so only meaningful when one thread detects at a time)."""
 
     def __init__(self) -> None:
         self.lock = threading.Lock()
+        self.total = 0.0
         self.cpu = 0.0
         self.calls = 0
         self._original = TagDetector.detect
@@ -100,12 +102,13 @@ class DetectTimer:
         original, timer = self._original, self
 
         def timed(det, gray, intrinsics, **kwargs):
-            c0 = time.process_time()
+            t0, c0 = time.perf_counter(), time.process_time()
             try:
                 return original(det, gray, intrinsics, **kwargs)
             finally:
-                dc = time.process_time() - c0
+                dt, dc = time.perf_counter() - t0, time.process_time() - c0
                 with timer.lock:
+                    timer.total += dt
                     timer.cpu += dc
                     timer.calls += 1
 
@@ -114,6 +117,17 @@ class DetectTimer:
 
     def __exit__(self, *exc) -> None:
         TagDetector.detect = self._original
+
+
+def pace(t0: float, offset_ns: int, speed: float = 1.0) -> float:
+    """Sleep until ``offset_ns`` of stream time after the wall-clock instant ``t0``
+    (``time.perf_counter``) at ``speed`` times real time; returns how late we already were [s]."""
+    target = t0 + offset_ns / NS / speed
+    now = time.perf_counter()
+    if target > now:
+        time.sleep(target - now)
+        return 0.0
+    return now - target
 
 
 @dataclass
@@ -221,12 +235,7 @@ def run_live(scene: Scene, seconds: float, flat: dict) -> dict:
         workers = [QueueWorker(queue, handler, name=f"bench-{k}").start() for k in range(threads)]
         t0, c0 = time.perf_counter(), time.process_time()
         for stamp, cam, i in events(scene, seconds):
-            target = t0 + (stamp - START_NS) / NS
-            now = time.perf_counter()
-            if target > now:
-                time.sleep(target - now)
-            else:
-                max_lag = max(max_lag, now - target)
+            max_lag = max(max_lag, pace(t0, stamp - START_NS))
             if cam is None:
                 session.add_pose(stamp, scene.poses[i], source="world")
                 queue.notify()

@@ -64,11 +64,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from camera_rate_load import DetectTimer, pace  # noqa: E402 - beside this script
+
 from rwhec_ros.cli import demo_parameters  # noqa: E402
 from rwhec_ros.config import CalibratorConfig  # noqa: E402
 from rwhec_ros.session import CalibrationSession, FairImageQueue, QueueWorker  # noqa: E402
 from rwhec_ros.simulation import demo_rig  # noqa: E402
-from rwhec_ros.vision.detection import TagDetector  # noqa: E402
 
 NS = 1_000_000_000
 POSE_RATE_HZ = 1000
@@ -77,35 +78,6 @@ N_CAMERAS = 8
 N_TAGS = 16
 QUEUE_SIZE = 4  # per camera, the default
 START_NS = NS
-
-
-class DetectTimer:
-    """Wraps ``TagDetector.detect`` to sum its wall time over all threads."""
-
-    def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.total = 0.0
-        self.calls = 0
-        self._original = TagDetector.detect
-
-    def __enter__(self) -> DetectTimer:
-        original, timer = self._original, self
-
-        def timed(det, gray, intrinsics, **kwargs):
-            t0 = time.perf_counter()
-            try:
-                return original(det, gray, intrinsics, **kwargs)
-            finally:
-                dt = time.perf_counter() - t0
-                with timer.lock:
-                    timer.total += dt
-                    timer.calls += 1
-
-        TagDetector.detect = timed
-        return self
-
-    def __exit__(self, *exc) -> None:
-        TagDetector.detect = self._original
 
 
 @dataclass
@@ -181,12 +153,7 @@ def run_live(stream: Stream, seconds: float, workers: int, out_dir: str,
         pool = [QueueWorker(queue, handler, name=f"bench-{i}").start() for i in range(workers)]
         t_start, c_start = time.perf_counter(), time.process_time()
         for stamp, cam, payload in events(stream, seconds):
-            target = t_start + (stamp - START_NS) / NS / speed
-            now = time.perf_counter()
-            if target > now:
-                time.sleep(target - now)
-            else:
-                max_lag = max(max_lag, now - target)
+            max_lag = max(max_lag, pace(t_start, stamp - START_NS, speed))
             if cam is None:
                 t0 = time.perf_counter()
                 session.add_pose(stamp, payload, source="world")

@@ -153,7 +153,8 @@ class CameraDiagnostics:
         ``session_counts``: :meth:`CalibrationSession.camera_counters`; ``queue_stats``:
         :meth:`FairImageQueue.stats` (``received``, ``dropped``, ``queued``). WARN when the
         transport loses more than ``loss_warn_fraction`` of the camera's images, or when the
-        queue dropped images since the previous call (detection does not keep up).
+        queue dropped images since the previous call (detection does not keep up, or the images
+        wait for poses that do not come).
         """
         rows = []
         for cam in self.cameras:
@@ -171,7 +172,7 @@ class CameraDiagnostics:
                     "spacing; see the README, 'Losing images')")
             if new_drops > 0:
                 problems.append(f"{new_drops} images dropped from the full queue since the last "
-                                "report (detection does not keep up)")
+                                "report (detection does not keep up, or no pose comes for them)")
             summary = (f"{q.get('received', 0)} received, {s.get('skipped_no_motion', 0)} "
                        f"skipped (no motion), {s.get('detected', 0)} searched, {dropped} dropped, "
                        f"{s.get('pairs_kept', 0)} pairs")

@@ -22,7 +22,26 @@ from typing import Any
 __all__ = ["ImageQueue", "FairImageQueue", "QueueWorker"]
 
 
-class ImageQueue:
+class _Closable:
+    """Closing, shared by the queues: wake every waiter; ``get`` then hands out what is left and
+    returns None, a blocked ``put`` gives up. Needs ``_cond`` and ``_closed``."""
+
+    _cond: threading.Condition
+    _closed: bool
+
+    def close(self) -> None:
+        """Close the queue (see the class docstring)."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    @property
+    def closed(self) -> bool:
+        with self._cond:
+            return self._closed
+
+
+class ImageQueue(_Closable):
     """Bounded FIFO that drops the OLDEST item when full (fresh images matter most live).
 
     Thread-safe. ``put`` never blocks; ``get`` blocks up to ``timeout`` seconds and returns None
@@ -59,17 +78,6 @@ class ImageQueue:
                 return self._items.popleft()
             return None
 
-    def close(self) -> None:
-        """Wake every waiting ``get``; later ``get`` calls return the remaining items then None."""
-        with self._cond:
-            self._closed = True
-            self._cond.notify_all()
-
-    @property
-    def closed(self) -> bool:
-        with self._cond:
-            return self._closed
-
     @property
     def dropped(self) -> int:
         with self._cond:
@@ -80,7 +88,7 @@ class ImageQueue:
             return len(self._items)
 
 
-class FairImageQueue:
+class FairImageQueue(_Closable):
     """One bounded FIFO per key (camera), served round-robin; one item per key in service.
 
     Thread-safe. :meth:`get` returns ``(key, item)`` of the next key in round-robin order whose
@@ -183,13 +191,8 @@ class FairImageQueue:
                     return entry
                 if self._closed and not any(self._queues.values()):
                     return None
-                wait = self._recheck_s
-                if deadline is not None:
-                    remaining = deadline - time.monotonic()
-                    if remaining <= 0:
-                        return None
-                    wait = min(wait, remaining)
-                self._cond.wait(wait)
+                if not self._wait(deadline):
+                    return None
 
     def task_done(self, entry: tuple[Hashable, Any]) -> None:
         """The consumer finished ``entry`` (from :meth:`get`): its key may be served again."""
@@ -204,30 +207,26 @@ class FairImageQueue:
         with self._cond:
             self._cond.notify_all()
 
-    def close(self) -> None:
-        """Wake everyone; ``get`` hands out what is left, then None; ``put`` stops blocking."""
-        with self._cond:
-            self._closed = True
-            self._cond.notify_all()
-
     def join(self, timeout: float | None = None) -> bool:
         """Wait until every queue is empty and nothing is in service; False on timeout."""
         deadline = None if timeout is None else time.monotonic() + timeout
         with self._cond:
             while any(self._queues.values()) or self._busy:
-                wait = self._recheck_s
-                if deadline is not None:
-                    remaining = deadline - time.monotonic()
-                    if remaining <= 0:
-                        return False
-                    wait = min(wait, remaining)
-                self._cond.wait(wait)
+                if not self._wait(deadline):
+                    return False
             return True
 
-    @property
-    def closed(self) -> bool:
-        with self._cond:
-            return self._closed
+    def _wait(self, deadline: float | None) -> bool:
+        """Wait (lock held) until notified, at most ``recheck_s`` and not past ``deadline``
+        (``time.monotonic``); False when the deadline has passed."""
+        wait = self._recheck_s
+        if deadline is not None:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            wait = min(wait, remaining)
+        self._cond.wait(wait)
+        return True
 
     @property
     def dropped(self) -> int:

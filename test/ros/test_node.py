@@ -6,6 +6,7 @@ demo simulation's messages on the configured topics and calls the services.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from pathlib import Path
@@ -60,10 +61,11 @@ def context():
         rclpy.try_shutdown(context=ctx)
 
 
-@pytest.fixture
-def running(context, tmp_path):
-    """(calibrator node, helper node, executor) with the executor spinning in a thread."""
-    node = CalibratorNode(context=context, parameter_overrides=overrides(tmp_path))
+@contextlib.contextmanager
+def spinning(context, params):
+    """(calibrator node with ``params``, helper node, executor), the executor spinning in a
+    thread."""
+    node = CalibratorNode(context=context, parameter_overrides=params)
     helper = Node("rwhec_test_helper", context=context)
     executor = MultiThreadedExecutor(context=context)
     executor.add_node(node)
@@ -77,6 +79,13 @@ def running(context, tmp_path):
         node.destroy_node()
         helper.destroy_node()
         thread.join(5.0)
+
+
+@pytest.fixture
+def running(context, tmp_path):
+    """(calibrator node, helper node, executor) with the executor spinning in a thread."""
+    with spinning(context, overrides(tmp_path)) as started:
+        yield started
 
 
 def call(helper: Node, name: str, timeout: float = 60.0):
@@ -194,14 +203,7 @@ def test_compressed_camera_fair_queue_and_camera_rows(context, tmp_path):
     counts per camera, and publishes one /diagnostics row per camera."""
     params = overrides(tmp_path, **{"cameras.cam1.image_transport": "compressed",
                                     "sync.detection_threads": 2})
-    node = CalibratorNode(context=context, parameter_overrides=params)
-    helper = Node("rwhec_test_helper", context=context)
-    executor = MultiThreadedExecutor(context=context)
-    executor.add_node(node)
-    executor.add_node(helper)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
-    try:
+    with spinning(context, params) as (node, helper, _):
         assert len(node._workers) == 2
         rig = demo_rig()
         reliable = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
@@ -239,8 +241,3 @@ def test_compressed_camera_fair_queue_and_camera_rows(context, tmp_path):
                    if s.name == "calibrator: camera cam1")
         values = {kv.key: kv.value for kv in row.values}
         assert int(values["received"]) >= 8 and "skipped_no_motion" in values
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        helper.destroy_node()
-        thread.join(5.0)
