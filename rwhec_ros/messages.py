@@ -21,9 +21,11 @@ import array
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import cv2
 import numpy as np
 
 from .core.lie import make_transform, transform_to_quat_xyzw
+from .vision.compressed import compressed_to_gray as _compressed_to_gray
 from .vision.image import image_to_gray as _raw_image_to_gray
 from .vision.intrinsics import DISTORTION_MODELS, CameraIntrinsics
 
@@ -40,9 +42,11 @@ __all__ = [
     "transform_stamped_to_transform",
     "camera_info_to_intrinsics",
     "image_to_gray",
+    "compressed_image_to_gray",
     "transform_to_transform_stamped_fields",
     "transform_to_pose_stamped_fields",
     "gray_to_image_fields",
+    "gray_to_compressed_image_fields",
     "intrinsics_to_camera_info_fields",
     "diagnostic_rows",
     "fill_message",
@@ -162,6 +166,15 @@ def camera_info_to_intrinsics(msg: Any) -> CameraIntrinsics:
     return CameraIntrinsics.from_camera_info(msg)
 
 
+def compressed_image_to_gray(msg: Any) -> np.ndarray:
+    """(height, width) uint8 grayscale of a ``sensor_msgs/CompressedImage`` (JPEG, PNG, ...).
+
+    Raises ``ValueError`` for empty, undecodable or truncated data or an unsupported format
+    (see :func:`rwhec_ros.vision.compressed.compressed_to_gray`).
+    """
+    return _compressed_to_gray(msg.data, str(msg.format))
+
+
 def image_to_gray(msg: Any) -> np.ndarray:
     """(height, width) uint8 grayscale of a ``sensor_msgs/Image``.
 
@@ -231,6 +244,31 @@ def gray_to_image_fields(gray: np.ndarray, stamp_ns: int, frame_id: str) -> dict
         "step": int(g.shape[1]),
         "data": g.tobytes(),
     }
+
+
+def gray_to_compressed_image_fields(
+    gray: np.ndarray, stamp_ns: int, frame_id: str, *, codec: str = "jpeg", quality: int = 95
+) -> dict[str, Any]:
+    """Fields of a ``sensor_msgs/CompressedImage`` of a (H, W) uint8 array, as
+    ``image_transport``'s ``compressed`` plugin publishes a ``mono8`` image: ``format``
+    ``"mono8; jpeg compressed mono8"`` (``codec="jpeg"``, ``quality`` 1-100, the plugin's
+    default 95) or ``"mono8; png compressed "`` (``codec="png"``; ``quality`` unused)."""
+    g = np.ascontiguousarray(gray)
+    if g.ndim != 2 or g.dtype != np.uint8:
+        raise ValueError(f"gray: expected a (H, W) uint8 array, got {g.dtype} {g.shape}")
+    if codec == "jpeg":
+        if isinstance(quality, bool) or not isinstance(quality, int) or not 1 <= quality <= 100:
+            raise ValueError(f"quality: expected an integer in [1, 100], got {quality!r}")
+        ok, buf = cv2.imencode(".jpg", g, [cv2.IMWRITE_JPEG_QUALITY, quality])
+        fmt = "mono8; jpeg compressed mono8"
+    elif codec == "png":
+        ok, buf = cv2.imencode(".png", g)
+        fmt = "mono8; png compressed "
+    else:
+        raise ValueError(f"codec: expected 'jpeg' or 'png', got {codec!r}")
+    if not ok:  # pragma: no cover - OpenCV encodes every uint8 image
+        raise ValueError(f"gray: OpenCV could not encode it as {codec}")
+    return {"header": _header(stamp_ns, frame_id), "format": fmt, "data": buf.tobytes()}
 
 
 def intrinsics_to_camera_info_fields(

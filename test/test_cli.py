@@ -177,6 +177,8 @@ def recorded(tmp_path_factory):
               storage="sqlite3")
     write_bag(root / "tf_mcap", simulation_messages(rig, samples, pose_source="tf"),
               storage="mcap")
+    write_bag(root / "compressed", simulation_messages(rig, samples, pose_source="topic",
+                                                       image_transport="compressed"))
     flat = demo_parameters(rig, output_directory=str(root / "out_topic"))
     (root / "topic.yaml").write_text(CalibratorConfig.from_parameters(flat).to_yaml())
     flat.update({"pose_source.type": "tf", "pose_source.topic": "",
@@ -225,6 +227,32 @@ def test_dataset_round_trip_of_a_session_data_set(recorded, tmp_path):
         assert (a["name"], a["parent"], a["child"]) == (b["name"], b["parent"], b["child"])
         # same pairs, same solver: equal up to the solver's convergence tolerance
         assert np.allclose(a["matrix"], b["matrix"], atol=1e-6)
+
+
+def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tmp_path):
+    rig, root = recorded
+    pairs = {}
+    for threads in (1, 2):
+        flat = demo_parameters(rig, output_directory=str(tmp_path / "unused"))
+        flat["sync.detection_threads"] = threads
+        for cam in rig.cameras:
+            flat[f"cameras.{cam}.image_transport"] = "compressed"
+        cfg = tmp_path / f"compressed_{threads}.yaml"
+        cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+        out = tmp_path / f"out_{threads}"
+        code, stdout, stderr = run(["bag", root / "compressed", "--config", cfg, "--quiet",
+                                    "-o", out])
+        assert code == EXIT_CERTIFIED, stdout + stderr
+        pairs[threads] = {(e.x, e.y): e for e in Dataset.load(out / "dataset.yaml").edges}
+    # each camera's images are examined in order on any number of threads: the same pairs
+    assert pairs[1].keys() == pairs[2].keys() and len(pairs[1]) >= 9
+    for key, e in pairs[1].items():
+        for field in ("stamps_ns", "A", "B"):
+            np.testing.assert_array_equal(getattr(e, field), getattr(pairs[2][key], field))
+    # a raw-image configuration on this bag says which setting to change
+    code, _, stderr = run(["bag", root / "compressed", "--config", root / "topic.yaml",
+                           "-o", tmp_path / "raw"])
+    assert "cameras.cam0.image_transport: compressed" in stderr
 
 
 def test_bag_errors_are_bad_input(recorded, tmp_path):

@@ -120,6 +120,28 @@ def test_defaults_and_derived_values():
     assert cfg.sync.max_gap_s == defaults["sync.max_gap_s"]
 
 
+def test_auto_or_integer_parameters_and_image_transport():
+    cfg = CalibratorConfig.from_parameters(minimal())
+    assert cfg.sync.detection_threads == "auto" and cfg.detection.decimate == "auto"
+    assert cfg.detection.motion_gate is True and cfg.sync.image_queue_size == 4
+    # auto: the cores available, at most one thread per camera (2 cameras here)
+    assert cfg.detection_thread_count(available_cores=1) == 1
+    assert cfg.detection_thread_count(available_cores=16) == 2
+    assert 1 <= cfg.detection_thread_count() <= 2
+    p = minimal()
+    p.update({"sync.detection_threads": 3, "detection.decimate": 1,
+              "cameras.cam1.image_transport": "compressed"})
+    cfg = CalibratorConfig.from_parameters(p)
+    assert cfg.detection_thread_count(available_cores=1) == 3  # an explicit number is kept
+    assert cfg.detection.decimate == 1
+    assert cfg.camera("cam0").image_transport == "raw"
+    assert cfg.camera("cam0").subscribed_topic == "/cam0/image_raw"
+    assert cfg.camera("cam1").subscribed_topic == "/cam1/image_raw/compressed"
+    assert CalibratorConfig.from_parameters(cfg.to_parameters()) == cfg
+    p["detection.decimate"] = "AUTO"  # the string is read case-insensitively
+    assert CalibratorConfig.from_parameters(p).detection.decimate == "auto"
+
+
 def test_values_as_rclpy_returns_them():
     # rclpy hands INTEGER_ARRAY / DOUBLE_ARRAY values over as array.array, unset ones as None.
     p = minimal()
@@ -194,6 +216,13 @@ BAD = [
     ({"ros.image_qos": "best"}, "ros.image_qos"),
     ({"ros.image_queue_depth": 0}, "ros.image_queue_depth"),
     ({"output.directory": 3}, "output.directory"),
+    ({"sync.detection_threads": 0}, "sync.detection_threads"),
+    ({"sync.detection_threads": "many"}, "sync.detection_threads"),
+    ({"sync.detection_threads": True}, "sync.detection_threads"),
+    ({"detection.decimate": 0}, "detection.decimate"),
+    ({"detection.decimate": 2.0}, "detection.decimate"),
+    ({"detection.motion_gate": "on"}, "detection.motion_gate"),
+    ({"cameras.cam1.image_transport": "theora"}, "cameras.cam1.image_transport"),
 ]
 
 

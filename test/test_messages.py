@@ -16,8 +16,10 @@ from rwhec_ros.messages import (
     LEVEL_OK,
     LEVEL_WARN,
     camera_info_to_intrinsics,
+    compressed_image_to_gray,
     diagnostic_rows,
     fill_message,
+    gray_to_compressed_image_fields,
     gray_to_image_fields,
     image_to_gray,
     intrinsics_to_camera_info_fields,
@@ -184,6 +186,32 @@ def test_gray_image_fields_round_trip():
     assert np.array_equal(image_to_gray(msg), gray)
     with pytest.raises(ValueError, match="gray"):
         gray_to_image_fields(gray.astype(np.float32), 0, "x")
+
+
+def test_gray_compressed_image_fields_round_trip():
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(4)
+    gray = rng.integers(0, 256, size=(24, 32), dtype=np.uint8)
+    png = gray_to_compressed_image_fields(gray, 9, "cam0_optical", codec="png")
+    assert png["format"] == "mono8; png compressed "  # image_transport's string for mono8
+    assert png["header"] == {"stamp": {"sec": 0, "nanosec": 9}, "frame_id": "cam0_optical"}
+    assert np.array_equal(compressed_image_to_gray(SimpleNamespace(**png)), gray)  # lossless
+    smooth = np.tile(np.linspace(0, 255, 32).astype(np.uint8), (24, 1))
+    jpg = gray_to_compressed_image_fields(smooth, 9, "cam0_optical")
+    assert jpg["format"] == "mono8; jpeg compressed mono8"
+    back = compressed_image_to_gray(SimpleNamespace(**jpg))
+    # quality 95 on a smooth ramp: a few grey levels at most (JPEG quantisation)
+    assert back.shape == smooth.shape and np.abs(back.astype(int) - smooth).max() <= 4
+    truncated = SimpleNamespace(format=jpg["format"], data=jpg["data"][: len(jpg["data"]) // 2])
+    with pytest.raises(ValueError, match="truncated"):
+        compressed_image_to_gray(truncated)
+    with pytest.raises(ValueError, match="codec"):
+        gray_to_compressed_image_fields(gray, 0, "x", codec="webp")
+    with pytest.raises(ValueError, match="quality"):
+        gray_to_compressed_image_fields(gray, 0, "x", quality=0)
+    with pytest.raises(ValueError, match="gray"):
+        gray_to_compressed_image_fields(gray.astype(np.float32), 0, "x")
 
 
 def test_camera_info_round_trip():

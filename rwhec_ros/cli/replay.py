@@ -31,6 +31,7 @@ RIG_PARAMETER_PREFIXES = ("camera_carrier.", "tag_carrier.", "pose_source.", "ca
 def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     from ..data.rosbag import (
         CAMERA_INFO,
+        COMPRESSED_IMAGE,
         IMAGE,
         POSE_STAMPED,
         TF_MESSAGE,
@@ -40,6 +41,7 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     )
     from ..messages import stamp_to_ns
     from ..session import CalibrationSession, MessageHandlers
+    from ..session.replay import ReplayFeeder
 
     config = read_config(args, solver_overrides(args))
     paths = output_paths(args, report=args.report)  # refuse early, before any work
@@ -48,7 +50,9 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
 
     routes: dict[str, tuple[str, str | None, str]] = {}
     for cam in config.cameras:
-        routes[cam.image_topic] = ("image", cam.name, IMAGE)
+        compressed = cam.image_transport == "compressed"
+        routes[cam.subscribed_topic] = ("compressed" if compressed else "image", cam.name,
+                                        COMPRESSED_IMAGE if compressed else IMAGE)
         routes[cam.camera_info_topic] = ("info", cam.name, CAMERA_INFO)
     if ps.type == "topic":
         routes[ps.topic] = ("pose", None, POSE_STAMPED)
@@ -67,12 +71,15 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
             raise BadInput(f"bag {str(args.bag)!r}: {tf_topic} has type "
                            f"{topics[tf_topic][0]}, expected {TF_MESSAGE}")
     for cam in config.cameras:
-        for topic in (cam.image_topic, cam.camera_info_topic):
+        for topic in (cam.subscribed_topic, cam.camera_info_topic):
             if topic not in topics:
-                say.warning("bag", f"camera {cam.name}: topic {topic} is not in the bag")
+                say.warning("bag", f"camera {cam.name}: topic {topic} is not in the bag"
+                            + _transport_hint(cam, topics))
 
     session = CalibrationSession(config)
     handlers = MessageHandlers(session)
+    feeder = ReplayFeeder(handlers, threads=config.detection_thread_count(),
+                          queue_size=config.sync.image_queue_size)
     tf = None
     if ps.type == "tf":  # the whole recording's tf first: lookups never wait for later data
         tf = TfTree(max_gap_ns=int(round(config.sync.max_gap_s * 1e9)),
@@ -86,7 +93,7 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     for m in read_messages(args.bag, list(routes), on_progress=progress):
         kind, cam, _ = routes[m.topic]
         if kind == "pose":
-            handlers.on_pose_stamped(m.msg)
+            feeder.pose(m.msg)
         elif kind == "info":
             handlers.on_camera_info(cam, m.msg)
         else:
@@ -99,12 +106,26 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
                     continue
                 except (ValueError, TypeError, AttributeError):
                     pass  # a bad stamp: on_image rejects and counts it
-            handlers.on_image(cam, m.msg, T)
+            feeder.image(cam, m.msg, compressed=kind == "compressed", T_parent_child=T)
+    feeder.close()
     progress.close()
+    for exc in feeder.errors[:3]:
+        say.warning("bag", f"detection thread error: {type(exc).__name__}: {exc}")
     counters = session.counters()
     say("input: " + ", ".join(f"{k}={v}" for k, v in sorted(counters.items()) if v))
     code, _ = calibrate_session(say, session, paths, force=args.force, report=args.report)
     return code
+
+
+def _transport_hint(cam, topics) -> str:
+    """A hint when the bag holds the camera's images on the other transport's topic."""
+    raw, compressed = cam.image_topic, cam.image_topic + "/compressed"
+    if cam.image_transport == "raw" and compressed in topics:
+        return (f"; the bag has {compressed}: set cameras.{cam.name}.image_transport: "
+                "compressed")
+    if cam.image_transport == "compressed" and raw in topics:
+        return f"; the bag has {raw}: set cameras.{cam.name}.image_transport: raw"
+    return ""
 
 
 def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> dict[str, Any]:

@@ -4,6 +4,7 @@ its typed sections are built from checked parameter values (:func:`build_section
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -24,10 +25,11 @@ from .sections import (
     SyncConfig,
     TagsConfig,
 )
-from .specs import IMAGE_QOS, POSE_SOURCE_TYPES, SOLVER_MODES
+from .specs import IMAGE_QOS, IMAGE_TRANSPORTS, POSE_SOURCE_TYPES, SOLVER_MODES
 from .validation import (
     check_choice,
     check_frame,
+    check_int_or_auto,
     check_positive,
     check_positive_int,
     check_topic,
@@ -90,6 +92,22 @@ class CalibratorConfig:
         for name in self.x_names:
             out[name] = (self.tag_carrier.frame, name + self.output.frame_suffix)
         return out
+
+    def detection_thread_count(self, available_cores: int | None = None) -> int:
+        """Threads for tag detection: ``sync.detection_threads``, or for ``"auto"`` the cores
+        available to this process (``os.sched_getaffinity``; ``available_cores`` overrides it)
+        but at most one per camera: the images of one camera are examined in order, one at a
+        time (the motion gate needs the previous image's pairs), so more threads than cameras
+        would idle."""
+        n = self.sync.detection_threads
+        if n != "auto":
+            return int(n)
+        if available_cores is None:
+            try:
+                available_cores = len(os.sched_getaffinity(0))
+            except (AttributeError, OSError):  # not on every platform
+                available_cores = os.cpu_count() or 1
+        return max(1, min(int(available_cores), len(self.cameras)))
 
     # --- construction ---------------------------------------------------------------------
     @staticmethod
@@ -171,6 +189,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
                 camera_info_topic=check_topic(v, p + "camera_info_topic"),
                 frame=frame,
                 calibrated_frame=cal or frame + v["output.frame_suffix"],
+                image_transport=check_choice(v, p + "image_transport", IMAGE_TRANSPORTS),
             )
         )
 
@@ -205,7 +224,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
                                                  allow_zero=True),
         pose_buffer_size=check_positive_int(v, "sync.pose_buffer_size", 2),
         image_queue_size=check_positive_int(v, "sync.image_queue_size", 1),
-        detection_threads=check_positive_int(v, "sync.detection_threads", 1),
+        detection_threads=check_int_or_auto(v, "sync.detection_threads", 1),
         max_pending_images=check_positive_int(v, "sync.max_pending_images", 0),
         tf_timeout_s=check_positive(v, "sync.tf_timeout_s", allow_zero=True),
     )
@@ -221,6 +240,8 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         max_reprojection_rms_px=check_positive(v, "detection.max_reprojection_rms_px"),
         min_side_px=check_positive(v, "detection.min_side_px", allow_zero=True),
         max_obliquity_deg=check_positive(v, "detection.max_obliquity_deg"),
+        decimate=check_int_or_auto(v, "detection.decimate", 1),
+        motion_gate=v["detection.motion_gate"],
     )
     if detection.max_obliquity_deg > 90.0:
         raise ValueError(

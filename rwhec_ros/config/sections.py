@@ -44,13 +44,26 @@ class PoseSourceConfig:
 
 @dataclass(frozen=True)
 class CameraConfig:
-    """One camera (a Y variable): topics, optical frame and published frame name."""
+    """One camera (a Y variable): topics, optical frame and published frame name.
+
+    ``image_transport`` is ``"raw"`` (``sensor_msgs/Image`` on ``image_topic``) or
+    ``"compressed"`` (``sensor_msgs/CompressedImage`` on :attr:`subscribed_topic`).
+    """
 
     name: str
     image_topic: str
     camera_info_topic: str
     frame: str
     calibrated_frame: str
+    image_transport: str = "raw"
+
+    @property
+    def subscribed_topic(self) -> str:
+        """The topic the images come on: ``image_topic``, or ``<image_topic>/compressed`` with
+        ``image_transport: compressed`` (``image_transport``'s naming)."""
+        if self.image_transport == "compressed":
+            return self.image_topic + "/compressed"
+        return self.image_topic
 
 
 @dataclass(frozen=True)
@@ -80,13 +93,17 @@ class NoiseConfig:
 
 @dataclass(frozen=True)
 class SyncConfig:
-    """Pose/image time matching. Seconds here; the session converts to integer nanoseconds."""
+    """Pose/image time matching. Seconds here; the session converts to integer nanoseconds.
+
+    ``image_queue_size`` counts per camera; ``detection_threads`` is an integer or ``"auto"``
+    (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`).
+    """
 
     max_gap_s: float
     extrapolation_tolerance_s: float
     pose_buffer_size: int
     image_queue_size: int
-    detection_threads: int
+    detection_threads: int | str
     max_pending_images: int
     tf_timeout_s: float
 
@@ -102,12 +119,15 @@ class KeyframeConfig:
 
 @dataclass(frozen=True)
 class DetectionConfig:
-    """Gates of the tag detector (:class:`rwhec_ros.vision.detection.DetectorConfig`)."""
+    """Gates of the tag detector (:class:`rwhec_ros.vision.detection.DetectorConfig`), its
+    decimation (an integer or ``"auto"``) and the motion gate of the live session."""
 
     corner_refinement: str
     max_reprojection_rms_px: float
     min_side_px: float
     max_obliquity_deg: float
+    decimate: int | str = "auto"
+    motion_gate: bool = True
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ __all__ = [
     "SOLVER_MODES",
     "POSE_SOURCE_TYPES",
     "IMAGE_QOS",
+    "IMAGE_TRANSPORTS",
 ]
 
 #: Node name used by the console script, the launch files and the example configurations.
@@ -34,14 +35,17 @@ ROS_MANAGED_PARAMETERS = ("use_sim_time", "start_type_description_service")
 #: Prefixes of parameters managed by ROS (QoS overrides); accepted and ignored.
 ROS_MANAGED_PREFIXES = ("qos_overrides.",)
 
-#: Parameter kinds, named after ``rclpy.Parameter.Type`` (see ``rwhec_ros.ros.params``).
-KINDS = ("bool", "int", "double", "string", "int_array", "double_array", "string_array")
+#: Parameter kinds, named after ``rclpy.Parameter.Type`` (see ``rwhec_ros.ros.params``), plus
+#: ``int_or_auto``: an integer or the string ``"auto"`` (declared as a string by default).
+KINDS = ("bool", "int", "double", "string", "int_array", "double_array", "string_array",
+         "int_or_auto")
 
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 SOLVER_MODES = ("fast", "sdp", "local")
 POSE_SOURCE_TYPES = ("topic", "tf")
 IMAGE_QOS = ("sensor_data", "reliable")
+IMAGE_TRANSPORTS = ("raw", "compressed")
 
 
 @dataclass(frozen=True)
@@ -110,12 +114,13 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("sync.extrapolation_tolerance_s", "double", 0.01,
               doc="how far [s] an image stamp may lie outside the pose buffer"),
     ParamSpec("sync.pose_buffer_size", "int", 4000, doc="poses kept for lookups"),
-    ParamSpec("sync.image_queue_size", "int", 8,
-              doc="images waiting for detection; the oldest is dropped (and counted)"),
-    ParamSpec("sync.detection_threads", "int", 1,
-              doc="worker threads running tag detection (node only; >1 for many cameras)"),
+    ParamSpec("sync.image_queue_size", "int", 4,
+              doc="images waiting for detection per camera; the oldest is dropped (and counted)"),
+    ParamSpec("sync.detection_threads", "int_or_auto", "auto",
+              doc="threads running tag detection (node and bag replay): 'auto' = the cores "
+                  "available to the process, at most one per camera; or an integer >= 1"),
     ParamSpec("sync.max_pending_images", "int", 32,
-              doc="detected images waiting for a later pose to bracket their stamp"),
+              doc="images waiting for a later pose to bracket their stamp"),
     ParamSpec("sync.tf_timeout_s", "double", 0.2,
               doc="wait [s] for tf at an image stamp (pose_source.type 'tf')"),
     ParamSpec("keyframe.min_rotation_rad", "double", 0.05,
@@ -133,6 +138,13 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="reject a tag whose shortest side is below this [px]"),
     ParamSpec("detection.max_obliquity_deg", "double", 70.0,
               doc="reject a tag seen more obliquely than this [deg] (0 = face-on)"),
+    ParamSpec("detection.decimate", "int_or_auto", "auto",
+              doc="candidate search on the image shrunk by this factor, corners refined at "
+                  "full resolution: 'auto' = max(W, H) // 600 (2 at 1280x1024: tags below "
+                  "about 37 px are not found), or an integer >= 1 (1 = full image)"),
+    ParamSpec("detection.motion_gate", "bool", True,
+              doc="examine only the tags whose pair the keyframe test could keep at the "
+                  "image's pose, and skip images where it could keep none (same pairs)"),
     ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),
     ParamSpec("solver.min_pairs", "int", 3, doc="edges with fewer pairs are left out"),
     ParamSpec("solver.reject_outliers", "bool", False,
@@ -173,6 +185,9 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
 CAMERA_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("image_topic", "string", required=True, doc="sensor_msgs/Image topic"),
     ParamSpec("camera_info_topic", "string", required=True, doc="sensor_msgs/CameraInfo topic"),
+    ParamSpec("image_transport", "string", "raw",
+              doc="'raw' (sensor_msgs/Image on image_topic) or 'compressed' "
+                  "(sensor_msgs/CompressedImage on <image_topic>/compressed, JPEG or PNG)"),
     ParamSpec("frame", "string", "", doc="optical frame name (default: the camera name)"),
     ParamSpec("calibrated_frame", "string", "",
               doc="published child frame (default: <frame><output.frame_suffix>)"),

@@ -30,6 +30,7 @@ __all__ = [
     "check_kind",
     "check_positive",
     "check_positive_int",
+    "check_int_or_auto",
     "check_choice",
     "check_frame",
     "check_topic",
@@ -113,6 +114,12 @@ def check_kind(name: str, value: Any, kind: str) -> Any:
     elif kind == "string":
         if isinstance(value, str):
             return value
+    elif kind == "int_or_auto":
+        if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+            return int(value)
+        if isinstance(value, str) and value.strip().lower() == "auto":
+            return "auto"
+        raise ValueError(f"{name}: expected 'auto' or an integer, got {_show(value)}")
     else:
         if not isinstance(value, _ARRAY_TYPES) or (
             isinstance(value, np.ndarray) and value.ndim != 1
@@ -181,6 +188,13 @@ def check_topic(v: dict[str, Any], name: str) -> str:
     if not _TOPIC_RE.match(x) or "//" in x or x.endswith("/"):
         raise ValueError(f"{name}: {x!r} is not a valid ROS topic name")
     return x
+
+
+def check_int_or_auto(v: dict[str, Any], name: str, minimum: int) -> int | str:
+    """``v[name]`` if it is ``"auto"`` or an integer ``>= minimum``, else ``ValueError``."""
+    if v[name] == "auto":
+        return "auto"
+    return check_positive_int(v, name, minimum)
 
 
 def check_positive_int(v: dict[str, Any], name: str, minimum: int) -> int:

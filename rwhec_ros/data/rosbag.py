@@ -43,6 +43,7 @@ __all__ = [
     "TRANSFORM_STAMPED",
     "TF_MESSAGE",
     "IMAGE",
+    "COMPRESSED_IMAGE",
     "CAMERA_INFO",
 ]
 
@@ -50,6 +51,7 @@ POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 IMAGE = "sensor_msgs/msg/Image"
+COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 
 _STORAGES = ("sqlite3", "mcap")

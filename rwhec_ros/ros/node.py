@@ -8,17 +8,20 @@ Run::
 
 Interfaces (relative names, so the node can be namespaced):
 
-* subscribes ``cameras.<name>.image_topic`` (``sensor_msgs/Image``) and
-  ``cameras.<name>.camera_info_topic`` (``sensor_msgs/CameraInfo``) best effort like
-  ``qos_profile_sensor_data`` (``ros.image_qos: reliable`` for a reliable subscription), history
-  depth ``ros.image_queue_depth``, and
+* subscribes ``cameras.<name>.image_topic`` (``sensor_msgs/Image``; with
+  ``cameras.<name>.image_transport: compressed`` ``sensor_msgs/CompressedImage`` on
+  ``<image_topic>/compressed``) and ``cameras.<name>.camera_info_topic``
+  (``sensor_msgs/CameraInfo``) with
+  best effort like ``qos_profile_sensor_data`` (``ros.image_qos: reliable`` for a reliable
+  subscription), history depth ``ros.image_queue_depth``, and
   ``pose_source.topic`` (``geometry_msgs/PoseStamped``) or, with ``pose_source.type: tf``, looks
   ``T_parent_child`` up on tf at every image stamp (tf2 ``Buffer`` + ``TransformListener``);
 * services ``calibrate``, ``~/reset``, ``~/save_dataset`` (``std_srvs/Trigger``);
 * publishes the extrinsics on ``/tf_static`` (``StaticTransformBroadcaster``, child frames from
   the configuration), ``~/suboptimality_bound`` (``std_msgs/Float64``) and ``~/result``
   (``std_msgs/String``, the result YAML), both transient local, and
-  ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (per-edge pairs and identifiability).
+  ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (session, one row per camera:
+  received / dropped / skipped / searched and transport loss, one row per edge).
 
 Outputs go under ``$ROS_HOME/rwhec_ros`` (``~/.ros/rwhec_ros``) unless ``output.directory``
 says otherwise (:mod:`rwhec_ros.session.paths`); the start-up log and every service answer name
@@ -29,9 +32,11 @@ Start-up errors and Ctrl-C (also the double SIGINT of ``ros2 launch``) are handl
 :func:`rwhec_ros.ros.process.run_node_program`: one line, no traceback, exit code 0 on Ctrl-C.
 
 Threading: sensor callbacks (reentrant group) only convert cheap messages or enqueue images;
-tag detection runs on a worker thread fed by a bounded drop-oldest queue; the services have their
-own mutually exclusive group, so ``calibrate`` answers while data keep flowing under a
-``MultiThreadedExecutor``. Everything else is delegated to
+tag detection runs on ``sync.detection_threads`` worker threads fed by a
+:class:`~rwhec_ros.session.FairImageQueue` (one bounded drop-oldest queue per camera, served
+round-robin, one image per camera at a time, each held until the pose at its stamp has arrived);
+the services have their own mutually exclusive group, so ``calibrate`` answers while data keep
+flowing under a ``MultiThreadedExecutor``. Everything else is delegated to
 :class:`~rwhec_ros.session.CalibrationSession` through
 :class:`~rwhec_ros.session.handlers.MessageHandlers`.
 """
@@ -56,7 +61,7 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 from rclpy.time import Time
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
@@ -70,7 +75,8 @@ from ..messages import (
     transform_stamped_to_transform,
     transform_to_transform_stamped_fields,
 )
-from ..session import CalibrationSession, ImageQueue, MessageHandlers, QueueWorker
+from ..session import CalibrationSession, FairImageQueue, MessageHandlers, QueueWorker
+from ..session.camera_monitor import CameraDiagnostics
 from ..session.paths import node_output_root
 from ..session.responses import (
     RESET_MESSAGE,
@@ -124,15 +130,18 @@ class CalibratorNode(Node):
         self._service_group = MutuallyExclusiveCallbackGroup()
         self._timer_group = MutuallyExclusiveCallbackGroup()
 
-        # --- detection off the executor: bounded drop-oldest queue + worker thread ----------
-        self._queue = ImageQueue(cfg.sync.image_queue_size)
+        # --- detection off the executor: per-camera drop-oldest queues + worker threads -------
+        # Images wait in the queue (undecoded) until the session has the pose at their stamp.
+        ready = None if cfg.pose_source.type == "tf" else self._pose_ready
+        self._queue = FairImageQueue(cfg.camera_names, cfg.sync.image_queue_size, ready=ready)
+        self._camera_diagnostics = CameraDiagnostics(cfg.camera_names)
         self._workers = [
             QueueWorker(
                 self._queue, self._process_image, name=f"{node_name}-detection-{i}",
                 on_error=lambda exc: self._warn_throttled(
                     "image_worker_error", f"image worker error: {type(exc).__name__}: {exc}"),
             ).start()
-            for i in range(cfg.sync.detection_threads)
+            for i in range(cfg.detection_thread_count())
         ]
 
         # --- subscriptions ------------------------------------------------------------------------
@@ -143,9 +152,10 @@ class CalibratorNode(Node):
                                durability=DurabilityPolicy.VOLATILE,
                                history=HistoryPolicy.KEEP_LAST)
         for cam in cfg.cameras:
+            compressed = cam.image_transport == "compressed"
             self.create_subscription(
-                Image, cam.image_topic,
-                lambda msg, name=cam.name: self._on_image(name, msg),
+                CompressedImage if compressed else Image, cam.subscribed_topic,
+                lambda msg, name=cam.name, c=compressed: self._on_image(name, msg, c),
                 image_qos, callback_group=self._sensor_group,
             )
             self.create_subscription(
@@ -159,7 +169,7 @@ class CalibratorNode(Node):
             pose_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT,
                                   history=HistoryPolicy.KEEP_LAST)
             self.create_subscription(
-                PoseStamped, cfg.pose_source.topic, self.handlers.on_pose_stamped, pose_qos,
+                PoseStamped, cfg.pose_source.topic, self._on_pose, pose_qos,
                 callback_group=self._sensor_group,
             )
         else:
@@ -252,21 +262,38 @@ class CalibratorNode(Node):
                                   if "output.directory" in review.changed else ""))
 
     # --- sensor callbacks ---------------------------------------------------------------------
-    def _on_image(self, camera: str, msg: Image) -> None:
-        if not self._queue.put((camera, msg)):
+    def _on_pose(self, msg: PoseStamped) -> None:
+        self.handlers.on_pose_stamped(msg)
+        self._queue.notify()  # images waiting for this pose may go now
+
+    def _on_image(self, camera: str, msg, compressed: bool) -> None:
+        try:
+            stamp_ns = stamp_to_ns(msg.header.stamp)
+        except (ValueError, TypeError, AttributeError):
+            stamp_ns = None  # rejected and counted by the handlers
+        else:
+            self._camera_diagnostics.record(camera, stamp_ns)
+        if not self._queue.put(camera, (msg, stamp_ns, compressed)):
             self.session.record("image_queue_dropped")
 
-    def _process_image(self, item) -> None:
-        """Worker thread: optional tf lookup at the image stamp, then convert + detect."""
-        camera, msg = item
+    def _pose_ready(self, item) -> bool:
+        stamp_ns = item[1]
+        return stamp_ns is None or self.session.pose_ready(stamp_ns)
+
+    def _process_image(self, entry) -> None:
+        """Worker thread: optional tf lookup at the image stamp, then gate, decode, detect."""
+        camera, (msg, _, compressed) = entry
         T = None
         if self._tf_buffer is not None:
             T = self._lookup_pose(camera, msg)
             if T is None:
                 return
-        self.handlers.on_image(camera, msg, T)
+        if compressed:
+            self.handlers.on_compressed_image(camera, msg, T)
+        else:
+            self.handlers.on_image(camera, msg, T)
 
-    def _lookup_pose(self, camera: str, msg: Image):
+    def _lookup_pose(self, camera: str, msg):
         ps = self.config.pose_source
         try:
             stamp_ns = stamp_to_ns(msg.header.stamp)
@@ -338,6 +365,8 @@ class CalibratorNode(Node):
             identifiable=None if report is None else bool(report.identifiable),
             verdict="" if report is None else str(report.verdict),
         )
+        rows[1:1] = self._camera_diagnostics.rows(
+            self.session.camera_counters(), self._queue.stats(), prefix=self.get_name())
         msg = DiagnosticArray()
         fill_message(msg.header, {"stamp": ns_to_stamp_fields(self.get_clock().now().nanoseconds)})
         for row in rows:

@@ -42,6 +42,7 @@ ROS_TYPE_NAMES = {
     "int_array": "INTEGER_ARRAY",
     "double_array": "DOUBLE_ARRAY",
     "string_array": "STRING_ARRAY",
+    "int_or_auto": "STRING",  # default "auto"; a file's integer is declared INTEGER from it
 }
 
 

@@ -18,18 +18,23 @@ stamp, ...): every rejection is counted by reason (:meth:`~CalibrationSession.co
 Threading: the ROS node calls ``add_pose``/``add_image`` from worker threads and ``calibrate``
 from a service thread. Shared state is protected by one lock that is never held during tag
 detection or the solve (the data are copied under the lock, then processed).
-:class:`ImageQueue` and :class:`QueueWorker` move detection off the caller's thread with a bounded
-drop-oldest queue; both are plain Python and testable without ROS.
+:class:`FairImageQueue` and :class:`QueueWorker` move detection off the caller's thread: one
+bounded queue per camera, served round-robin, one image per camera at a time (the motion gate of
+:mod:`.image_input` needs a camera's images in order); both are plain Python and testable
+without ROS.
 
-Modules: :mod:`.live` (:class:`CalibrationSession`), :mod:`.outcomes` (what it answers),
-:mod:`.solving` (the solve step shared with the CLI), :mod:`.outputs` (summary, launch file, data
-set and output files), :mod:`.image_queue` (:class:`ImageQueue`, :class:`QueueWorker`) and
-:mod:`.handlers` (:class:`MessageHandlers`: one ROS message, rclpy's or rosbags', into the
-session).
+Modules: :mod:`.live` (:class:`CalibrationSession`), :mod:`.image_input` (its image path: pose,
+motion gate, lazy decoding, tags, pairs), :mod:`.outcomes` (what it answers), :mod:`.solving`
+(the solve step shared with the CLI), :mod:`.outputs` (summary, launch file, data set and output
+files), :mod:`.image_queue` (:class:`ImageQueue`, :class:`FairImageQueue`, :class:`QueueWorker`),
+:mod:`.camera_monitor` (transport loss from the stamps' spacing, per-camera ``/diagnostics``
+rows), :mod:`.replay` (recorded messages into a session on several threads, for
+``rwhec-calibrate bag``) and :mod:`.handlers` (:class:`MessageHandlers`: one ROS message,
+rclpy's or rosbags', into the session).
 """
 
 from .handlers import MessageHandlers
-from .image_queue import ImageQueue, QueueWorker
+from .image_queue import FairImageQueue, ImageQueue, QueueWorker
 from .live import CalibrationSession
 from .outcomes import ImageOutcome, SolveOutcome
 from .outputs import static_transforms_launch, summary
@@ -40,6 +45,7 @@ __all__ = [
     "SolveOutcome",
     "CalibrationSession",
     "ImageQueue",
+    "FairImageQueue",
     "QueueWorker",
     "MessageHandlers",
     "static_transforms_launch",

@@ -3,9 +3,11 @@
 The node's subscription callbacks (and the CLI's ``bag`` replay) are one-line calls into
 :class:`MessageHandlers`, which turns a message into numbers with :mod:`rwhec_ros.messages` and
 calls the :class:`~rwhec_ros.session.CalibrationSession`. A message that cannot be converted
-(NaN or zero quaternion, unknown image encoding, short buffer, invalid ``k``) is counted in the
-session (``bad_pose_message``, ``bad_camera_info_message``, ``bad_image_message``) and reported
-through ``on_warning``, never raised, so one bad message cannot stop the node. Being free of
+(NaN or zero quaternion, unknown image encoding, short buffer, undecodable or truncated JPEG/PNG,
+invalid ``k``) is counted in the session (``bad_pose_message``, ``bad_camera_info_message``,
+``bad_image_message``) and reported through ``on_warning``, never raised, so one bad message cannot
+stop the node. Images are converted lazily: the session decodes only those its motion gate lets
+through (:mod:`rwhec_ros.session.image_input`). Being free of
 rclpy, the handlers are tested with ``rosbags`` messages.
 """
 
@@ -18,6 +20,7 @@ import numpy as np
 
 from ..messages import (
     camera_info_to_intrinsics,
+    compressed_image_to_gray,
     image_to_gray,
     pose_stamped_to_transform,
     stamp_to_ns,
@@ -104,20 +107,31 @@ class MessageHandlers:
     ) -> ImageOutcome:
         """A ``sensor_msgs/Image`` of ``camera`` (call it off the executor thread: it detects).
 
-        ``T_parent_child`` is the pose at the image stamp when the node looked it up on tf.
+        ``T_parent_child`` is the pose at the image stamp when the node looked it up on tf. The
+        pixels are converted only when the session's motion gate lets the image through.
         """
+        return self._image(camera, msg, image_to_gray, T_parent_child)
+
+    def on_compressed_image(
+        self, camera: str, msg: Any, T_parent_child: np.ndarray | None = None
+    ) -> ImageOutcome:
+        """A ``sensor_msgs/CompressedImage`` of ``camera`` (JPEG, PNG; ``image_transport``'s
+        ``compressed`` format strings), decoded with OpenCV only when the session's motion gate
+        lets the image through; undecodable or truncated data is counted
+        ``bad_image_message`` like a bad raw image."""
+        return self._image(camera, msg, compressed_image_to_gray, T_parent_child)
+
+    def _image(self, camera: str, msg: Any, convert: Callable[[Any], np.ndarray],
+               T_parent_child: np.ndarray | None) -> ImageOutcome:
         try:
             stamp_ns = stamp_to_ns(msg.header.stamp)
         except (ValueError, TypeError, AttributeError) as exc:
             self._warn("bad_image_message", f"image of {camera!r} rejected: {exc}")
             return ImageOutcome(camera, -1, "rejected", reasons=["bad_image_message"])
-        try:
-            gray = image_to_gray(msg)
-        except (ValueError, TypeError, AttributeError) as exc:
-            self._warn("bad_image_message", f"image of {camera!r} rejected: {exc}")
-            return ImageOutcome(camera, stamp_ns, "rejected", reasons=["bad_image_message"])
-        outcome = self.session.add_image(camera, stamp_ns, gray, T_parent_child)
+        outcome = self.session.add_image(camera, stamp_ns, lambda: convert(msg), T_parent_child)
         if outcome.status == "rejected" and self.on_warning is not None:
             for reason in outcome.reasons:
-                self.on_warning(reason, f"image of {camera!r} at {stamp_ns} ns: {reason}")
+                detail = f": {outcome.detail}" if outcome.detail else ""
+                self.on_warning(reason,
+                                f"image of {camera!r} at {stamp_ns} ns rejected: {reason}{detail}")
         return outcome

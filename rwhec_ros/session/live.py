@@ -21,10 +21,11 @@ from ..core.lie import invert_transform
 from ..core.result import CalibrationResult
 from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
 from ..sync.accumulator import PairAccumulator
-from ..sync.buffer import LookupStatus, PoseBuffer
-from ..vision.detection import DetectorConfig, RejectReason, TagDetector
+from ..sync.buffer import PoseBuffer
+from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
-from .outcomes import ImageOutcome, SolveOutcome, edge_rows
+from .image_input import CAMERA_COUNTERS, ImageInput
+from .outcomes import SolveOutcome, edge_rows
 from .outputs import session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
 from .solving import full_report, make_tracker, report_dict, solve_problem
@@ -34,8 +35,11 @@ __all__ = ["CalibrationSession"]
 _NS_PER_S = 1_000_000_000
 
 
-class CalibrationSession:
+class CalibrationSession(ImageInput):
     """Accumulate synchronised measurement pairs live and calibrate on request.
+
+    Images go in through :meth:`add_image` (:class:`~rwhec_ros.session.image_input.ImageInput`:
+    pose, motion gate, tags, pairs), poses through :meth:`add_pose`.
 
     Parameters
     ----------
@@ -80,6 +84,7 @@ class CalibrationSession:
             min_side_px=config.detection.min_side_px,
             max_obliquity_deg=config.detection.max_obliquity_deg,
             estimate_precision=True,
+            decimate=config.detection.decimate,
         )
         self._tag_names = {t: config.tags.frame_name(t) for t in config.tags.ids}
         self._intrinsics: dict[str, CameraIntrinsics] = {}
@@ -104,6 +109,8 @@ class CalibrationSession:
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()
         self._counters: collections.Counter = collections.Counter()
+        self._camera_counts = {name: collections.Counter(dict.fromkeys(CAMERA_COUNTERS, 0))
+                               for name in c.camera_names}
 
     def update_config(self, config: CalibratorConfig, *,
                       output_root: str | Path | None = None) -> None:
@@ -184,8 +191,18 @@ class CalibrationSession:
         ``source`` is the message's parent frame (``header.frame_id``); a non-empty value that is
         not ``pose_source.parent`` is rejected (counted ``pose_rejected_frame_id``). The sample is
         stored as ``A = T_<camera carrier>_<tag carrier>``. Images waiting for this pose are
-        processed. Returns True when the sample was stored. Never raises for bad data.
+        processed (gated, decoded and searched here, outside the lock). Returns True when the
+        sample was stored. Never raises for bad data.
         """
+        ok = self._store_pose(stamp_ns, T_parent_child, source)
+        if self._pending:
+            with self._lock:
+                ready = self._take_ready_pending()
+            for item in ready:
+                self._finish_pending(item)
+        return ok
+
+    def _store_pose(self, stamp_ns: int, T_parent_child: Any, source: str | None) -> bool:
         with self._lock:
             self._count("poses")
             if source and source != self.config.pose_source.parent:
@@ -201,165 +218,7 @@ class CalibrationSession:
                 ok = False
             if not ok:
                 self._count("pose_rejected_buffer")
-            if self._pending:
-                self._process_pending()
             return bool(ok)
-
-    def add_image(
-        self,
-        camera: str,
-        stamp_ns: int,
-        gray: np.ndarray,
-        T_parent_child: np.ndarray | None = None,
-    ) -> ImageOutcome:
-        """Detect tags in one image and offer the ``(A, B)`` pairs.
-
-        Parameters
-        ----------
-        camera : str
-            Camera name of the configuration.
-        stamp_ns : int
-            Image stamp [ns].
-        gray : ndarray, shape (H, W), uint8
-            Grayscale image of the camera's intrinsics size.
-        T_parent_child : ndarray (4, 4), optional
-            The pose at exactly this stamp (e.g. a tf lookup); otherwise it is looked up in the
-            pose buffer, and detections wait (bounded, ``sync.max_pending_images``) when the
-            buffer has no pose after the stamp yet.
-
-        Returns
-        -------
-        ImageOutcome
-            Never raises for bad data; each rejection is counted by reason.
-        """
-        reasons: list[str] = []
-
-        def reject(reason: str) -> ImageOutcome:
-            with self._lock:
-                self._count(reason)
-            reasons.append(reason)
-            return ImageOutcome(camera, safe_int(stamp_ns), "rejected", reasons=reasons)
-
-        with self._lock:
-            self._count("images")
-            intrinsics = self._intrinsics.get(camera)
-        if camera not in self.config.camera_names:
-            return reject("image_unknown_camera")
-        if intrinsics is None:
-            return reject("image_missing_camera_info")
-        stamp = safe_int(stamp_ns)
-        if stamp is None:
-            return reject("image_bad_stamp")
-        img = np.asarray(gray) if isinstance(gray, np.ndarray) else None
-        if img is None or img.ndim != 2 or img.dtype != np.uint8:
-            return reject("image_not_gray_uint8")
-        if img.shape != (intrinsics.height, intrinsics.width):
-            return reject("image_size_mismatch")
-
-        try:  # outside the lock: detection is the expensive part
-            detection = self._detector().detect(img, intrinsics)
-        except Exception as exc:  # noqa: BLE001 - the live path never raises
-            return reject(f"image_detector_error:{type(exc).__name__}")
-
-        with self._lock:
-            for r in detection.rejections:
-                key = (
-                    "tag_not_in_config"
-                    if r.reason == RejectReason.NOT_IN_CONFIGURATION.value
-                    else f"tag_rejected:{r.reason}"
-                )
-                self._count(key)
-                reasons.append(key)
-            obs = [o for o in detection.observations if o.tag_id in self._tag_names]
-            self._count("tags_detected", len(obs))
-            if not obs:
-                self._count("images_without_tags")
-                return ImageOutcome(camera, stamp, "no_tags", reasons=reasons)
-            if T_parent_child is not None:
-                A = self._pose_to_A(T_parent_child)
-                if A is None:
-                    self._count("image_bad_pose")
-                    reasons.append("image_bad_pose")
-                    return ImageOutcome(camera, stamp, "rejected", len(obs), reasons=reasons)
-                kept = self._offer(camera, stamp, A, obs)
-            else:
-                state, kept, reason = self._resolve(camera, stamp, obs, final=False)
-                if state == "wait":
-                    if self.config.sync.max_pending_images == 0:
-                        state, kept, reason = self._resolve(camera, stamp, obs, final=True)
-                    else:
-                        if len(self._pending) >= self.config.sync.max_pending_images:
-                            self._resolve(*self._pending.popleft(), final=True)
-                        self._pending.append((camera, stamp, obs))
-                        self._count("images_pending")
-                        return ImageOutcome(camera, stamp, "pending", len(obs), reasons=reasons)
-                if state == "rejected":
-                    reasons.append(reason)
-                    return ImageOutcome(camera, stamp, "rejected", len(obs), reasons=reasons)
-                return ImageOutcome(camera, stamp, state, len(obs), kept, reasons)
-            self._count("images_used" if kept else "images_no_new_pairs")
-            return ImageOutcome(
-                camera, stamp, "used" if kept else "no_new_pairs", len(obs), kept, reasons
-            )
-
-    def _resolve(self, camera: str, stamp: int, obs: list, *, final: bool):
-        """Pose lookup for one detected image (lock held): ``(state, kept, reason)`` with state
-        ``used``/``no_new_pairs``/``rejected``/``wait``.
-
-        An image newer than the newest pose waits (``wait``) for a pose after its stamp, so that
-        ``A`` is interpolated rather than held from the previous sample, unless ``final`` (the
-        image leaves the pending queue) or the gap already exceeds ``sync.max_gap_s``.
-        """
-        newest = self._buffer.newest_ns
-        status = self._buffer.lookup_status(stamp)
-        bracketed = newest is not None and stamp <= newest
-        if not final and not bracketed and (status.retry or status is LookupStatus.OK):
-            return "wait", 0, ""
-        if status is LookupStatus.OK:
-            kept = self._offer(camera, stamp, self._buffer.lookup(stamp), obs)
-            state = "used" if kept else "no_new_pairs"
-            self._count("images_" + state)
-            return state, kept, ""
-        reason = f"no_pose_at_stamp:{status.value}"
-        self._count(reason)
-        return "rejected", 0, reason
-
-    def _detector(self) -> TagDetector:
-        det = getattr(self._local, "detector", None)
-        if det is None:  # one detector per thread: cv2 detector objects are not shared
-            det = self._local.detector = TagDetector(self._detector_config)
-        return det
-
-    def _offer(self, camera: str, stamp: int, A: np.ndarray, observations: list) -> int:
-        """Offer the pairs of one image (lock held); returns the number kept."""
-        noise = self.config.noise
-        kept = 0
-        for o in observations:
-            if noise.from_reprojection and o.sigma is not None and o.kappa is not None:
-                sigma, kappa = float(o.sigma), float(o.kappa)
-            else:
-                sigma, kappa = noise.sigma, noise.kappa
-            x = self._tag_names[o.tag_id]
-            ok = self._acc.offer(x, camera, stamp, A, o.T_cam_tag, sigma, kappa)
-            self._count("pairs_offered")
-            if ok:
-                kept += 1
-                if self._tracker is not None:
-                    try:
-                        self._tracker.add_pair(x, camera, A, o.T_cam_tag, sigma, kappa)
-                    except ValueError:
-                        self._count("identifiability_rejected_pair")
-        self._count("pairs_kept", kept)
-        return kept
-
-    def _process_pending(self) -> None:
-        """Retry images waiting for a pose (lock held)."""
-        still = collections.deque()
-        while self._pending:
-            camera, stamp, obs = self._pending.popleft()
-            if self._resolve(camera, stamp, obs, final=False)[0] == "wait":
-                still.append((camera, stamp, obs))
-        self._pending = still
 
     # --- monitoring --------------------------------------------------------------------------
     def counters(self) -> dict[str, int]:
@@ -537,15 +396,3 @@ class CalibrationSession:
         """Forget poses, pairs, pending images and counters (intrinsics are kept)."""
         with self._lock:
             self._init_data()
-
-
-
-def safe_int(value: Any) -> int | None:
-    try:
-        if isinstance(value, bool):
-            return None
-        out = int(value)
-        return out if out == value else None
-    except (TypeError, ValueError, OverflowError):
-        return None
-

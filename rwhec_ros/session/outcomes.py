@@ -20,22 +20,28 @@ class ImageOutcome:
     stamp_ns : int
     status : str
         ``"used"`` (at least one pair kept), ``"no_new_pairs"`` (tags seen, pose found, but no
-        pair passed the keyframe test), ``"no_tags"``, ``"pending"`` (detections wait for a pose
-        newer than the stamp) or ``"rejected"``.
+        pair passed the keyframe test), ``"no_tags"``, ``"skipped"`` (motion gate: no edge of
+        the camera would keep a pair at this pose, so the image was neither decoded nor
+        searched), ``"pending"`` (the image waits for a pose newer than its stamp) or
+        ``"rejected"``.
     observations : int
         Accepted tag detections.
     pairs_kept : int
         Pairs the accumulator kept.
     reasons : list of str
         Counter keys of every rejection in this image.
+    detail : str
+        What was wrong, for a rejection with more to say than its key (e.g. why the data could
+        not be decoded).
     """
 
     camera: str
-    stamp_ns: int
+    stamp_ns: int | None
     status: str
     observations: int = 0
     pairs_kept: int = 0
     reasons: list[str] = field(default_factory=list)
+    detail: str = ""
 
 
 @dataclass

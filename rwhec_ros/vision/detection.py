@@ -47,7 +47,7 @@ and is meant for relative weighting, not as a calibrated covariance.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -355,10 +355,15 @@ class TagRejection:
 
 @dataclass
 class DetectionResult:
-    """Output of :meth:`TagDetector.detect` (both lists empty when nothing is seen)."""
+    """Output of :meth:`TagDetector.detect` (every list empty when nothing is seen).
+
+    ``skipped`` holds the configured ids that the candidate search found but that were left
+    unexamined because the caller asked only for other ids (``detect(..., only_ids=...)``).
+    """
 
     observations: list[TagObservation] = field(default_factory=list)
     rejections: list[TagRejection] = field(default_factory=list)
+    skipped: list[int] = field(default_factory=list)
 
     def by_id(self) -> dict[int, TagObservation]:
         """Accepted observations keyed by tag id."""
@@ -393,6 +398,8 @@ class TagDetector:
         gray: np.ndarray,
         intrinsics: CameraIntrinsics,
         predicted: Mapping[int, np.ndarray] | None = None,
+        *,
+        only_ids: Collection[int] | None = None,
     ) -> DetectionResult:
         """Detect tags in an 8-bit grayscale image and estimate their poses.
 
@@ -405,11 +412,17 @@ class TagDetector:
         predicted : mapping of int to ndarray (4, 4), optional
             Predicted ``T_cam_tag`` per tag id (from the current estimate); resolves pose flips
             (:mod:`rwhec_ros.vision.planar_pose`).
+        only_ids : collection of int, optional
+            Examine only these configured ids: the candidate search runs on the whole image as
+            always, but a configured tag outside ``only_ids`` gets no corner refinement, pose or
+            gates and is listed in ``DetectionResult.skipped`` (the live session passes the tags
+            whose pair the keyframe test could keep). Each tag is examined on its own, so the
+            observations of the ids examined are those of a full ``detect``.
 
         Returns
         -------
         DetectionResult
-            Accepted observations (ascending tag id) and rejections with reasons.
+            Accepted observations (ascending tag id), rejections with reasons and skipped ids.
 
         Raises
         ------
@@ -435,7 +448,8 @@ class TagDetector:
                 TagRejection(-1, RejectReason.DETECTOR_ERROR.value, str(exc).strip()[:200])
             )
             return result
-        return self.estimate_markers(img, ids, corners, intrinsics, predicted, result)
+        return self.estimate_markers(img, ids, corners, intrinsics, predicted, result,
+                                     only_ids=only_ids)
 
     def estimate_markers(
         self,
@@ -445,10 +459,12 @@ class TagDetector:
         intrinsics: CameraIntrinsics,
         predicted: Mapping[int, np.ndarray] | None = None,
         result: DetectionResult | None = None,
+        *,
+        only_ids: Collection[int] | None = None,
     ) -> DetectionResult:
         """The stages after :meth:`detect_markers` (duplicates, refinement, pose, gates) on given
         markers (ids and corners (4, 2) in distorted pixels) of a validated image; appends to
-        ``result`` (a new one by default)."""
+        ``result`` (a new one by default); ``only_ids`` as in :meth:`detect`."""
         result = DetectionResult() if result is None else result
         img = gray
         if not ids:
@@ -456,7 +472,12 @@ class TagDetector:
         counts: dict[int, int] = {}
         for tag_id in ids:
             counts[tag_id] = counts.get(tag_id, 0) + 1
+        wanted = None if only_ids is None else {int(i) for i in only_ids}
         for tag_id, quad in sorted(zip(ids, corners, strict=True), key=lambda p: p[0]):
+            if (wanted is not None and tag_id not in wanted
+                    and self.config.size_of(tag_id) is not None):
+                result.skipped.append(tag_id)
+                continue
             quad = np.asarray(quad, dtype=float).reshape(4, 2)
             if counts[tag_id] > 1:
                 result.rejections.append(

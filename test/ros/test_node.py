@@ -6,6 +6,7 @@ demo simulation's messages on the configured topics and calls the services.
 
 from __future__ import annotations
 
+import contextlib
 import re
 import threading
 import time
@@ -24,7 +25,7 @@ from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import CameraInfo, Image  # noqa: E402
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image  # noqa: E402
 from std_msgs.msg import Float64, String  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
@@ -32,6 +33,7 @@ from tf2_msgs.msg import TFMessage  # noqa: E402
 from rwhec_ros.config import read_parameter_file  # noqa: E402
 from rwhec_ros.messages import (  # noqa: E402
     fill_message,
+    gray_to_compressed_image_fields,
     gray_to_image_fields,
     intrinsics_to_camera_info_fields,
     transform_to_pose_stamped_fields,
@@ -60,10 +62,11 @@ def context():
         rclpy.try_shutdown(context=ctx)
 
 
-@pytest.fixture
-def running(context, tmp_path):
-    """(calibrator node, helper node, executor) with the executor spinning in a thread."""
-    node = CalibratorNode(context=context, parameter_overrides=overrides(tmp_path))
+@contextlib.contextmanager
+def spinning(context, params):
+    """(calibrator node with ``params``, helper node, executor), the executor spinning in a
+    thread."""
+    node = CalibratorNode(context=context, parameter_overrides=params)
     helper = Node("rwhec_test_helper", context=context)
     executor = MultiThreadedExecutor(context=context)
     executor.add_node(node)
@@ -77,6 +80,13 @@ def running(context, tmp_path):
         node.destroy_node()
         helper.destroy_node()
         thread.join(5.0)
+
+
+@pytest.fixture
+def running(context, tmp_path):
+    """(calibrator node, helper node, executor) with the executor spinning in a thread."""
+    with spinning(context, overrides(tmp_path)) as started:
+        yield started
 
 
 def call(helper: Node, name: str, timeout: float = 60.0):
@@ -266,3 +276,48 @@ def test_feed_topics_and_calibrate(running, tmp_path):
     saved = call(helper, "/calibrator/save_dataset")
     assert saved.success and saved.message.startswith(f"data set written: {tmp_path}/dataset_")
     assert any(Path(node.config.output.directory).rglob("result.yaml"))
+
+
+def test_compressed_camera_fair_queue_and_camera_rows(context, tmp_path):
+    """cam1 on compressed transport: the node subscribes <image_topic>/compressed, decodes,
+    counts per camera, and publishes one /diagnostics row per camera."""
+    params = overrides(tmp_path, **{"cameras.cam1.image_transport": "compressed",
+                                    "sync.detection_threads": 2})
+    with spinning(context, params) as (node, helper, _):
+        assert len(node._workers) == 2
+        rig = demo_rig()
+        reliable = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+        pose_pub = helper.create_publisher(PoseStamped, DEMO_POSE_TOPIC, reliable)
+        topic, info_topic = demo_camera_topics("cam1")
+        image_pub = helper.create_publisher(CompressedImage, topic + "/compressed", reliable)
+        info_pub = helper.create_publisher(CameraInfo, info_topic, reliable)
+        diag = []
+        helper.create_subscription(DiagnosticArray, "/diagnostics", diag.append, 10)
+        assert wait_for(lambda: image_pub.get_subscription_count() > 0
+                        and pose_pub.get_subscription_count() > 0)
+        t0 = 1000 * NS
+        for i in range(10):
+            t = 0.2 * i
+            for k in range(20):
+                tp = t + 0.01 * k
+                pose_pub.publish(fill_message(PoseStamped(), transform_to_pose_stamped_fields(
+                    rig.pose_measurement(tp), "world", t0 + int(round(tp * NS)))))
+            stamp = t0 + int(round((t + 0.05) * NS))
+            info_pub.publish(fill_message(CameraInfo(), intrinsics_to_camera_info_fields(
+                rig.intrinsics["cam1"], stamp, "cam1_optical")))
+            gray = rig.render("cam1", rig.T_world_rig(t + 0.05), supersample=1)
+            fields = gray_to_compressed_image_fields(gray, stamp, "cam1_optical")
+            if i == 9:
+                fields["data"] = fields["data"][:1000]  # truncated: counted, not raised
+            image_pub.publish(fill_message(CompressedImage(), fields))
+            time.sleep(0.05)
+        assert wait_for(lambda: node.session.camera_counters()["cam1"]["images"] >= 8,
+                        timeout=30.0)
+        assert wait_for(lambda: node.session.counters().get("bad_image_message", 0) == 1,
+                        timeout=30.0)
+        assert wait_for(lambda: any(s.name == "calibrator: camera cam1"
+                                    for m in diag for s in m.status), timeout=10.0)
+        row = next(s for m in reversed(diag) for s in m.status
+                   if s.name == "calibrator: camera cam1")
+        values = {kv.key: kv.value for kv in row.values}
+        assert int(values["received"]) >= 8 and "skipped_no_motion" in values

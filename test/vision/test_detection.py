@@ -151,6 +151,28 @@ def test_unconfigured_id_and_per_id_sizes():
     )
 
 
+def test_only_ids_examines_those_tags_exactly_as_a_full_detect():
+    base = viewed_from(20.0, 0.0)
+    poses = []
+    for shift in (0.0, 0.3, -0.3):
+        T = base.copy()
+        T[:3, 3] += base[:3, :3] @ [shift, 0.0, 0.0]
+        poses.append(T)
+    img = render(CAM, poses, ids=[4, 9, 11])
+    detector = TagDetector(DetectorConfig(tag_sizes={4: SIZE, 9: SIZE}))
+    full = detector.detect(img, CAM)
+    part = detector.detect(img, CAM, only_ids=[9, 30])
+    assert [o.tag_id for o in part.observations] == [9]
+    assert part.skipped == [4]  # configured, found, not asked for
+    # an unconfigured id is still rejected by name (cheap, and counted by the session)
+    assert [(r.tag_id, r.reason) for r in part.rejections] == [(11, "not_in_configuration")]
+    assert full.skipped == []
+    # The same numbers as the full detection: each tag is refined and solved on its own.
+    np.testing.assert_array_equal(part.by_id()[9].T_cam_tag, full.by_id()[9].T_cam_tag)
+    np.testing.assert_array_equal(part.by_id()[9].corners, full.by_id()[9].corners)
+    assert detector.detect(img, CAM, only_ids=()).observations == []
+
+
 def test_duplicate_ids_are_rejected():
     poses = [viewed_from(0.0, offset=(0.25, 0.0)), viewed_from(0.0, offset=(-0.25, 0.0))]
     result = TagDetector(DetectorConfig(default_tag_size=SIZE)).detect(
