@@ -293,7 +293,7 @@ def test_wildcard_and_node_sections(tmp_path):
         ("calibrator:\n  params: {}\n", "ros__parameters"),
         ("calibrator:\n  ros__parameters:\n    cameras: [{name: cam0}]\n", "cameras"),
         ("calibrator:\n  ros__parameters:\n    tags: {ids: [0, 1.5]}\n", "tags.ids"),
-        ("calibrator: [\n", "invalid YAML"),
+        ("calibrator: [\n", "not valid YAML"),
         ("- 1\n- 2\n", "top level"),
     ],
 )

@@ -138,6 +138,7 @@ class OutputConfig:
     frame_suffix: str
     publish_tf: bool
     publish_uncertified: bool
+    publish_unusable: bool = False
 
 
 @dataclass(frozen=True)
@@ -146,3 +147,4 @@ class RosConfig:
 
     image_qos: str
     diagnostics_period_s: float
+

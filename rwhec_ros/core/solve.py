@@ -22,6 +22,7 @@ cost. Numerical failures (Clarabel, eigensolvers, singular systems) become the s
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import time
 from dataclasses import dataclass, field
@@ -61,7 +62,7 @@ from .relaxation import (
 from .result import CalibrationResult, Certificate, Status
 from .sparsity import ArrowSplit, arrow_split, estimate_form_costs
 
-__all__ = ["SolveOptions", "solve", "MODES"]
+__all__ = ["SolveOptions", "solve", "MODES", "limit_blas_threads"]
 
 MODES = ("sdp", "fast", "local")
 
@@ -421,11 +422,18 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
         CERTIFIED_OPTIMAL.
     """
     options = options or SolveOptions()
-    threads = options.blas_threads
+    with limit_blas_threads(options.blas_threads):
+        return _solve(problem, options)
+
+
+def limit_blas_threads(threads: int | None = 1):
+    """Context manager limiting the BLAS threads to ``threads`` (``None``: unchanged), as the
+    solve does (see :attr:`SolveOptions.blas_threads`); for the other dense linear algebra of a
+    calibration (identifiability, verdict), which multi-threaded BLAS slows down on small
+    matrices."""
     if threads is None:
-        return _solve(problem, options)
-    with _blas_controller().limit(limits=threads, user_api="blas"):
-        return _solve(problem, options)
+        return contextlib.nullcontext()
+    return _blas_controller().limit(limits=threads, user_api="blas")
 
 
 @functools.lru_cache(maxsize=1)

@@ -22,10 +22,12 @@ detection or the solve (the data are copied under the lock, then processed).
 drop-oldest queue; both are plain Python and testable without ROS.
 
 Modules: :mod:`.live` (:class:`CalibrationSession`), :mod:`.outcomes` (what it answers),
-:mod:`.solving` (the solve step shared with the CLI), :mod:`.outputs` (summary, launch file, data
-set and output files), :mod:`.image_queue` (:class:`ImageQueue`, :class:`QueueWorker`) and
-:mod:`.handlers` (:class:`MessageHandlers`: one ROS message, rclpy's or rosbags', into the
-session).
+:mod:`.solving` (the solve step shared with the CLI, identifiability at the solution and the
+verdict, :func:`~rwhec_ros.core.verdict.assess`), :mod:`.outputs` (summary, launch file, what is
+published, data set and output files), :mod:`.rejections` (data rejected wholesale, in words),
+:mod:`.info_wait` (images held for their camera's first CameraInfo), :mod:`.image_queue`
+(:class:`ImageQueue`, :class:`QueueWorker`) and :mod:`.handlers` (:class:`MessageHandlers`: one
+ROS message, rclpy's or rosbags', into the session).
 """
 
 from .handlers import MessageHandlers
