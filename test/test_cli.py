@@ -704,3 +704,14 @@ def test_library_warnings_become_notes(tmp_path, monkeypatch):
     code, _, stderr = run(["csv", tmp_path])
     assert code == EXIT_OK
     assert stderr == "rwhec-calibrate csv: note: Solution may be inaccurate. Try another solver\n"
+
+
+def test_robust_drops_the_tag_23_cam_6_edge_of_the_paper_data(paper_dir, tmp_path):
+    code, stdout, stderr = run(["csv", paper_dir, "--robust", "-o", tmp_path / "out", "-q"])
+    assert code == EXIT_OK, stdout + stderr
+    # GNC-TLS rejects the 4 pairs of the edge: said as an excluded edge, no longer an outlier
+    assert "excluded: (tag_23, cam_6): outlier rejection: all 4 pairs rejected" in stdout
+    assert "edge (tag_23, cam_6) fits" not in stdout
+    doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
+    assert doc["verdict"] == "caution"  # the tag scale (alpha 1.025) remains
+    assert doc["reasons"][0].startswith("CAUTION: the camera-tag distances are 1.025 times")
