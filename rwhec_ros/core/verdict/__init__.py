@@ -9,8 +9,11 @@ The modules, one concept each:
   lengths, pose-stream units);
 * :mod:`.precision`: each frame's predicted standard deviation (today from the identifiability
   numeric check);
-* :mod:`.verdict`: :func:`assess`, combining them with the certificate and identifiability into a
-  :class:`Verdict` with reasons in words and a :class:`FrameVerdict` per frame.
+* :mod:`.model`: :class:`Reason`, :class:`FrameVerdict`, :class:`Verdict` and the builder that
+  collects them; :mod:`.words`: numbers in words;
+* :mod:`.reasons`: the checks (certificate, identifiability, frames without an estimate, scale,
+  edges, fit, precision), each adding its reasons;
+* :mod:`.verdict`: :func:`assess`, running the checks on a solution.
 """
 
 from .fit import EdgeFit, FitStatistics, goodness_of_fit
