@@ -58,6 +58,8 @@ QUAT_NORM_TOL = 1e-3
 #: ``diagnostic_msgs/DiagnosticStatus`` levels as integers; the node converts them to the
 #: one-byte ``bytes`` that the Jazzy message field (an ``octet``) requires: ``bytes([level])``.
 LEVEL_OK, LEVEL_WARN, LEVEL_ERROR, LEVEL_STALE = 0, 1, 2, 3
+#: Diagnostic level of each verdict level.
+_VERDICT_LEVELS = {"good": LEVEL_OK, "caution": LEVEL_WARN, "unusable": LEVEL_ERROR}
 
 _NS = 1_000_000_000
 
@@ -302,6 +304,7 @@ def diagnostic_rows(
     verdict: str = "",
     prefix: str = "rwhec_calibrator",
     hardware_id: str = "",
+    calibration: tuple[str, str] | None = None,
 ) -> list[dict[str, Any]]:
     """``diagnostic_msgs/DiagnosticStatus`` rows from the session's diagnostics.
 
@@ -316,6 +319,11 @@ def diagnostic_rows(
         Whole-problem verdict of the identifiability report (``IdentifiabilityReport
         .identifiable`` / ``.verdict``); an edge that is not identifiable on its own may still be
         fixed through its component (paper Theorems 1 and 3). None: judge by the edges alone.
+    calibration : (str, str), optional
+        ``(level, headline)`` of the latest calibration's verdict
+        (:class:`~rwhec_ros.core.verdict.Verdict`: ``good``, ``caution`` or ``unusable`` and its
+        first line): the session row is then at least OK, WARN or ERROR respectively, and its
+        message starts with ``last calibration: <headline>``.
 
     Returns
     -------
@@ -338,6 +346,12 @@ def diagnostic_rows(
     values = [(str(k), str(v)) for k, v in sorted(counters.items())]
     if verdict:
         values.insert(0, ("identifiability", verdict))
+    if calibration is not None:
+        cal_level, headline = calibration
+        level = max(level, _VERDICT_LEVELS.get(cal_level, LEVEL_WARN))
+        message = f"last calibration: {headline}; {message}"
+        values.insert(0, ("last_calibration", headline))
+        values.insert(0, ("verdict", cal_level))
     rows.append(
         {
             "name": f"{prefix}: session",

@@ -21,8 +21,10 @@ from launch_helpers import launch_transforms
 
 from rwhec_ros.cli import (
     EXIT_BAD_INPUT,
-    EXIT_CERTIFIED,
+    EXIT_INTERRUPTED,
     EXIT_NO_SOLUTION,
+    EXIT_OK,
+    EXIT_UNUSABLE,
     build_parser,
     demo_parameters,
     main,
@@ -74,21 +76,31 @@ def paper_known(paper_dir, tmp_path_factory):
 
 def test_csv_known_scale_is_certified_with_all_outputs(paper_known):
     code, stdout, stderr, out = paper_known
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr  # caution is usable
     doc = yaml.safe_load((out / "result.yaml").read_text())
     for key in RESULT_KEYS:
         assert key in doc, key
+    # the verdict first, in the YAML and on stdout: the (tag_23, cam_6) edge of the paper's data
+    # has ~35 deg rotation residuals on every pair
+    assert list(doc)[:2] == ["verdict", "reasons"] and doc["verdict"] == "caution"
+    assert doc["reasons"][0].startswith("CAUTION: edge (tag_23, cam_6) fits far worse")
+    assert stdout.startswith("CAUTION: edge (tag_23, cam_6) fits far worse than the others: "
+                             "rotation residuals RMS 35")
+    assert all(f["usable"] for f in doc["frames"])
+    assert doc["verdict_details"]["fit"]["edges"]
     assert doc["certified"] is True and doc["scale"] == 1.0
     assert doc["suboptimality_bound"] < 1e-5  # the paper reports a relative gap of ~1e-8
     assert len(doc["frames"]) == 8 + 16 and doc["excluded_edges"] == {}
     assert doc["config"]["noise.sigma"] == 0.1 and doc["config"]["noise.kappa"] == 125.0
     assert doc["identifiability"]["identifiable"] is True
-    # the printed summary is the session's: certified, rho_hat, one line per frame
-    assert stdout.startswith("CERTIFIED globally optimal (rho_hat=")
+    # the printed summary is the session's: verdict, certified, rho_hat, one line per frame
+    assert "\nCERTIFIED globally optimal (rho_hat=" in stdout
     assert "3230 pairs on 73 edges" in stdout
     assert "rig->cam_3_calibrated: t=[" in stdout and "world->tag_12_calibrated: t=[" in stdout
     # launch file and data set beside the result, in the -o directory
-    parsed = launch_transforms((out / "static_transforms.launch.py").read_text())
+    launch = (out / "static_transforms.launch.py").read_text()
+    assert launch.startswith("# CAUTION: edge (tag_23, cam_6)")
+    parsed = launch_transforms(launch)
     cam3 = next(f for f in doc["frames"] if f["name"] == "cam_3")
     parent, T = parsed["cam_3_calibrated"]
     assert parent == "rig" and np.allclose(T, cam3["matrix"], atol=1e-12)  # repr() round trip
@@ -97,7 +109,8 @@ def test_csv_known_scale_is_certified_with_all_outputs(paper_known):
     # report files (PNG and HTML page linking it); every written path printed as "what: path"
     png = out / "report.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "report.png" in (out / "report.html").read_text()
+    page = (out / "report.html").read_text()  # self-contained: the figure embedded
+    assert "data:image/png;base64," in page and "CAUTION: usable, read the reasons" in page
     for what, name in (("result", "result.yaml"), ("launch", "static_transforms.launch.py"),
                        ("dataset", "dataset.yaml"), ("report", "report.png"),
                        ("report page", "report.html")):
@@ -118,7 +131,13 @@ def test_csv_unknown_scale(paper_dir, tmp_path):
     out = tmp_path / "scaled"
     code, stdout, stderr = run(["csv", paper_dir, "--unknown-scale", "--min-pairs", "10",
                                 "-o", out])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
+    # tag_2 was seen on three edges of 3 pairs each: left out, named, not calibrated (a tag
+    # without an estimate is a caution: the cameras decide)
+    assert stdout.startswith("CAUTION: ")
+    assert "tag_2: not calibrated: every edge of this tag was left out ((tag_2, cam_0): 3 " \
+        "pairs < min_pairs=10" in stdout
+    assert "world->tag_2_calibrated: NOT CALIBRATED (no usable edge)" in stdout
     doc = yaml.safe_load((out / "result.yaml").read_text())
     assert doc["certified"] is True and doc["config"]["tags.unknown_scale"] is True
     # paper: the tags came out ~2.5 % smaller than hand-measured, i.e. B translations ~2.5 %
@@ -194,8 +213,9 @@ def test_bag_is_calibrated_to_the_truth(recorded, bag, config):
     extra = ["-o", root / "tf_out", "--min-pairs", "4"] if config == "tf" else []
     code, stdout, stderr = run(["bag", root / bag, "--config", root / f"{config}.yaml",
                                 "--quiet", *extra])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
     assert stdout.startswith("input: ") and "CERTIFIED globally optimal" in stdout
+    assert stdout.splitlines()[1].startswith("GOOD: certified globally optimal")
     if config == "tf":
         result = root / "tf_out" / "result.yaml"
         assert not (root / "out_tf").exists()  # -o replaces output.directory/calibration_*
@@ -220,7 +240,7 @@ def test_dataset_round_trip_of_a_session_data_set(recorded, tmp_path):
     result = next((root / "out_topic").glob("calibration_*/result.yaml"))
     first = yaml.safe_load(result.read_text())
     code, stdout, stderr = run(["dataset", result.parent / "dataset.yaml", "-o", tmp_path])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
     again = yaml.safe_load((tmp_path / "result.yaml").read_text())
     assert again["config"] == first["config"]  # the session's configuration came along
     for a, b in zip(first["frames"], again["frames"], strict=True):
@@ -242,7 +262,7 @@ def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tm
         out = tmp_path / f"out_{threads}"
         code, stdout, stderr = run(["bag", root / "compressed", "--config", cfg, "--quiet",
                                     "-o", out])
-        assert code == EXIT_CERTIFIED, stdout + stderr
+        assert code == EXIT_OK, stdout + stderr
         pairs[threads] = {(e.x, e.y): e for e in Dataset.load(out / "dataset.yaml").edges}
     # each camera's images are examined in order on any number of threads: the same pairs
     assert pairs[1].keys() == pairs[2].keys() and len(pairs[1]) >= 9
@@ -258,7 +278,7 @@ def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tm
 def test_bag_errors_are_bad_input(recorded, tmp_path):
     rig, root = recorded
     code, _, stderr = run(["bag", root / "tf_mcap", "--config", root / "topic.yaml"])
-    assert code == EXIT_BAD_INPUT and "no pose topic /demo/rig/pose" in stderr
+    assert code == EXIT_BAD_INPUT and "no topic /demo/rig/pose (pose_source.topic)" in stderr
     code, _, stderr = run(["bag", tmp_path / "missing", "--config", root / "topic.yaml"])
     assert code == EXIT_BAD_INPUT and "no such file" in stderr
     bad = tmp_path / "bad.yaml"
@@ -277,7 +297,7 @@ def test_dataset_of_a_synthetic_problem(tmp_path):
                                   kappa=400.0)
     path = Dataset.from_problem(problem).save(tmp_path / "in.yaml")
     code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "--mode", "sdp"])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
     doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     assert doc["mode"] == "sdp" and doc["certified"] is True
     frames = {f["name"]: np.asarray(f["matrix"]) for f in doc["frames"]}
@@ -312,7 +332,7 @@ def test_demo_end_to_end_and_report_subcommand(tmp_path):
     out = tmp_path / "demo"
     code, stdout, stderr = run(["demo", "--seed", "2", "-o", out, "--config", cfg,
                                 "--min-pairs", "2"])  # default 3 x 6, 24 s
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
     doc = yaml.safe_load((out / "result.yaml").read_text())
     assert doc["config"]["noise.sigma"] == 0.006 and doc["config"]["solver.min_pairs"] == 2
     assert doc["config"]["cameras.names"] == ["cam0", "cam1", "cam2"]
@@ -325,15 +345,15 @@ def test_demo_end_to_end_and_report_subcommand(tmp_path):
     assert max_line.endswith("s in total)") and "over 9 frames" in max_line  # a full turn
     result = out / "result.yaml"
     code, stdout, stderr = run(["report", result])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
     assert (out / "report.png").stat().st_size > 10_000
-    assert "report.png" in (out / "report.html").read_text()
+    assert "data:image/png;base64," in (out / "report.html").read_text()
     assert stdout == f"report: {out / 'report.png'}\nreport page: {out / 'report.html'}\n"
     # the report is refused like every other output, unless --force or another -o
     code, _, stderr = run(["report", result])
     assert code == EXIT_BAD_INPUT and "refusing to overwrite" in stderr
     code, stdout, stderr = run(["report", result, "-o", tmp_path / "elsewhere"])
-    assert code == EXIT_CERTIFIED and (tmp_path / "elsewhere" / "report.html").is_file()
+    assert code == EXIT_OK and (tmp_path / "elsewhere" / "report.html").is_file()
     code, _, stderr = run(["report", tmp_path / "missing.yaml"])
     assert code == EXIT_BAD_INPUT and "missing.yaml" in stderr
 
@@ -395,7 +415,7 @@ def test_output_directory_is_refused_then_forced_the_same_way(tmp_path, command)
     argv = synthetic_inputs(tmp_path)[command]
     out = tmp_path / "out"
     code, stdout, stderr = run([*argv, "-o", out, "-q"])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
     assert stderr == ""  # -q: no progress lines
     assert {p.name for p in out.iterdir()} == {name for _, name in OUTPUT_FILES}
     for what, name in OUTPUT_FILES:
@@ -407,7 +427,7 @@ def test_output_directory_is_refused_then_forced_the_same_way(tmp_path, command)
                              "existing file(s) [") and "(use --force to overwrite)" in stderr
     assert (out / "result.yaml").read_bytes() == before and not (out / "report.png").exists()
     code, stdout, stderr = run([*argv, "-o", out, "--report", "--force"])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
     assert "solving: 32 pairs on 4 edges, mode fast" in stderr  # progress without -q
     assert f"report: {out / 'report.png'}\n" in stdout and (out / "report.png").is_file()
 
@@ -425,7 +445,7 @@ def test_default_output_and_settings_come_from_the_configuration(tmp_path, monke
     argv = synthetic_inputs(tmp_path)["csv"]
     monkeypatch.chdir(tmp_path)
     for _ in range(2):  # never reused: a new directory each run
-        assert run([*argv, "-q"])[0] == EXIT_CERTIFIED
+        assert run([*argv, "-q"])[0] == EXIT_OK
     runs = sorted((tmp_path / "rwhec_output").glob("calibration_*"))
     assert len(runs) == 2 and all((d / "result.yaml").is_file() for d in runs)
     flat = read_parameter_file(DEMO_YAML)
@@ -446,7 +466,7 @@ def test_default_output_and_settings_come_from_the_configuration(tmp_path, monke
 def test_dataset_robust_flag_reaches_the_solver(tmp_path):
     argv = synthetic_inputs(tmp_path)["dataset"]
     code, stdout, stderr = run([*argv, "--robust", "-o", tmp_path / "out", "-q"])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
     doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     assert doc["config"]["solver.reject_outliers"] is True
     assert any("outlier rejection" in n for n in doc["notes"])
@@ -480,10 +500,12 @@ def _planar_dataset(tmp_path, seed=1):
 def test_planar_motion_without_prior_names_the_height(tmp_path):
     path, X, Y = _planar_dataset(tmp_path)
     code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "-q"])
+    assert code == EXIT_UNUSABLE, stdout + stderr
     doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     assert doc["status"] == "not_identifiable" and not doc["certified"]
-    assert "translation along rig z of cam0, cam1 and along world z of tag_0, tag_1" in stdout
-    assert "give a prior" in stdout
+    assert stdout.startswith("UNUSABLE: every frame: not calibrated: the translation along world "
+                             "z (tags) and rig z (cameras) is not determined by the data")
+    assert "give the known component as a prior (--prior FRAME.AXIS=VALUE" in stdout
     assert doc["unobservable"][0]["fixed_by"] == "default"
     assert set(doc["unobservable"][0]["frames"]) == {"cam0", "cam1", "tag_0", "tag_1"}
 
@@ -493,7 +515,8 @@ def test_planar_motion_with_a_prior_is_certified(tmp_path):
     height = float(Y[0, 2, 3])
     code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "-q",
                                 "--prior", f"cam0.z={height!r}"])
-    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert code == EXIT_OK, stdout + stderr
+    assert stdout.startswith("GOOD: certified globally optimal")
     doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     assert doc["certified"] and doc["unobservable"][0]["fixed_by"] == "prior"
     frames = {f["name"]: np.asarray(f["matrix"]) for f in doc["frames"]}
@@ -517,3 +540,206 @@ def test_prior_on_an_unknown_frame_is_bad_input(tmp_path):
                                 "cam9.z=0.3"])
     assert code == EXIT_BAD_INPUT
     assert "no frame 'cam9'" in stdout + stderr
+
+
+# --- the verdict decides the exit code (issue cases) -------------------------------------------
+
+
+def test_three_consecutive_pairs_of_one_edge_are_unusable(paper_dir, tmp_path):
+    # rows 1-3 of one edge of the paper's data: three nearly equal motions
+    three = tmp_path / "three"
+    three.mkdir()
+    for side in ("A", "B"):
+        rows = (paper_dir / f"tag_0_cam_0_{side}.csv").read_text().splitlines()[:3]
+        (three / f"tag_0_cam_0_{side}.csv").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "out"
+    code, stdout, stderr = run(["csv", three, "-o", out, "-q"])
+    assert code == EXIT_UNUSABLE, stdout + stderr
+    assert stdout.startswith("UNUSABLE: tag_0 and cam_0: not calibrated: their translations are "
+                             "not determined")
+    # never a number for a frame that is not calibrated
+    assert "rig->cam_0_calibrated: NOT CALIBRATED (" in stdout and "t=[" not in stdout
+    doc = yaml.safe_load((out / "result.yaml").read_text())
+    assert doc["verdict"] == "unusable" and not any(f["usable"] for f in doc["frames"])
+    launch = (out / "static_transforms.launch.py").read_text()
+    assert launch.startswith("# UNUSABLE: ") and "left out (not usable): cam_0" in launch
+    assert launch_transforms(launch) == {}  # nothing to publish
+
+
+def test_demo_of_3_seconds_is_unusable(tmp_path):
+    out = tmp_path / "demo3"
+    code, stdout, stderr = run(["demo", "--seconds", "3", "-o", out, "-q"])
+    assert code == EXIT_UNUSABLE, stdout + stderr
+    lines = stdout.splitlines()
+    assert lines[1].startswith("UNUSABLE: ")  # after the "demo: ..." line
+    # cam2 saw a tag twice at most (edge below min_pairs): not calibrated, with the reason
+    assert "rig->cam2_optical_calibrated: NOT CALIBRATED (" in stdout
+    assert any("cam2: not calibrated" in line for line in lines)
+    doc = yaml.safe_load((out / "result.yaml").read_text())
+    assert doc["verdict"] == "unusable"
+
+
+def test_bag_with_wrong_tag_size_is_unusable_with_the_scale(recorded, tmp_path):
+    rig, root = recorded  # tags printed 0.25 m
+    flat = read_parameter_file(root / "topic.yaml")
+    flat["tags.default_size"] = 0.2
+    cfg = tmp_path / "small_tags.yaml"
+    cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+    code, stdout, stderr = run(["bag", root / "poses_sqlite", "--config", cfg, "-o",
+                                tmp_path / "out", "-q"])
+    assert code == EXIT_UNUSABLE, stdout + stderr
+    verdict_line = stdout.splitlines()[1]
+    assert verdict_line.startswith("UNUSABLE: the camera-tag distances are 0.80")
+    assert "tag sizes are ~20 % too small" in verdict_line
+
+
+def test_bag_with_a_missing_camera_topic_is_bad_input_like_a_missing_pose_topic(recorded,
+                                                                                  tmp_path):
+    rig, root = recorded
+    flat = read_parameter_file(root / "topic.yaml")
+    flat["cameras.names"] = [*flat["cameras.names"], "cam9"]
+    flat["cameras.cam9.image_topic"] = "/demo/cam9/image_raw"
+    flat["cameras.cam9.camera_info_topic"] = "/demo/cam9/camera_info"
+    cfg = tmp_path / "cam9.yaml"
+    cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+    code, _, stderr = run(["bag", root / "poses_sqlite", "--config", cfg])
+    assert code == EXIT_BAD_INPUT
+    assert "no topic /demo/cam9/image_raw (camera cam9), /demo/cam9/camera_info (camera " \
+        "cam9)" in stderr and "topics in the bag:" in stderr
+
+
+def test_bag_without_the_configured_tf_names_the_frames_in_the_recording(recorded, tmp_path):
+    rig, root = recorded
+    flat = read_parameter_file(root / "tf.yaml")
+    flat.update({"tag_carrier.frame": "map", "pose_source.parent": "map"})
+    cfg = tmp_path / "map.yaml"
+    cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+    code, stdout, stderr = run(["bag", root / "tf_mcap", "--config", cfg, "-q"])
+    assert code == EXIT_NO_SOLUTION
+    assert "no tf from map to rig at the image stamps (frame 'map' does not appear on /tf or " \
+        "/tf_static); frames in the recording: ['rig', 'world']" in stderr
+    assert stdout.splitlines()[-1].startswith("no measurement pairs: ")
+
+
+def test_ctrl_c_during_bag_saves_the_data_set_so_far(recorded, tmp_path, monkeypatch):
+    import rwhec_ros.data.rosbag as rosbag
+
+    rig, root = recorded
+    real = rosbag.read_messages
+
+    def interrupted(path, topics, **kw):
+        for i, m in enumerate(real(path, topics, **kw)):
+            if i == 800:  # about half of the recording (1,560 messages)
+                raise KeyboardInterrupt
+            yield m
+
+    monkeypatch.setattr(rosbag, "read_messages", interrupted)
+    out = tmp_path / "out"
+    code, stdout, stderr = run(["bag", root / "poses_sqlite", "--config", root / "topic.yaml",
+                                "-o", out, "-q"])
+    assert code == EXIT_INTERRUPTED
+    assert "Traceback" not in stderr and len(stderr.splitlines()) == 1
+    assert stderr.startswith("rwhec-calibrate bag: interrupted; the ")
+    assert f"rwhec-calibrate dataset {out / 'dataset.yaml'}" in stderr
+    monkeypatch.setattr(rosbag, "read_messages", real)
+    data = Dataset.load(out / "dataset.yaml")  # resumable with `dataset`
+    assert data.n_pairs > 0
+
+
+def test_image_before_its_first_camera_info_is_held_not_dropped(tmp_path):
+    pytest.importorskip("rosbags.rosbag2")
+    from rwhec_ros.data.rosbag import write_bag
+    from rwhec_ros.simulation import demo_rig, simulated_stream, simulation_messages
+
+    rig = demo_rig(1, 6)
+    samples = list(simulated_stream(rig, np.random.default_rng(2), seconds=1.0))
+    messages = list(simulation_messages(rig, samples))
+    # every CameraInfo logged 5 ms after its image (a driver's usual order)
+    shifted = sorted(((t, k, topic, mt, msg) for k, (topic, mt, t, msg) in enumerate(messages)),
+                     key=lambda x: (x[0] + (5_000_000 if x[2].endswith("camera_info") else 0),
+                                    x[1]))
+    write_bag(tmp_path / "late_info", [(topic, mt, t + (5_000_000 if topic.endswith(
+        "camera_info") else 0), msg) for t, _, topic, mt, msg in shifted], storage="sqlite3")
+    flat = demo_parameters(rig, output_directory=str(tmp_path / "out"))
+    (tmp_path / "c.yaml").write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+    code, stdout, stderr = run(["bag", tmp_path / "late_info", "--config", tmp_path / "c.yaml",
+                                "-q"])
+    first = stdout.splitlines()[0]
+    assert first.startswith("input: ") and "image_missing_camera_info" not in first
+    assert "images=5" in first
+
+
+def test_a_new_result_never_sits_beside_an_older_report(tmp_path):
+    argv = synthetic_inputs(tmp_path)["csv"]
+    out = tmp_path / "out"
+    assert run([*argv, "-o", out, "--report", "-q"])[0] == EXIT_OK
+    assert (out / "report.png").is_file()
+    code, _, stderr = run([*argv, "-o", out, "-q"])  # without --report: still refused
+    assert code == EXIT_BAD_INPUT and "report.png" in stderr
+    code, stdout, _ = run([*argv, "-o", out, "--force"])
+    assert code == EXIT_OK and not (out / "report.png").exists()
+    assert not (out / "report.html").exists()
+
+
+def test_a_closed_pipe_is_quiet(tmp_path):
+    argv = synthetic_inputs(tmp_path)["csv"]
+
+    class ClosedPipe(io.StringIO):
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+    err = io.StringIO()
+    code = main([str(a) for a in [*argv, "-o", tmp_path / "out", "-q"]], stdout=ClosedPipe(),
+                stderr=err)
+    assert code == 141 and err.getvalue() == ""
+    assert (tmp_path / "out" / "result.yaml").is_file()  # written before the summary
+
+
+def test_errors_are_in_words(tmp_path):
+    code, _, stderr = run(["dataset", tmp_path / "missing.yaml"])
+    assert code == EXIT_BAD_INPUT and "[Errno" not in stderr
+    assert "missing.yaml: no such file or directory" in stderr
+    (tmp_path / "bad.yaml").write_text("a: [1,\n")
+    code, _, stderr = run(["dataset", tmp_path / "bad.yaml"])
+    assert code == EXIT_BAD_INPUT and f"{tmp_path / 'bad.yaml'}:2: not valid YAML:" in stderr
+    code, _, stderr = run(["csv", tmp_path, "--config", tmp_path / "bad.yaml"])
+    assert code == EXIT_BAD_INPUT and "bad.yaml:2: not valid YAML" in stderr
+    assert len(stderr.splitlines()) == 1
+    argv = synthetic_inputs(tmp_path)["csv"]
+    code, _, stderr = run([*argv, "--camera-carrier", "world"])  # tag carrier: world
+    assert code == EXIT_BAD_INPUT and "both carriers are 'world'" in stderr
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    code, _, stderr = run([*argv, "-o", blocker / "sub", "-q"])
+    assert code == EXIT_BAD_INPUT and "cannot write the outputs" in stderr
+    assert "[Errno" not in stderr
+
+
+def test_library_warnings_become_notes(tmp_path, monkeypatch):
+    import importlib
+    import warnings
+
+    cli_main = importlib.import_module("rwhec_ros.cli.main")  # the module, not the function
+
+    def warns(args, say):
+        warnings.warn("Solution may be inaccurate. Try another solver", UserWarning,
+                      stacklevel=1)
+        warnings.warn("Solution may be inaccurate. Try another solver", UserWarning,
+                      stacklevel=1)
+        return EXIT_OK
+
+    monkeypatch.setitem(cli_main._COMMANDS, "csv", warns)
+    code, _, stderr = run(["csv", tmp_path])
+    assert code == EXIT_OK
+    assert stderr == "rwhec-calibrate csv: note: Solution may be inaccurate. Try another solver\n"
+
+
+def test_robust_drops_the_tag_23_cam_6_edge_of_the_paper_data(paper_dir, tmp_path):
+    code, stdout, stderr = run(["csv", paper_dir, "--robust", "-o", tmp_path / "out", "-q"])
+    assert code == EXIT_OK, stdout + stderr
+    # GNC-TLS rejects the 4 pairs of the edge: said as an excluded edge, no longer an outlier
+    assert "excluded: (tag_23, cam_6): outlier rejection: all 4 pairs rejected" in stdout
+    assert "edge (tag_23, cam_6) fits" not in stdout
+    doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
+    assert doc["verdict"] == "caution"  # the tag scale (alpha 1.025) remains
+    assert doc["reasons"][0].startswith("CAUTION: the camera-tag distances are 1.025 times")

@@ -400,7 +400,7 @@ def test_examples_apply_under_any_namespace_and_node_name(path):
         ("calibrator:\n  params: {}\n", "ros__parameters"),
         ("calibrator:\n  ros__parameters:\n    cameras: [{name: cam0}]\n", "cameras"),
         ("calibrator:\n  ros__parameters:\n    tags: {ids: [0, 1.5]}\n", "tags.ids"),
-        ("calibrator: [\n", "invalid YAML"),
+        ("calibrator: [\n", "not valid YAML"),
         ("- 1\n- 2\n", "top level"),
     ],
 )

@@ -259,6 +259,22 @@ def test_diagnostic_rows_levels():
     assert bytes([rows[0]["level"]]) == b"\x00"
 
 
+@pytest.mark.parametrize("level, expected", [("good", LEVEL_OK), ("caution", LEVEL_WARN),
+                                             ("unusable", LEVEL_ERROR)])
+def test_diagnostic_session_row_carries_the_last_verdict(level, expected):
+    edges = [{"x": "tag_0", "y": "cam0", "pairs": 5, "status": "identifiable",
+              "identifiable": True, "reasons": []}]
+    headline = f"{level.upper()}: cam0 fine"
+    rows = diagnostic_rows(edges, {"images": 1}, identifiable=True, verdict="identifiable",
+                           calibration=(level, headline))
+    assert rows[0]["level"] == expected
+    assert rows[0]["message"].startswith(f"last calibration: {headline}; identifiable")
+    assert ("verdict", level) in rows[0]["values"]
+    # a data problem (no pairs yet) is never hidden by an older good verdict
+    rows = diagnostic_rows([], {}, calibration=("good", "GOOD: old"))
+    assert rows[0]["level"] == LEVEL_ERROR
+
+
 def test_fill_message_nested_and_bytes():
     msg = types.SimpleNamespace(header=types.SimpleNamespace(stamp=types.SimpleNamespace()),
                                 data=None, width=0)

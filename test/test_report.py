@@ -63,14 +63,43 @@ def test_report_png_and_html(tmp_path):
     assert np.array_equal(X, result.X) and np.array_equal(Y, result.Y) and scale == 1.0
     files = write_report(doc, problem, tmp_path / "r.png", tmp_path / "r.html", title="test")
     img = imread(str(files.png))
-    assert img.shape[:2] == (2080, 1440)  # 18 x 26 inches at 80 dpi
+    assert img.shape[1] == 1440  # 18 inches at 80 dpi; the height follows the content
     assert img[..., :3].std() > 0.05  # something is drawn
+    # no verdict in this document: a grey banner says so (the first rows of the image)
     page = files.html.read_text()
-    assert "<img src='r.png'" in page
+    assert "VERDICT UNKNOWN" in page
+    # self-contained: the figure is embedded, no link to a file beside the page
+    assert "<img src='data:image/png;base64," in page and "r.png" not in page
     for e in problem.edges:  # one residual row per edge, and the excluded edge with its reason
         assert f"<td>{e.x}</td><td>{e.y}</td><td>{e.n}</td>" in page
     assert "2 pairs &lt; min_pairs=3" in page
     assert "rig -&gt; y0_calibrated" in page
+    assert "True" not in page and "None" not in page  # words, not Python values
+
+
+def test_report_of_a_verdict_shows_the_banner_and_natural_order(tmp_path):
+    from rwhec_ros.core.verdict import assess
+
+    rng = np.random.default_rng(6)
+    problem, _ = random_instance(rng, 12, 2, n_per_edge=8, sigma=0.01, kappa=400.0)
+    names = {f"x{j}": f"tag_{j}" for j in range(12)}  # tag_2 must come before tag_11
+    from rwhec_ros.core.problem import Edge, Problem
+
+    problem = Problem([names[n] for n in problem.x_names], problem.y_names,
+                      [Edge.build(names[e.x], e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa)
+                       for e in problem.edges])
+    result = solve(problem)
+    verdict = assess(result, problem, expected_y=["y0", "y1", "cam9"])
+    naming = FrameNaming.from_carriers(problem.x_names, (*problem.y_names, "cam9"),
+                                       camera_carrier="rig", tag_carrier="world")
+    doc = result_document(result, naming, verdict=verdict)
+    files = write_report(doc, problem, tmp_path / "r.png", tmp_path / "r.html")
+    page = files.html.read_text()
+    assert "UNUSABLE: do not use this calibration" in page
+    assert "cam9: not calibrated" in page
+    rows = [line for line in page.split("<tr>") if line.startswith("<td>tag_")]
+    order = [r.split("</td>")[0][4:] for r in rows if "<td>y0</td>" in r]
+    assert order == [f"tag_{j}" for j in range(12)]  # natural order in the edge table
 
 
 def test_document_without_a_frame_of_the_data_is_rejected():

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from launch_helpers import launch_transforms
+from launch_helpers import demo_config, launch_transforms
 
-from rwhec_ros.config import CalibratorConfig, read_parameter_file
+from rwhec_ros.config import CalibratorConfig
 from rwhec_ros.core.lie import invert_transform
 from rwhec_ros.data.dataset import Dataset
 from rwhec_ros.messages import transform_to_pose_stamped_fields
@@ -31,7 +31,6 @@ rosbags_typesys = pytest.importorskip("rosbags.typesys")
 TS = rosbags_typesys.get_typestore(rosbags_typesys.Stores.ROS2_JAZZY)
 T_ = TS.types
 
-DEMO_YAML = Path(__file__).resolve().parents[1] / "config" / "demo.yaml"
 NS = 1_000_000_000
 DURATION_S = 24.0  # one full yaw turn of the demo trajectory
 IMAGE_PERIOD_S = 0.2
@@ -86,13 +85,6 @@ def camera_info_msg(intr: CameraIntrinsics, frame_id: str = "cam"):
 
 
 # --- fixtures ----------------------------------------------------------------------------------
-
-
-def demo_config(tmp: Path, **overrides) -> CalibratorConfig:
-    flat = read_parameter_file(DEMO_YAML)
-    flat["output.directory"] = str(tmp)
-    flat.update(overrides)
-    return CalibratorConfig.from_parameters(flat)
 
 
 @pytest.fixture(scope="module")
@@ -332,7 +324,9 @@ def test_failed_solve_reports_and_keeps_data(recording, tmp_path):
     session = CalibrationSession(demo_config(out_dir, **{"solver.min_pairs": 50}))
     out = session.calibrate()
     assert not out.success and out.result is None
-    assert "not enough data" in out.message and out.files == {}
+    # nothing kept at all: said so, and not "all data kept"
+    assert out.message.startswith("no measurement pairs: ") and out.files == {}
+    assert "kept" not in out.message
 
     for cam in rig.cameras:
         session.set_camera_info(cam, rig.intrinsics[cam])

@@ -1,7 +1,8 @@
 """``rwhec-calibrate``: offline calibration from files, rosbag2 recordings and a simulation.
 
 No ROS is needed. Every solving subcommand prints the summary of the node's ``calibrate`` service
-(certified?, ``rho_hat``, each frame's estimate ``parent->child``, edges excluded and why) and
+(the verdict first, then the certificate, each usable frame's estimate ``parent->child`` or ``NOT
+CALIBRATED (why)``, edges excluded and why) and
 writes the session's output files into one directory: ``result.yaml`` (``certified``,
 ``suboptimality_bound``, ``scale``, ``frames``, ``timing_s``, ``identifiability``, ``config``,
 ...), ``static_transforms.launch.py`` (``static_transform_publisher`` nodes), ``dataset.yaml`` and,
@@ -31,19 +32,22 @@ images are processed synchronously (none is dropped) and the tf lookup sees the 
 (:mod:`rwhec_ros.data.dataset`). ``demo`` runs the simulated rig of :mod:`rwhec_ros.simulation`
 through rendering, detection, synchronisation and the solver, and compares with the truth.
 
-Exit codes: 0 certified solution; 1 solution found but not certified (files are written);
-2 bad input (the message names the file and line or the parameter); 3 no solution (not enough
-data, solver failure).
+Every solving subcommand prints the verdict first (``GOOD: ...``, ``CAUTION: <reason>``,
+``UNUSABLE: <reason>``; :mod:`rwhec_ros.core.verdict`). Exit codes: 0 a usable result (verdict
+good or caution; files written); 2 bad input or output (the message names the file and line or
+the parameter); 3 no solution (not enough data, solver failure); 4 a result whose verdict is
+unusable (files written, do not use it); 130 interrupted (Ctrl-C; ``bag`` saved the data set
+collected so far).
 
 Modules: :mod:`.parser` (options and help), :mod:`.common` (output rule, settings, solving),
 :mod:`.files` (``csv``, ``dataset``, ``report``), :mod:`.replay` (``bag``, ``demo``),
 :mod:`.main` (dispatch).
 """
 
-from .common import EXIT_BAD_INPUT, EXIT_CERTIFIED, EXIT_NO_SOLUTION, EXIT_NOT_CERTIFIED
+from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NO_SOLUTION, EXIT_OK, EXIT_UNUSABLE
 from .main import main
 from .parser import build_parser
 from .replay import demo_parameters
 
-__all__ = ["main", "build_parser", "demo_parameters", "EXIT_CERTIFIED", "EXIT_NOT_CERTIFIED",
-           "EXIT_BAD_INPUT", "EXIT_NO_SOLUTION"]
+__all__ = ["main", "build_parser", "demo_parameters", "EXIT_OK", "EXIT_BAD_INPUT",
+           "EXIT_NO_SOLUTION", "EXIT_UNUSABLE", "EXIT_INTERRUPTED"]

@@ -21,11 +21,17 @@ from typing import Any, TextIO
 import numpy as np
 import yaml
 
+from ..errors import describe_os_error
+
 __all__ = [
-    "EXIT_CERTIFIED",
-    "EXIT_NOT_CERTIFIED",
+    "EXIT_OK",
     "EXIT_BAD_INPUT",
     "EXIT_NO_SOLUTION",
+    "EXIT_UNUSABLE",
+    "EXIT_INTERRUPTED",
+    "EXIT_PIPE_CLOSED",
+    "exit_code",
+    "Interrupted",
     "PROG",
     "MODES",
     "DEFAULT_OUTPUT",
@@ -46,10 +52,24 @@ __all__ = [
     "write_report",
 ]
 
-EXIT_CERTIFIED = 0
-EXIT_NOT_CERTIFIED = 1
+#: A usable result: the verdict is ``good`` or ``caution`` (files written).
+EXIT_OK = 0
+#: Bad input or output: unreadable or malformed files, invalid configuration, outputs that exist
+#: (without ``--force``) or cannot be written.
 EXIT_BAD_INPUT = 2
+#: No solution: not enough data.
 EXIT_NO_SOLUTION = 3
+#: A solution was computed and written, but its verdict is ``unusable``: do not use it.
+EXIT_UNUSABLE = 4
+#: Interrupted (Ctrl-C); ``bag`` saved the data set collected so far.
+EXIT_INTERRUPTED = 130
+#: The reader of the output went away (``| head``): 128 + SIGPIPE, as a shell reports it.
+EXIT_PIPE_CLOSED = 141
+
+
+def exit_code(verdict) -> int:
+    """:data:`EXIT_OK` for a usable verdict (``good``, ``caution``), else :data:`EXIT_UNUSABLE`."""
+    return EXIT_OK if verdict is not None and verdict.usable else EXIT_UNUSABLE
 
 PROG = "rwhec-calibrate"
 MODES = ("fast", "sdp", "local")
@@ -67,6 +87,10 @@ class NoSolution(Exception):
     """No solution (e.g. not enough data): the message is printed on stdout, exit code 3."""
 
 
+class Interrupted(Exception):
+    """Ctrl-C after the command saved what it could (the message says where), exit code 130."""
+
+
 class Printer:
     """Where the CLI talks: ``out`` for results, ``err`` for progress (unless quiet) and errors."""
 
@@ -77,9 +101,8 @@ class Printer:
         print(text, file=self.out)
 
     def summary(self, message: str) -> None:
-        """The session's one-line summary, one ``;``-separated part per line."""
-        for part in message.split("; "):
-            print(part, file=self.out)
+        """The session's summary (one item per line; the verdict first)."""
+        print(message, file=self.out)
 
     def files(self, files: Mapping[str, str | Path]) -> None:
         """Every written file as ``<what>: <path>``."""
@@ -266,17 +289,18 @@ def output_dir(args: argparse.Namespace) -> Path | None:
 
 
 def output_paths(args: argparse.Namespace, *, report: bool):
-    """The files of ``-o DIR`` (None without ``-o``), checked before any work: existing ones are
-    refused unless ``--force``."""
+    """The files of ``-o DIR`` (None without ``-o``), checked before any work: existing ones
+    (the report included, ``report`` or not) are refused unless ``--force``."""
     from ..data.results import session_output_paths
 
     d = output_dir(args)
     if d is None:
         return None
     paths = session_output_paths(d)
-    targets = [paths.result, paths.launch, paths.dataset, paths.dataset.with_suffix(".npz")]
-    if report:
-        targets += [paths.report_png, paths.report_html]
+    # the report files too, with or without --report: a new result must not sit beside an older
+    # report (with --force and without --report they are removed once the result is written)
+    targets = [paths.result, paths.launch, paths.dataset, paths.dataset.with_suffix(".npz"),
+               paths.report_png, paths.report_html]
     refuse_existing(targets, args.force)
     return paths
 
@@ -285,9 +309,21 @@ def write_report(say: Printer, doc: dict, problem, png: Path, html: Path, ident=
     """The report PNG and HTML page (:mod:`rwhec_ros.report`), printed like the other files."""
     from ..report import write_report as _write
 
-    png.parent.mkdir(parents=True, exist_ok=True)
-    files = _write(doc, problem, png, html, identifiability=ident)
+    try:
+        png.parent.mkdir(parents=True, exist_ok=True)
+        files = _write(doc, problem, png, html, identifiability=ident)
+    except OSError as exc:
+        raise BadInput(f"cannot write the report: {describe_os_error(exc)}") from None
     say.files({"report": files.png, "report page": files.html})
+
+
+def remove_stale_reports(say: Printer, paths) -> None:
+    """A new result never sits beside the report of an older one: without ``--report`` the
+    report files of the output directory (only reached with ``--force``) are removed."""
+    for path in (paths.report_png, paths.report_html):
+        if path.exists():
+            path.unlink()
+            say.progress(f"removed the older report {path} (it described another result)")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -307,12 +343,17 @@ def solve_and_write(
     source: dict[str, Any],
     force: bool,
     report: bool,
+    verdict_config=None,
+    publish_unusable: bool = False,
 ) -> int:
-    """Solve ``problem`` and write the outputs as the session does (``csv`` and ``dataset``);
-    ``paths`` None: a new directory under ``settings.output_root``."""
+    """Solve ``problem``, assess it and write the outputs as the session does (``csv`` and
+    ``dataset``); ``paths`` None: a new directory under ``settings.output_root``. The verdict's
+    thresholds come from ``verdict_config`` (a configuration's ``verdict`` section, else the
+    defaults); the launch file holds the usable frames only unless ``publish_unusable``."""
     from ..data.results import new_output_dir, result_document, session_output_paths, write_outputs
-    from ..session import solve_problem, static_transforms_launch, summary
-    from ..session.solving import analyze_at_solution
+    from ..session import static_transforms_launch, summary
+    from ..session.outputs import launch_header, publishable
+    from ..session.solving import solve_and_assess, verdict_options
 
     frames = list(dataset.y_names) + list(dataset.x_names)
     for f, a, x in settings.priors:
@@ -320,33 +361,46 @@ def solve_and_write(
             raise BadInput(f"prior {f}.{a}={x:g}: no frame {f!r} in the data; frames: {frames}")
     say.progress(f"solving: {problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
                  f"{settings.mode}" + (", outlier rejection" if settings.robust else ""))
+    cam_carrier = next((naming.frames[n][0] for n in naming.y_names if n in naming.frames), "")
+    tag_carrier = next((naming.frames[n][0] for n in naming.x_names if n in naming.frames), "")
     try:
-        result, dropped, _ = solve_problem(problem, mode=settings.mode,
-                                           reject_outliers=settings.robust,
-                                           priors=settings.priors,
-                                           unobservable_std_m=settings.unobservable_std_m,
-                                           min_scale=settings.min_scale)
+        solved = solve_and_assess(
+            problem, mode=settings.mode, reject_outliers=settings.robust,
+            priors=settings.priors, unobservable_std_m=settings.unobservable_std_m,
+            min_scale=settings.min_scale, thresholds=verdict_options(verdict_config),
+            expected_x=naming.x_names, expected_y=naming.y_names, excluded=excluded,
+            carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"))
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
-        say(f"solver failed: {type(exc).__name__}: {exc}")
+        say(f"no solution: the solver failed ({type(exc).__name__}: {exc}); try --mode sdp, "
+            "or --robust if some pairs may be outliers")
         return EXIT_NO_SOLUTION
-    excluded.update(dropped)
-    ident = analyze_at_solution(problem, result)
+    result, verdict = solved.result, solved.verdict
+    excluded.update(solved.dropped)
+    ident = solved.identifiability
     doc = result_document(result, naming, excluded=excluded,
-                          identifiability=None if ident is None else ident.to_dict(),
-                          config=config, source=source)
-    c = result.certificate
-    launch = static_transforms_launch(naming.transforms(result), header=(
-        f"certified: {result.certified}, suboptimality bound {c.suboptimality_bound:.3g}, "
-        f"from {source.get('type', '?')} {source.get('path', '')}"))
-    if paths is None:
-        paths = session_output_paths(new_output_dir(settings.output_root))
-    files = write_outputs(paths, result_yaml=yaml.safe_dump(doc, sort_keys=False),
-                          launch_text=launch, dataset=dataset, force=force)
-    say.summary(summary(result, problem, excluded, naming))
+                          identifiability=solved.identifiability_dict, config=config,
+                          source=source, verdict=verdict)
+    names = list(result.y_names) + list(result.x_names)
+    transforms, left_out = publishable(naming.transforms(result), names, verdict,
+                                       publish_unusable=publish_unusable)
+    launch = static_transforms_launch(transforms, header=launch_header(
+        result, verdict, left_out, f"from {source.get('type', '?')} {source.get('path', '')}"))
+    try:
+        if paths is None:
+            paths = session_output_paths(new_output_dir(settings.output_root))
+        files = write_outputs(paths, result_yaml=yaml.safe_dump(doc, sort_keys=False),
+                              launch_text=launch, dataset=dataset, force=force)
+        if not report:
+            remove_stale_reports(say, paths)
+    except OSError as exc:
+        if isinstance(exc, FileExistsError) and not exc.strerror:
+            raise
+        raise BadInput(f"cannot write the outputs: {describe_os_error(exc)}") from None
+    say.summary(summary(result, solved.problem, excluded, naming, verdict))
     say.files(files)
     if report:
-        write_report(say, doc, problem, paths.report_png, paths.report_html, ident)
-    return EXIT_CERTIFIED if result.certified else EXIT_NOT_CERTIFIED
+        write_report(say, doc, solved.problem, paths.report_png, paths.report_html, ident)
+    return exit_code(verdict)
 
 
 def calibrate_session(say: Printer, session, paths, *, force: bool,
@@ -363,11 +417,14 @@ def calibrate_session(say: Printer, session, paths, *, force: bool,
     say.summary(outcome.message)
     if not outcome.success:
         return EXIT_NO_SOLUTION, outcome
+    if not outcome.files:  # the summary says why (WRITING THE OUTPUTS FAILED: ...)
+        return EXIT_BAD_INPUT, outcome
     say.files(outcome.files)
+    if not report and "result" in outcome.files:
+        remove_stale_reports(say, session_output_paths(Path(outcome.files["result"]).parent))
     if report and "dataset" in outcome.files and "result" in outcome.files:
         problem = Dataset.load(outcome.files["dataset"]).to_problem(min_pairs=solver.min_pairs)
         written = session_output_paths(Path(outcome.files["result"]).parent)
         write_report(say, yaml.safe_load(outcome.result_yaml), problem, written.report_png,
                      written.report_html)
-    code = EXIT_CERTIFIED if outcome.result.certified else EXIT_NOT_CERTIFIED
-    return code, outcome
+    return exit_code(outcome.verdict), outcome

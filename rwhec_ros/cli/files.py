@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from .common import (
-    EXIT_CERTIFIED,
+    EXIT_OK,
     BadInput,
     NoSolution,
     Printer,
@@ -35,6 +35,23 @@ def _with_carriers(naming, args: argparse.Namespace):
         if carrier is not None:
             frames.update({n: (carrier, frames[n][1]) for n in names})
     return replace(naming, frames=frames)
+
+
+def check_carriers(camera_carrier: str, tag_carrier: str) -> None:
+    """The two carriers must differ, as the configuration checker demands
+    (``tag_carrier.frame`` equal to ``camera_carrier.frame`` is refused there too)."""
+    if camera_carrier == tag_carrier:
+        raise BadInput(f"--camera-carrier/--tag-carrier: both carriers are {camera_carrier!r}; "
+                       "cameras and tags must be carried by two different frames that move "
+                       "relative to each other (e.g. --camera-carrier rig --tag-carrier world)")
+
+
+def verdict_settings(config) -> dict[str, Any]:
+    """The verdict thresholds and publication switch of a configuration (None: defaults)."""
+    if config is None:
+        return {}
+    return {"verdict_config": config.verdict,
+            "publish_unusable": config.output.publish_unusable}
 
 
 def _problem(data, min_pairs: int):
@@ -63,6 +80,7 @@ def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
     unknown_scale = bool(args.unknown_scale or (config and config.tags.unknown_scale))
     camera_carrier = args.camera_carrier or (config.camera_carrier.frame if config else "rig")
     tag_carrier = args.tag_carrier or (config.tag_carrier.frame if config else "world")
+    check_carriers(camera_carrier, tag_carrier)
     paths = output_paths(args, report=args.report)  # refuse early, before any work
     # all edges first (min_pairs=1), so that the edges left out can be reported
     everything = read_paper_csv(args.directory, sigma=sigma, kappa=kappa, min_pairs=1,
@@ -83,7 +101,8 @@ def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
         **settings.parameters(),
     }
     return solve_and_write(say, problem, dataset, naming, paths, settings, excluded=excluded,
-                           config=used, source=source, force=args.force, report=args.report)
+                           config=used, source=source, force=args.force, report=args.report,
+                           **verdict_settings(config))
 
 
 def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
@@ -110,10 +129,15 @@ def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
                   "tag_carrier.frame": args.tag_carrier or "world",
                   "tags.unknown_scale": data.unknown_scale}
     params.update(settings.parameters())
+    cams = {naming.frames[n][0] for n in naming.y_names}
+    tags = {naming.frames[n][0] for n in naming.x_names}
+    for cam in cams:
+        for tag in tags:
+            check_carriers(cam, tag)
     problem, excluded = _problem(data, settings.min_pairs)
     return solve_and_write(say, problem, data, naming, paths, settings, excluded=excluded,
                            config=params, source={"type": "dataset", "path": str(args.file)},
-                           force=args.force, report=args.report)
+                           force=args.force, report=args.report, **verdict_settings(config))
 
 
 def cmd_report(args: argparse.Namespace, say: Printer) -> int:
@@ -133,4 +157,4 @@ def cmd_report(args: argparse.Namespace, say: Printer) -> int:
     min_pairs = int((doc.get("config") or {}).get("solver.min_pairs", 1))
     problem = Dataset.load(data_path).to_problem(min_pairs=min_pairs)
     write_report(say, doc, problem, Path(target.report_png), Path(target.report_html))
-    return EXIT_CERTIFIED
+    return EXIT_OK

@@ -90,7 +90,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description="Certifiably globally optimal robot-world/hand-eye calibration "
                     "(A_i X_j = Y_k B_i) without ROS.",
-        epilog="Exit codes: 0 certified, 1 not certified, 2 bad input, 3 no solution.",
+        epilog="The first line printed is the verdict: GOOD, CAUTION or UNUSABLE, with the "
+               "reason. Exit codes: 0 usable result (good or caution), 2 bad input or output, "
+               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

@@ -9,8 +9,10 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import describe_os_error
 from .common import (
     BadInput,
+    Interrupted,
     Printer,
     Progress,
     calibrate_session,
@@ -37,11 +39,8 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
         TF_MESSAGE,
         TfTree,
         bag_topics,
-        read_messages,
     )
-    from ..messages import stamp_to_ns
     from ..session import CalibrationSession, MessageHandlers
-    from ..session.replay import ReplayFeeder
 
     config = read_config(args, solver_overrides(args))
     paths = output_paths(args, report=args.report)  # refuse early, before any work
@@ -56,65 +55,133 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
         routes[cam.camera_info_topic] = ("info", cam.name, CAMERA_INFO)
     if ps.type == "topic":
         routes[ps.topic] = ("pose", None, POSE_STAMPED)
-        if ps.topic not in topics:
-            raise BadInput(f"bag {str(args.bag)!r}: no pose topic {ps.topic} "
-                           f"(pose_source.topic); topics: {sorted(topics)}")
     elif "/tf" not in topics and "/tf_static" not in topics:
         raise BadInput(f"bag {str(args.bag)!r}: pose_source.type is 'tf' but the bag has no "
-                       f"/tf or /tf_static; topics: {sorted(topics)}")
+                       f"/tf or /tf_static; topics in the bag: {sorted(topics)}")
+    # one rule for every input the configuration names: missing -> bad input (exit code 2)
+    missing = [f"{topic} ({'pose_source.topic' if kind == 'pose' else f'camera {cam}'})"
+               for topic, (kind, cam, _) in routes.items() if topic not in topics]
+    if missing:
+        hints = "".join(_transport_hint(cam, topics) for cam in config.cameras
+                        if cam.subscribed_topic not in topics)
+        raise BadInput(f"bag {str(args.bag)!r}: no topic " + ", ".join(missing)
+                       + f"; topics in the bag: {sorted(topics)}" + hints)
     for topic, (_, _, msgtype) in routes.items():
-        if topic in topics and topics[topic][0] != msgtype:
+        if topics[topic][0] != msgtype:
             raise BadInput(f"bag {str(args.bag)!r}: topic {topic} has type {topics[topic][0]}, "
                            f"expected {msgtype}")
     for tf_topic in ("/tf", "/tf_static"):
         if ps.type == "tf" and tf_topic in topics and topics[tf_topic][0] != TF_MESSAGE:
             raise BadInput(f"bag {str(args.bag)!r}: {tf_topic} has type "
                            f"{topics[tf_topic][0]}, expected {TF_MESSAGE}")
-    for cam in config.cameras:
-        for topic in (cam.subscribed_topic, cam.camera_info_topic):
-            if topic not in topics:
-                say.warning("bag", f"camera {cam.name}: topic {topic} is not in the bag"
-                            + _transport_hint(cam, topics))
 
     session = CalibrationSession(config)
     handlers = MessageHandlers(session)
-    feeder = ReplayFeeder(handlers, threads=config.detection_thread_count(),
-                          queue_size=config.sync.image_queue_size)
+    try:
+        tf_failure, errors = _replay(args, say, session, handlers, routes, TfTree)
+    except KeyboardInterrupt:
+        raise Interrupted(_save_so_far(session, paths, say)) from None
+    for exc in errors[:3]:
+        say.warning("bag", f"detection thread error: {type(exc).__name__}: {exc}")
+    counters = session.counters()
+    say("input: " + ", ".join(f"{k}={v}" for k, v in sorted(counters.items()) if v))
+    for sentence in session.rejections():
+        say.warning("bag", sentence)
+    if tf_failure and not counters.get("pairs_kept"):
+        say.warning("bag", tf_failure)
+    code, _ = calibrate_session(say, session, paths, force=args.force, report=args.report)
+    return code
+
+
+def _replay(args, say: Printer, session, handlers, routes,
+            tf_tree_type) -> tuple[str, list[BaseException]]:
+    """Feed the bag's messages to the session (images on ``sync.detection_threads`` threads,
+    :class:`~rwhec_ros.session.replay.ReplayFeeder`); returns why tf lookups failed (or "") and
+    the detection threads' errors. On Ctrl-C the threads stop and the exception propagates."""
+    from ..data.rosbag import read_messages
+    from ..messages import stamp_to_ns
+    from ..session.info_wait import CameraInfoWait
+    from ..session.replay import ReplayFeeder
+
+    config = session.config
+    ps = config.pose_source
     tf = None
     if ps.type == "tf":  # the whole recording's tf first: lookups never wait for later data
-        tf = TfTree(max_gap_ns=int(round(config.sync.max_gap_s * 1e9)),
-                    tolerance_ns=int(round(config.sync.extrapolation_tolerance_s * 1e9)))
+        tf = tf_tree_type(max_gap_ns=int(round(config.sync.max_gap_s * 1e9)),
+                          tolerance_ns=int(round(config.sync.extrapolation_tolerance_s * 1e9)))
         progress = Progress(say.err, "reading /tf", enabled=not args.quiet)
         for m in read_messages(args.bag, ["/tf", "/tf_static"], on_progress=progress):
             tf.add_message(m.msg, static=m.topic == "/tf_static")
         progress.close()
+    failure = ""
+    feeder = ReplayFeeder(handlers, threads=config.detection_thread_count(),
+                          queue_size=config.sync.image_queue_size)
 
+    def image(cam: str, held: tuple) -> None:
+        nonlocal failure
+        msg, compressed = held
+        T = None
+        if tf is not None:
+            try:
+                T = tf.lookup(ps.parent, ps.child, stamp_to_ns(msg.header.stamp))
+            except LookupError as exc:
+                session.record("no_tf_at_stamp")
+                failure = failure or (
+                    f"no tf from {ps.parent} to {ps.child} at the image stamps ({exc}); frames "
+                    f"in the recording: {sorted(tf.frames)}")
+                return
+            except (ValueError, TypeError, AttributeError):
+                pass  # a bad stamp: on_image rejects and counts it
+        feeder.image(cam, msg, compressed=compressed, T_parent_child=T)
+
+    waiting = CameraInfoWait()  # images a few ms ahead of their camera's first CameraInfo
     progress = Progress(say.err, "reading bag", enabled=not args.quiet)
-    for m in read_messages(args.bag, list(routes), on_progress=progress):
-        kind, cam, _ = routes[m.topic]
-        if kind == "pose":
-            feeder.pose(m.msg)
-        elif kind == "info":
-            handlers.on_camera_info(cam, m.msg)
-        else:
-            T = None
-            if tf is not None:
+    try:
+        for m in read_messages(args.bag, list(routes), on_progress=progress):
+            kind, cam, _ = routes[m.topic]
+            if kind == "pose":
+                feeder.pose(m.msg)
+            elif kind == "info":
+                handlers.on_camera_info(cam, m.msg)
+                if session.has_camera_info(cam):
+                    for held in waiting.release(cam):
+                        image(cam, held)
+            elif not session.has_camera_info(cam):
                 try:
-                    T = tf.lookup(ps.parent, ps.child, stamp_to_ns(m.msg.header.stamp))
-                except LookupError:
-                    session.record("no_tf_at_stamp")
-                    continue
+                    stamp = stamp_to_ns(m.msg.header.stamp)
                 except (ValueError, TypeError, AttributeError):
-                    pass  # a bad stamp: on_image rejects and counts it
-            feeder.image(cam, m.msg, compressed=kind == "compressed", T_parent_child=T)
-    feeder.close()
-    progress.close()
-    for exc in feeder.errors[:3]:
-        say.warning("bag", f"detection thread error: {type(exc).__name__}: {exc}")
-    counters = session.counters()
-    say("input: " + ", ".join(f"{k}={v}" for k, v in sorted(counters.items()) if v))
-    code, _ = calibrate_session(say, session, paths, force=args.force, report=args.report)
-    return code
+                    stamp = None
+                if stamp is None:
+                    image(cam, (m.msg, kind == "compressed"))
+                else:
+                    for held in waiting.hold(cam, stamp, (m.msg, kind == "compressed")):
+                        image(cam, held)
+            else:
+                image(cam, (m.msg, kind == "compressed"))
+        for cam, held in waiting.drain():
+            image(cam, held)
+        feeder.close()
+    except KeyboardInterrupt:
+        feeder.abort()
+        raise
+    finally:
+        progress.close()
+    return failure, feeder.errors
+
+
+def _save_so_far(session, paths, say: Printer) -> str:
+    """Ctrl-C during ``bag``: the data set collected so far, saved; returns what to tell."""
+    target = None if paths is None else paths.dataset
+    try:
+        if target is not None:
+            target.parent.mkdir(parents=True, exist_ok=True)
+        saved = session.save_dataset(target)
+    except ValueError as exc:
+        return f"nothing saved ({exc})"
+    except OSError as exc:
+        return f"nothing saved ({describe_os_error(exc)})"
+    return (f"the {session.counters().get('pairs_kept', 0)} pairs collected so far are in "
+            f"{saved}: rwhec-calibrate dataset {saved}")
 
 
 def _transport_hint(cam, topics) -> str:

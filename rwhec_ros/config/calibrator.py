@@ -25,7 +25,7 @@ from .sections import (
     SyncConfig,
     TagsConfig,
 )
-from .specs import IMAGE_QOS, IMAGE_TRANSPORTS, POSE_SOURCE_TYPES, SOLVER_MODES
+from .specs import GLOBAL_SPECS, IMAGE_QOS, IMAGE_TRANSPORTS, POSE_SOURCE_TYPES, SOLVER_MODES
 from .validation import (
     check_choice,
     check_frame,
@@ -44,6 +44,8 @@ class CalibratorConfig:
     """The validated calibrator configuration (file format: :mod:`rwhec_ros.config`).
 
     Build it with :meth:`from_parameters` (flat dotted names -> values) or :func:`load_config`.
+    ``verdict`` holds the ``verdict.*`` thresholds by their short names (the fields of
+    :class:`rwhec_ros.core.verdict.VerdictOptions`).
     """
 
     camera_carrier: CarrierConfig
@@ -58,6 +60,7 @@ class CalibratorConfig:
     solver: SolverConfig
     output: OutputConfig
     ros: RosConfig
+    verdict: dict[str, Any] = field(default_factory=dict, compare=False)
     parameters: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
     priors: PriorsConfig = field(default_factory=PriorsConfig)
 
@@ -260,6 +263,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         frame_suffix=v["output.frame_suffix"],
         publish_tf=v["output.publish_tf"],
         publish_uncertified=v["output.publish_uncertified"],
+        publish_unusable=v["output.publish_unusable"],
     )
     ros = RosConfig(
         image_qos=check_choice(v, "ros.image_qos", IMAGE_QOS),
@@ -280,6 +284,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         solver=solver,
         output=output,
         ros=ros,
+        verdict=_build_verdict(v),
         parameters=plain,
         priors=priors,
     )
@@ -308,6 +313,36 @@ def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], tags: TagsCo
             raise ValueError(f"priors.frames[{i}]: {f}.{a} given twice")
         entries.append((f, a, float(x)))
     return PriorsConfig(tuple(entries))
+
+
+def _build_verdict(v: dict[str, Any]) -> dict[str, Any]:
+    """``verdict.*`` by short name: every threshold > 0, caution levels not above unusable
+    ones (the fields of :class:`rwhec_ros.core.verdict.VerdictOptions`)."""
+    values = {}
+    for spec in GLOBAL_SPECS:
+        if not spec.name.startswith("verdict."):
+            continue
+        short = spec.name[len("verdict."):]
+        if spec.kind == "bool":
+            values[short] = v[spec.name]
+        elif spec.kind == "int":
+            values[short] = check_positive_int(v, spec.name, 2 if short == "min_edges" else 1)
+        else:
+            values[short] = check_positive(v, spec.name)
+    if values["significance"] >= 1:
+        raise ValueError(f"verdict.significance: must be < 1, got {values['significance']!r}")
+    for name in ("fit_caution_ratio", "edge_ratio", "edge_noisy_ratio"):
+        if values[name] < 1:
+            raise ValueError(f"verdict.{name}: must be >= 1, got {values[name]!r}")
+    for low, high in (("fit_caution_ratio", "fit_unusable_ratio"),
+                      ("scale_caution", "scale_unusable"),
+                      ("caution_std_translation_m", "unusable_std_translation_m"),
+                      ("caution_std_rotation_deg", "unusable_std_rotation_deg"),
+                      ("caution_scale_rel_std", "unusable_scale_rel_std")):
+        if values[low] > values[high]:
+            raise ValueError(f"verdict.{low}: {values[low]!r} is above verdict.{high} "
+                             f"{values[high]!r}")
+    return values
 
 
 def _build_tags(v: dict[str, Any]) -> TagsConfig:
@@ -360,4 +395,3 @@ def _build_tags(v: dict[str, Any]) -> TagsConfig:
         frame_prefix=v["tags.frame_prefix"],
         unknown_scale=unknown_scale,
     )
-

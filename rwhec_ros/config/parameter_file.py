@@ -9,6 +9,7 @@ from typing import Any
 
 import yaml
 
+from ..errors import describe_os_error, describe_yaml_error
 from .calibrator import CalibratorConfig
 from .specs import DEFAULT_NODE_NAME
 
@@ -134,11 +135,12 @@ def read_parameter_file(path: str | Path, node_name: str | None = None,
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise ValueError(f"config file {str(path)!r}: cannot read ({exc})") from None
+        raise ValueError(f"config file {str(path)!r}: cannot read it "
+                         f"({describe_os_error(exc)})") from None
     try:
         doc = yaml.load(text, Loader=_ParamLoader)  # noqa: S506 - SafeLoader subclass
     except yaml.YAMLError as exc:
-        raise ValueError(f"config file {str(path)!r}: invalid YAML ({exc})") from None
+        raise ValueError(f"config file {describe_yaml_error(path, exc)}") from None
     if not isinstance(doc, Mapping) or not doc:
         raise ValueError(
             f"config file {str(path)!r}: expected '<node_name>: ros__parameters: ...' at top level"

@@ -159,6 +159,7 @@ class OutputConfig:
     frame_suffix: str
     publish_tf: bool
     publish_uncertified: bool
+    publish_unusable: bool = False
 
 
 @dataclass(frozen=True)

@@ -45,6 +45,7 @@ import numpy as np
 import yaml
 
 from ..core.problem import Edge, Problem
+from ..errors import describe_os_error, describe_yaml_error
 from ..sync.edge_pairs import DatasetEdge, check_name
 
 if TYPE_CHECKING:
@@ -328,8 +329,10 @@ class Dataset:
         path = Path(path)
         try:
             doc = yaml.load(path.read_text(encoding="utf-8"), Loader=_Loader)
+        except OSError as exc:
+            raise ValueError(f"cannot read the data set: {describe_os_error(exc)}") from None
         except yaml.YAMLError as exc:
-            raise ValueError(f"{path}: not valid YAML: {exc}") from None
+            raise ValueError(describe_yaml_error(path, exc)) from None
         except UnicodeDecodeError as exc:
             raise ValueError(f"{path}: not a UTF-8 text file: {exc}") from None
         if not isinstance(doc, dict):

@@ -31,6 +31,7 @@ import numpy as np
 import yaml
 
 from ..core.result import CalibrationResult
+from ..errors import describe_os_error, describe_yaml_error
 
 __all__ = [
     "FrameNaming",
@@ -43,12 +44,14 @@ __all__ = [
     "write_outputs",
     "load_result",
     "plain",
+    "describe_os_error",
     "RESULT_KEYS",
 ]
 
-#: Keys every result YAML has (the acceptance keys plus identifiability and configuration).
-RESULT_KEYS = ("certified", "suboptimality_bound", "scale", "frames", "timing_s",
-               "identifiability", "config")
+#: Keys every result YAML has (the verdict first, the acceptance keys, identifiability and
+#: configuration).
+RESULT_KEYS = ("verdict", "reasons", "certified", "suboptimality_bound", "scale", "frames",
+               "timing_s", "identifiability", "config")
 
 
 @dataclass(frozen=True)
@@ -134,24 +137,37 @@ def result_document(
     identifiability: Mapping[str, Any] | None = None,
     config: Mapping[str, Any] | None = None,
     source: Mapping[str, Any] | None = None,
+    verdict=None,
 ) -> dict[str, Any]:
     """The result YAML mapping, with the keys of the session's
     :meth:`~rwhec_ros.session.CalibrationSession.result_document`.
 
-    ``CalibrationResult.to_dict()`` (``certified``, ``suboptimality_bound``, ``scale``, ``mode``,
+    First the ``verdict`` (``good``, ``caution`` or ``unusable``; ``unknown`` without one) and
+    its ``reasons`` (sentences, worst first), then ``CalibrationResult.to_dict()``
+    (``certified``, ``suboptimality_bound``, ``scale``, ``mode``,
     ``frames`` (name, role, matrix, translation, quaternion_xyzw), ``timing_s``, certificate
     details), each frame's published ``parent``/``child``, ``excluded_edges`` (``"(x, y)"`` ->
     reason), ``identifiability`` (``IdentifiabilityReport.to_dict()``), ``config`` (flat dotted
     calibrator parameters, as far as they apply) and ``source`` (where the data came from).
+    With a :class:`~rwhec_ros.core.verdict.Verdict`, each frame also says whether it is
+    ``usable`` (and its ``verdict`` and ``why``), and ``verdict_details`` holds the fit
+    statistics, the scale check and the per-frame verdicts.
     """
-    doc = result.to_dict()
+    doc = {"verdict": "unknown" if verdict is None else verdict.level,
+           "reasons": [] if verdict is None else verdict.messages()}
+    doc.update(result.to_dict())
     frames = naming.published_frames()
     for f in doc["frames"]:
         f["parent"], f["child"] = frames.get(f["name"], ("", f["name"]))
+        fv = None if verdict is None else verdict.frames.get(f["name"])
+        if fv is not None:
+            f["usable"], f["verdict"], f["why"] = fv.usable, fv.level, list(fv.why)
     doc["excluded_edges"] = dict(excluded or {})
     doc["identifiability"] = None if identifiability is None else dict(identifiability)
     doc["config"] = dict(config or {})
     doc["source"] = dict(source or {})
+    if verdict is not None:
+        doc["verdict_details"] = verdict.to_dict()
     return plain(doc)
 
 
@@ -258,9 +274,9 @@ def load_result(path: str | Path) -> dict[str, Any]:
     try:
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as exc:
-        raise ValueError(f"{path}: cannot read ({exc})") from None
+        raise ValueError(f"{path}: cannot read ({describe_os_error(exc)})") from None
     except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not valid YAML: {exc}") from None
+        raise ValueError(describe_yaml_error(path, exc)) from None
     if not isinstance(doc, dict):
         raise ValueError(f"{path}: expected a YAML mapping, got {type(doc).__name__}")
     for key in ("certified", "suboptimality_bound", "scale", "frames"):

@@ -18,7 +18,9 @@ Interfaces (relative names, so the node can be namespaced):
   ``T_parent_child`` up on tf at every image stamp (tf2 ``Buffer`` + ``TransformListener``);
 * services ``calibrate``, ``~/reset``, ``~/save_dataset`` (``std_srvs/Trigger``);
 * publishes the extrinsics on ``/tf_static`` (``StaticTransformBroadcaster``, child frames from
-  the configuration), ``~/suboptimality_bound`` (``std_msgs/Float64``) and ``~/result``
+  the configuration; only the frames the verdict finds usable unless ``output.publish_unusable``,
+  the others named in the ``calibrate`` response and the log), ``~/suboptimality_bound``
+  (``std_msgs/Float64``) and ``~/result``
   (``std_msgs/String``, the result YAML), both transient local, and
   ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (session, one row per camera:
   received / dropped / skipped / searched and transport loss, one row per edge).
@@ -315,25 +317,29 @@ class CalibratorNode(Node):
     def _on_calibrate(self, request, response):
         outcome = self.session.calibrate()
         out = self.config.output
-        response.success = bool(outcome.success)
+        response.success = outcome.usable  # a result whose verdict is good or caution
         if not outcome.success:
             response.message = calibrate_message(outcome, out, published=False)
             self.get_logger().warning(f"calibrate: {response.message}")
             return response
-        result = outcome.result
+        result, verdict = outcome.result, outcome.verdict
         self._bound_pub.publish(Float64(data=float(result.certificate.suboptimality_bound)))
         self._result_pub.publish(String(data=outcome.result_yaml))
         published = should_publish_tf(outcome, out)
+        left_out = self.session.left_out(result, verdict)
         if published:
             stamp = self.get_clock().now().nanoseconds
             msgs = [
                 fill_message(TransformStamped(),
                              transform_to_transform_stamped_fields(T, parent, child, stamp))
-                for parent, child, T in self.session.published_transforms(result)
+                for parent, child, T in self.session.published_transforms(result, verdict)
             ]
-            self._static_tf.sendTransform(msgs)
-        response.message = calibrate_message(outcome, out, published=published)
-        self.get_logger().info(f"calibrate: {response.message}")
+            if msgs:
+                self._static_tf.sendTransform(msgs)
+        response.message = calibrate_message(outcome, out, published=published,
+                                             left_out=left_out)
+        log = self.get_logger().info if outcome.usable else self.get_logger().warning
+        log(f"calibrate: {response.message}")
         return response
 
     def _on_reset(self, request, response):
@@ -360,10 +366,14 @@ class CalibratorNode(Node):
         counters["image_queue_length"] = len(self._queue)
         counters["image_queue_dropped_total"] = self._queue.dropped
         report = self.session.report()
+        last = self.session.last_outcome
+        calibration = None
+        if last is not None and last.verdict is not None:
+            calibration = (last.verdict.level, last.verdict.headline())
         rows = diagnostic_rows(
             self.session.diagnostics(), counters, prefix=self.get_name(),
             identifiable=None if report is None else bool(report.identifiable),
-            verdict="" if report is None else str(report.verdict),
+            verdict="" if report is None else str(report.verdict), calibration=calibration,
         )
         rows[1:1] = self._camera_diagnostics.rows(
             self.session.camera_counters(), self._queue.stats(), prefix=self.get_name())

@@ -25,12 +25,15 @@ without ROS.
 
 Modules: :mod:`.live` (:class:`CalibrationSession`), :mod:`.image_input` (its image path: pose,
 motion gate, lazy decoding, tags, pairs), :mod:`.outcomes` (what it answers), :mod:`.solving`
-(the solve step shared with the CLI), :mod:`.outputs` (summary, launch file, data set and output
-files), :mod:`.image_queue` (:class:`ImageQueue`, :class:`FairImageQueue`, :class:`QueueWorker`),
-:mod:`.camera_monitor` (transport loss from the stamps' spacing, per-camera ``/diagnostics``
-rows), :mod:`.replay` (recorded messages into a session on several threads, for
-``rwhec-calibrate bag``) and :mod:`.handlers` (:class:`MessageHandlers`: one ROS message,
-rclpy's or rosbags', into the session).
+(the solve step shared with the CLI, identifiability at the solution and the verdict,
+:func:`~rwhec_ros.core.verdict.assess`), :mod:`.outputs` (summary, launch file, what is published,
+data set and output files), :mod:`.rejections` (data rejected wholesale, in words),
+:mod:`.info_wait` (images held for their camera's first CameraInfo), :mod:`.image_queue`
+(:class:`ImageQueue`, :class:`FairImageQueue`, :class:`QueueWorker`), :mod:`.camera_monitor`
+(transport loss from the stamps' spacing, per-camera ``/diagnostics`` rows), :mod:`.replay`
+(recorded messages into a session on several threads, for ``rwhec-calibrate bag``),
+:mod:`.paths` (the output root), :mod:`.responses` (the service answers) and :mod:`.handlers`
+(:class:`MessageHandlers`: one ROS message, rclpy's or rosbags', into the session).
 """
 
 from .handlers import MessageHandlers

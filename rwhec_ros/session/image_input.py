@@ -69,8 +69,8 @@ def safe_int(value: Any) -> int | None:
 class ImageInput:
     """Mixin of :class:`~rwhec_ros.session.CalibrationSession`: the image path (see the module
     docstring). It uses the session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
-    ``_pending``, ``_counters``, ``_camera_counts``, ``_intrinsics``, ``_tag_names``, ``_local``,
-    ``_detector_config``, ``config`` and ``_pose_to_A``."""
+    ``_pending``, ``_counters``, ``_camera_counts``, ``_rejections``, ``_intrinsics``,
+    ``_tag_names``, ``_local``, ``_detector_config``, ``config`` and ``_pose_to_A``."""
 
     # --- public --------------------------------------------------------------------------------
     def add_image(
@@ -103,6 +103,7 @@ class ImageInput:
         """
         with self._lock:
             self._count("images")
+            self._rejections.saw("images", str(camera))
             intrinsics = self._intrinsics.get(camera)
             known = camera in self.config.camera_names
             if known:
@@ -110,14 +111,16 @@ class ImageInput:
         if not known:
             return self._reject(camera, safe_int(stamp_ns), "image_unknown_camera")
         if intrinsics is None:
-            return self._reject(camera, safe_int(stamp_ns), "image_missing_camera_info")
+            return self._reject(camera, safe_int(stamp_ns), "image_missing_camera_info",
+                                words="no CameraInfo had arrived for this camera")
         stamp = safe_int(stamp_ns)
         if stamp is None or stamp < 0:
             return self._reject(camera, stamp, "image_bad_stamp")
         if not callable(image):
             reason = self._gray_problem(image, intrinsics)
             if reason:
-                return self._reject(camera, stamp, reason)
+                return self._reject(camera, stamp, reason,
+                                    words=self._gray_words(reason, image, intrinsics))
         if T_parent_child is not None:
             A = self._pose_to_A(T_parent_child)
             if A is None:
@@ -225,7 +228,8 @@ class ImageInput:
                 return self._reject(camera, stamp, "bad_image_message", str(exc))
             reason = self._gray_problem(gray, intrinsics)
             if reason:
-                return self._reject(camera, stamp, reason)
+                return self._reject(camera, stamp, reason,
+                                    words=self._gray_words(reason, gray, intrinsics))
         else:
             gray = image
         try:  # outside the lock: detection is the expensive part
@@ -294,6 +298,14 @@ class ImageInput:
             return "image_size_mismatch"
         return ""
 
+    @staticmethod
+    def _gray_words(reason: str, gray: Any, intrinsics) -> str:
+        """What :meth:`_gray_problem` found, in words for the rejection log (``""``: not logged)."""
+        if reason != "image_size_mismatch":
+            return ""
+        return (f"{gray.shape[1]}x{gray.shape[0]} images, CameraInfo says "
+                f"{intrinsics.width}x{intrinsics.height}")
+
     def _camera_count(self, camera: str, key: str, n: int = 1) -> None:
         """Count per camera (lock held; unknown cameras are not counted)."""
         counts = self._camera_counts.get(camera)
@@ -301,10 +313,14 @@ class ImageInput:
             counts[key] += n
 
     def _reject(self, camera: str, stamp: int | None, reason: str,
-                detail: str = "") -> ImageOutcome:
+                detail: str = "", *, words: str = "") -> ImageOutcome:
+        """Count a rejected image; ``words`` (what was wrong, with the numbers) also go to the
+        session's :class:`~rwhec_ros.session.rejections.RejectionLog`."""
         with self._lock:
             self._count(reason)
             self._camera_count(camera, "rejected")
+            if words:
+                self._rejections.reject(reason, str(camera), words)
         return ImageOutcome(camera, stamp, "rejected", reasons=[reason], detail=detail)
 
     def _detector(self) -> TagDetector:

@@ -19,16 +19,19 @@ from ..config import CalibratorConfig
 from ..config.live_parameters import restart_only_differences
 from ..core.lie import invert_transform
 from ..core.result import CalibrationResult
+from ..core.verdict import Verdict
 from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
+from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
 from ..sync.buffer import PoseBuffer
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .image_input import CAMERA_COUNTERS, ImageInput
 from .outcomes import SolveOutcome, edge_rows
-from .outputs import session_dataset, summary, write_session_outputs
+from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
-from .solving import full_report, make_tracker, report_dict, solve_problem
+from .rejections import RejectionLog
+from .solving import make_tracker, report_dict, solve_and_assess, verdict_options
 
 __all__ = ["CalibrationSession"]
 
@@ -111,6 +114,7 @@ class CalibrationSession(ImageInput):
         self._counters: collections.Counter = collections.Counter()
         self._camera_counts = {name: collections.Counter(dict.fromkeys(CAMERA_COUNTERS, 0))
                                for name in c.camera_names}
+        self._rejections = RejectionLog()
 
     def update_config(self, config: CalibratorConfig, *,
                       output_root: str | Path | None = None) -> None:
@@ -205,8 +209,13 @@ class CalibrationSession(ImageInput):
     def _store_pose(self, stamp_ns: int, T_parent_child: Any, source: str | None) -> bool:
         with self._lock:
             self._count("poses")
+            self._rejections.saw("poses")
             if source and source != self.config.pose_source.parent:
                 self._count("pose_rejected_frame_id")
+                self._rejections.reject(
+                    "pose_rejected_frame_id", str(source),
+                    f"frame_id {str(source)!r}, configured pose_source.parent "
+                    f"{self.config.pose_source.parent!r}")
                 return False
             A = self._pose_to_A(T_parent_child)
             if A is None:
@@ -219,6 +228,13 @@ class CalibrationSession(ImageInput):
             if not ok:
                 self._count("pose_rejected_buffer")
             return bool(ok)
+
+    def rejections(self) -> list[str]:
+        """Data rejected wholesale (at least half of a camera's images or of the poses), in
+        words with the numbers, e.g. ``all 599 images of cam0 rejected: 1280x960 images,
+        CameraInfo says 640x480`` (:class:`~rwhec_ros.session.rejections.RejectionLog`)."""
+        with self._lock:
+            return self._rejections.sentences()
 
     # --- monitoring --------------------------------------------------------------------------
     def counters(self) -> dict[str, int]:
@@ -309,44 +325,66 @@ class CalibrationSession(ImageInput):
         excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         if problem is None:
             n = sum(counts.values())
-            return SolveOutcome(
-                False,
-                f"not enough data: {n} pairs on {len(counts)} edges, no edge has "
-                f"solver.min_pairs={c.solver.min_pairs} pairs ({err}); all data kept",
-                excluded=excl,
-                identifiability=ident,
-            )
+            if n == 0:
+                why = self.rejections() or [
+                    "no tag was detected in an image with a pose at its stamp (see the "
+                    "counters)"]
+                message = "no measurement pairs: " + "; ".join(why)
+            else:
+                message = (f"not enough data: {n} pairs on {len(counts)} edges, no edge has "
+                           f"solver.min_pairs={c.solver.min_pairs} pairs ({err}); the {n} "
+                           "pairs are kept: record more and calibrate again")
+            return SolveOutcome(False, message, excluded=excl, identifiability=ident)
         try:
-            result, dropped, notes = solve_problem(
+            solved = solve_and_assess(
                 problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
                 priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
-                min_scale=c.solver.min_scale)
-            excl.update(dropped)
+                min_scale=c.solver.min_scale, thresholds=verdict_options(c.verdict),
+                expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
+                carriers=(c.camera_carrier.frame, c.tag_carrier.frame))
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
-                False, f"solver failed: {type(exc).__name__}: {exc}; all data kept",
+                False, f"the solver failed ({type(exc).__name__}: {exc}); all data kept: try "
+                "again with solver.mode sdp, or with more data",
                 excluded=excl, identifiability=ident,
             )
-        ident = full_report(problem, result) or ident
-        text = yaml.safe_dump(self.result_document(result, excl, ident), sort_keys=False)
+        result, verdict = solved.result, solved.verdict
+        excl.update(solved.dropped)
+        ident = solved.identifiability_dict or ident
+        text = yaml.safe_dump(self.result_document(result, excl, ident, verdict),
+                              sort_keys=False)
         try:
-            files = self._write_outputs(result, text, dataset, output_dir, force)
+            files = self._write_outputs(result, text, dataset, output_dir, force, verdict)
             write_error = ""
         except OSError as exc:
-            files, write_error = {}, f"; WRITING OUTPUTS FAILED: {exc}"
-        message = summary(result, problem, excl, self.config) + write_error
-        return SolveOutcome(True, message, result, excl, files, ident, text)
+            files, write_error = {}, f"\nWRITING THE OUTPUTS FAILED: {describe_os_error(exc)}"
+        message = summary(result, solved.problem, excl, self.config, verdict) + write_error
+        return SolveOutcome(True, message, result, excl, files, ident, text, verdict)
 
     # --- outputs -----------------------------------------------------------------------------
-    def published_transforms(self, result: CalibrationResult) -> list[tuple[str, str, np.ndarray]]:
-        """``(parent, child, T_parent_child)`` for every estimated frame of ``result``."""
-        return FrameNaming.from_config(self.config).transforms(result)
+    def published_transforms(self, result: CalibrationResult, verdict: Verdict | None = None
+                             ) -> list[tuple[str, str, np.ndarray]]:
+        """``(parent, child, T_parent_child)`` for every estimated frame of ``result`` that may be
+        published: with a ``verdict``, only its usable frames unless
+        ``output.publish_unusable`` (see :meth:`left_out`)."""
+        return self._publishable(result, verdict)[0]
+
+    def left_out(self, result: CalibrationResult, verdict: Verdict | None) -> dict[str, str]:
+        """Frames of ``result`` not published because the ``verdict`` finds them unusable, and
+        why (empty with ``output.publish_unusable``)."""
+        return self._publishable(result, verdict)[1]
+
+    def _publishable(self, result: CalibrationResult, verdict: Verdict | None):
+        names = list(result.y_names) + list(result.x_names)
+        return publishable(FrameNaming.from_config(self.config).transforms(result), names,
+                           verdict, publish_unusable=self.config.output.publish_unusable)
 
     def result_document(
         self,
         result: CalibrationResult,
         excluded: dict[str, str] | None = None,
         identifiability: dict | None = None,
+        verdict: Verdict | None = None,
     ) -> dict[str, Any]:
         """The result YAML as a mapping (:func:`rwhec_ros.data.results.result_document`:
         ``certified``, ``suboptimality_bound``, ``scale``, ``frames`` with published
@@ -354,7 +392,8 @@ class CalibrationSession(ImageInput):
         plus this session's ``counters``."""
         doc = result_document(result, FrameNaming.from_config(self.config), excluded=excluded,
                               identifiability=identifiability,
-                              config=self.config.to_parameters(), source={"type": "session"})
+                              config=self.config.to_parameters(), source={"type": "session"},
+                              verdict=verdict)
         doc["counters"] = plain(self.counters())
         return doc
 
@@ -363,15 +402,16 @@ class CalibrationSession(ImageInput):
         return new_output_dir(self.output_root, kind, now=self._now())
 
     def _write_outputs(self, result: CalibrationResult, text: str, dataset,
-                       output_dir: str | Path | None = None,
-                       force: bool = False) -> dict[str, str]:
+                       output_dir: str | Path | None = None, force: bool = False,
+                       verdict: Verdict | None = None) -> dict[str, str]:
         if output_dir is None:
             out = self._output_dir("calibration")
             created = out.name.split("_", 1)[1]
         else:
             out, created = Path(output_dir), utc_stamp(self._now())
-        return write_session_outputs(out, self.published_transforms(result), result, text,
-                                     dataset, created=created, force=force)
+        transforms, left_out = self._publishable(result, verdict)
+        return write_session_outputs(out, transforms, result, text, dataset, created=created,
+                                     force=force, verdict=verdict, left_out=left_out)
 
     def _dataset_locked(self):
         """A data-set object of the kept pairs (lock held), or None if unavailable."""

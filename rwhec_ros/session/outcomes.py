@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..core.result import CalibrationResult
+from ..core.verdict import Verdict
 
 __all__ = ["ImageOutcome", "SolveOutcome", "edge_statuses", "edge_rows"]
 
@@ -54,8 +55,9 @@ class SolveOutcome:
         A solution was computed (certified or not: see ``result.certified``). False when there
         were not enough data or the solver failed; the session keeps all its data either way.
     message : str
-        Short summary: certified?, ``rho_hat``, each frame's estimate, edges excluded and why
-        (or the reason of the failure).
+        The summary, one item per line: the verdict first, then the certificate (``rho_hat``),
+        each frame's estimate (or NOT CALIBRATED), edges excluded and why (or the reason of the
+        failure).
     result : CalibrationResult or None
     excluded : dict of str to str
         Edge ``"(x, y)"`` -> reason it was left out of the problem.
@@ -65,6 +67,8 @@ class SolveOutcome:
         The identifiability report at the time of the solve (``IdentifiabilityReport.to_dict()``).
     result_yaml : str
         The text of the result YAML (also written to ``files["result"]``); empty on failure.
+    verdict : Verdict or None
+        Use the result or not, and why (:func:`rwhec_ros.core.verdict.assess`); None on failure.
     """
 
     success: bool
@@ -74,6 +78,12 @@ class SolveOutcome:
     files: dict[str, str] = field(default_factory=dict)
     identifiability: dict | None = None
     result_yaml: str = ""
+    verdict: Verdict | None = None
+
+    @property
+    def usable(self) -> bool:
+        """A result whose verdict is ``good`` or ``caution``."""
+        return bool(self.success and self.verdict is not None and self.verdict.usable)
 
 
 def edge_statuses(report) -> dict[tuple[str, str], tuple[str, bool | None, list[str]]]:

@@ -2,58 +2,100 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
 
 from ..core.lie import transform_to_quat_xyzw
 from ..core.result import CalibrationResult
+from ..core.verdict import Verdict
 from ..data.dataset import Dataset
 from ..data.results import session_output_paths, write_outputs
 
-__all__ = ["summary", "static_transforms_launch", "session_dataset", "write_session_outputs"]
+__all__ = ["summary", "publishable", "launch_header", "static_transforms_launch",
+           "session_dataset", "write_session_outputs"]
 
 
-def summary(result: CalibrationResult, problem, excluded: dict, config) -> str:
-    """The short summary of the ``calibrate`` service and the CLI: certified?, rho_hat, each
-    frame's result, edges excluded and why. ``config`` names the published frames (a
-    :class:`CalibratorConfig` or :class:`~rwhec_ros.data.results.FrameNaming`)."""
+def summary(result: CalibrationResult, problem, excluded: dict, config,
+            verdict: Verdict | None = None) -> str:
+    """The summary of the ``calibrate`` service and the CLI, one line per item: the verdict
+    first (``GOOD: ...``, ``CAUTION: <top reason>``, ``UNUSABLE: <top reason>``) and its other
+    reasons, the certificate, then each frame (``parent->child: t=[...] q=[...]``, or ``NOT
+    CALIBRATED (why)`` for a frame the verdict finds unusable: never a number), the edges
+    excluded and why, notes. ``config`` names the published frames (a :class:`CalibratorConfig`
+    or :class:`~rwhec_ros.data.results.FrameNaming`)."""
     c = result.certificate
-    head = (
-        f"CERTIFIED globally optimal (rho_hat={c.suboptimality_bound:.2e})"
-        if result.certified
-        else f"NOT certified: {c.status.value} (rho_hat={c.suboptimality_bound:.2e})"
-    )
-    parts = [
-        head,
-        f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode {result.mode}",
-    ]
+    lines = []
+    if verdict is not None:
+        lines.append(verdict.headline())
+        lines += [f"  {m}" for m in verdict.messages()[1:]]
+    lines.append(f"CERTIFIED globally optimal (rho_hat={c.suboptimality_bound:.2e})"
+                 if result.certified else
+                 f"NOT certified: {c.status.value} (rho_hat={c.suboptimality_bound:.2e})")
+    lines.append(f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
+                 f"{result.mode}")
     if problem.unknown_scale:
-        parts.append(f"scale {result.scale:.5f}")
+        lines.append(f"scale {result.scale:.5f}")
     frames = config.published_frames()
-    for name, T in list(zip(result.y_names, result.Y, strict=True)) + list(
-        zip(result.x_names, result.X, strict=True)
-    ):
-        q, t = transform_to_quat_xyzw(T)
+    estimates = dict(zip(result.y_names, result.Y, strict=True))
+    estimates.update(zip(result.x_names, result.X, strict=True))
+    names = list(verdict.frames) if verdict is not None else list(estimates)
+    for name in names:
         parent, child = frames.get(name, ("?", name))
-        parts.append(
-            f"{parent}->{child}: t=[{t[0]:.4f} {t[1]:.4f} {t[2]:.4f}] "
-            f"q=[{q[0]:.4f} {q[1]:.4f} {q[2]:.4f} {q[3]:.4f}]"
-        )
+        fv = None if verdict is None else verdict.frames[name]
+        if fv is not None and not fv.usable:
+            lines.append(f"{parent}->{child}: NOT CALIBRATED ({'; '.join(fv.why)})")
+        elif name in estimates:
+            q, t = transform_to_quat_xyzw(estimates[name])
+            lines.append(f"{parent}->{child}: t=[{t[0]:.4f} {t[1]:.4f} {t[2]:.4f}] "
+                         f"q=[{q[0]:.4f} {q[1]:.4f} {q[2]:.4f} {q[3]:.4f}]")
     parents = {name: pc[0] for name, pc in frames.items()}
     for d in result.unobservable:
+        if d.fixed_by != "prior" and verdict is not None:
+            continue  # a reason of the verdict (not calibrated, give a prior)
         how = ("fixed by the priors" if d.fixed_by == "prior" else
                "set by default (the cameras' mean along it is 0): not calibrated, give a prior "
                "(priors.* or --prior FRAME.AXIS=VALUE)")
-        parts.append(f"{d.describe(parents=parents, x_names=result.x_names)}: {how}")
+        lines.append(f"{d.describe(parents=parents, x_names=result.x_names)}: {how}")
     if excluded:
-        parts.append("excluded: " + ", ".join(f"{k}: {v}" for k, v in excluded.items()))
-    missing = [n for n in config.y_names + config.x_names if n not in problem.frame_names]
-    if missing:
-        parts.append(f"not calibrated (no usable edge): {missing}")
-    if result.notes:
-        parts.append("notes: " + " | ".join(result.notes))
-    return "; ".join(parts)
+        lines.append("excluded: " + ", ".join(f"{k}: {v}" for k, v in excluded.items()))
+    if verdict is None:
+        missing = [n for n in config.y_names + config.x_names if n not in problem.frame_names]
+        if missing:
+            lines.append(f"not calibrated (no usable edge): {missing}")
+    lines += [f"note: {n}" for n in result.notes]
+    return "\n".join(lines)
+
+
+def publishable(transforms: list[tuple[str, str, np.ndarray]], names: list[str],
+                verdict: Verdict | None, *, publish_unusable: bool = False
+                ) -> tuple[list[tuple[str, str, np.ndarray]], dict[str, str]]:
+    """The ``(parent, child, T)`` of ``transforms`` (one per frame in ``names``, same order) that
+    may be published, and frame name -> why for those left out: a frame the verdict finds
+    unusable is left out unless ``publish_unusable`` (``output.publish_unusable``)."""
+    keep, left_out = [], {}
+    for name, item in zip(names, transforms, strict=True):
+        fv = None if verdict is None else verdict.frames.get(name)
+        if fv is not None and not fv.usable and not publish_unusable:
+            left_out[name] = "; ".join(fv.why) or fv.level
+            continue
+        keep.append(item)
+    return keep, left_out
+
+
+def launch_header(result: CalibrationResult, verdict: Verdict | None, left_out: dict[str, str],
+                  created: str) -> str:
+    """The comment at the top of the static-transform launch file: the verdict and its reasons,
+    the certificate, the frames left out and why."""
+    c = result.certificate
+    lines = [] if verdict is None else [verdict.headline(), *verdict.messages()[1:]]
+    lines.append(f"certified: {result.certified}, suboptimality bound "
+                 f"{c.suboptimality_bound:.3g}, {created}")
+    if left_out:
+        lines.append("left out (not usable): " + "; ".join(f"{k}: {v}" for k, v in
+                                                            left_out.items()))
+    return "\n".join(lines)
 
 
 def static_transforms_launch(
@@ -61,9 +103,13 @@ def static_transforms_launch(
 ) -> str:
     """Text of a ROS 2 Python launch file that publishes ``transforms`` with
     ``tf2_ros static_transform_publisher`` (one node per ``(parent, child, T_parent_child)``),
-    so the calibration is reproduced at bring-up: ``ros2 launch <file>``."""
-    lines = [
-        f'"""Static transforms of an rwhec_ros calibration. {header}',
+    so the calibration is reproduced at bring-up: ``ros2 launch <file>``. ``header`` (e.g.
+    :func:`launch_header`) becomes the comment at the top."""
+    lines = []
+    for line in header.splitlines():
+        lines += ["# " + w for w in textwrap.wrap(line, 96, break_on_hyphens=False)] or ["#"]
+    lines += [
+        '"""Static transforms of an rwhec_ros calibration.',
         "",
         "Generated file: ros2 launch <this file>. One tf2_ros static_transform_publisher per",
         "frame (--frame-id parent, --child-frame-id child: T_parent_child).",
@@ -118,13 +164,13 @@ def session_dataset(acc, config) -> Dataset | None:
 
 def write_session_outputs(out: Path, transforms: list[tuple[str, str, np.ndarray]],
                           result: CalibrationResult, text: str, dataset, *, created: str,
-                          force: bool = False) -> dict[str, str]:
-    """Write the result YAML ``text``, the launch file of ``transforms`` (its header says when it
-    was ``created``) and ``dataset`` into the directory ``out``; returns the written paths.
-    Existing files are refused (``FileExistsError``) unless ``force``."""
-    launch = static_transforms_launch(transforms, header=(
-        f"certified: {result.certified}, suboptimality bound "
-        f"{result.certificate.suboptimality_bound:.3g}, created {created}"
-    ))
+                          force: bool = False, verdict: Verdict | None = None,
+                          left_out: dict[str, str] | None = None) -> dict[str, str]:
+    """Write the result YAML ``text``, the launch file of ``transforms`` (its comment gives the
+    ``verdict``, the frames ``left_out`` and when it was ``created``) and ``dataset`` into the
+    directory ``out``; returns the written paths. Existing files are refused
+    (``FileExistsError``) unless ``force``."""
+    launch = static_transforms_launch(transforms, header=launch_header(
+        result, verdict, left_out or {}, f"created {created}"))
     return write_outputs(session_output_paths(out), result_yaml=text, launch_text=launch,
                          dataset=dataset, force=force)

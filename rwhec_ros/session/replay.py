@@ -88,6 +88,14 @@ class ReplayFeeder:
         for w in self._workers:
             w.stop()
 
+    def abort(self) -> None:
+        """Stop the workers after their current image (Ctrl-C): images still held or queued
+        are not examined."""
+        for held in self._held.values():
+            held.clear()
+        for w in self._workers:
+            w.stop()
+
     # --- internals -----------------------------------------------------------------------------
     def _ready(self, item: tuple) -> bool:
         msg, _, T = item

@@ -46,10 +46,12 @@ def should_publish_tf(outcome: SolveOutcome, output) -> bool:
     return bool(outcome.result.certified or output.publish_uncertified)
 
 
-def calibrate_message(outcome: SolveOutcome, output, *, published: bool) -> str:
-    """The ``calibrate`` answer: the session's summary (or why there is no solution), then
-    whether the estimates were withheld from ``/tf_static``, then the absolute output directory
-    (``files in <dir>``).
+def calibrate_message(outcome: SolveOutcome, output, *, published: bool,
+                      left_out: dict[str, str] | None = None) -> str:
+    """The ``calibrate`` answer: the session's summary (the verdict first, or why there is no
+    solution), then the frames left off ``/tf_static`` because the verdict finds them unusable,
+    then whether the estimates were withheld from ``/tf_static``, then the absolute output
+    directory (``files in <dir>``).
 
     Parameters
     ----------
@@ -59,8 +61,14 @@ def calibrate_message(outcome: SolveOutcome, output, *, published: bool) -> str:
         The configuration's ``output`` section (``publish_tf``, ``publish_uncertified``).
     published : bool
         Whether the node sent the estimates to ``/tf_static``.
+    left_out : dict of str to str, optional
+        Frames not published because they are not usable, and why
+        (:meth:`CalibrationSession.left_out`).
     """
     parts = [outcome.message]
+    if published and left_out:
+        parts.append("left off /tf_static (not usable): " + ", ".join(
+            f"{name} ({why})" for name, why in left_out.items()))
     if outcome.success and output.publish_tf and not published:
         parts.append("not published on /tf_static (not certified; "
                      "output.publish_uncertified is false)")

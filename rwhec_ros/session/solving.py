@@ -1,9 +1,15 @@
-"""The solve step shared by the session and the CLI, and the identifiability around it."""
+"""The solve step of the session and the CLI, identifiability at the solution, the verdict."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
 from ..core.identifiability import IdentifiabilityTracker, analyze
+from ..core.problem import Problem
 from ..core.result import CalibrationResult
+from ..core.verdict import Verdict, VerdictOptions, assess
 from ..data.results import plain
 
 __all__ = [
@@ -13,6 +19,9 @@ __all__ = [
     "analyze_at_solution",
     "full_report",
     "report_dict",
+    "Solved",
+    "solve_and_assess",
+    "verdict_options",
 ]
 
 
@@ -25,8 +34,11 @@ def make_tracker(unknown_scale: bool) -> IdentifiabilityTracker:
 def analyze_at_solution(problem, result: CalibrationResult):
     """Whole-problem identifiability at the solution (``analyze(..., full=True)``, an
     :class:`~rwhec_ros.core.identifiability.IdentifiabilityReport`), or None if it fails."""
+    from ..core.solve import blas_threads
+
     try:
-        return analyze(problem, solution=(result.X, result.Y, float(result.scale)))
+        with blas_threads(1):  # small dense matrices: threads only add contention
+            return analyze(problem, solution=(result.X, result.Y, float(result.scale)))
     except Exception:  # noqa: BLE001 - optional extra; the tracker's report remains
         return None
 
@@ -63,6 +75,29 @@ def solve_options(
     return SolveOptions(mode=mode, gauge=gauge, min_scale=min_scale), notes
 
 
+def _solve(problem: Problem, options, reject_outliers: bool):
+    """``(result, solved problem, dropped edges, notes)``: a plain solve, or RANSAC + GNC-TLS
+    whose solved problem is the inlier problem."""
+    from ..core.solve import solve
+
+    if not reject_outliers:
+        return solve(problem, options), problem, {}, []
+    from ..core.outliers import RobustOptions, robust_solve
+
+    robust = robust_solve(problem, options=RobustOptions(solve=options))
+    dropped = {}
+    if robust.ransac is not None:
+        dropped = {str(edge): f"outlier rejection: {reason}" for edge, reason in
+                   robust.ransac.dropped}
+    kept = {e.name for e in robust.inlier_problem.edges}
+    for e in problem.edges:  # every pair of an edge rejected (RANSAC or GNC)
+        if e.name not in kept and e.name not in dropped:
+            dropped[e.name] = f"outlier rejection: all {e.n} pairs rejected"
+    notes = [f"outlier rejection: {len(robust.rejected)} of {problem.n_measurements} pairs "
+             f"rejected ({len(dropped)} edges dropped)"]
+    return robust.result, robust.inlier_problem, dropped, notes
+
+
 def solve_problem(
     problem, *, mode: str = "fast", reject_outliers: bool = False, priors=(),
     unobservable_std_m: float = 1.0, min_scale: float = 0.01,
@@ -73,24 +108,82 @@ def solve_problem(
     ``unobservable_std_m`` fix translation directions the data do not determine
     (:mod:`rwhec_ros.core.gauge`); ``min_scale`` is the unknown scale's floor. Returns (result,
     dropped edges, notes)."""
-    from ..core.solve import solve
+    options, prior_notes = solve_options(problem, mode=mode, priors=priors,
+                                         unobservable_std_m=unobservable_std_m,
+                                         min_scale=min_scale)
+    result, _, dropped, notes = _solve(problem, options, reject_outliers)
+    notes = prior_notes + notes
+    result.notes.extend(notes)
+    return result, dropped, notes
+
+
+@dataclass
+class Solved:
+    """A solved and assessed problem (:func:`solve_and_assess`).
+
+    Attributes
+    ----------
+    result : CalibrationResult
+    problem : Problem
+        The pairs the result solves (with outlier rejection: the inlier problem).
+    dropped : dict of str to str
+        Edges ``"(x, y)"`` the outlier rejection left out, and why.
+    notes : list of str
+    identifiability : IdentifiabilityReport or None
+        At the solution (with the numeric check).
+    verdict : Verdict
+    """
+
+    result: CalibrationResult
+    problem: Problem
+    dropped: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    identifiability: object = None
+    verdict: Verdict | None = None
+
+    @property
+    def identifiability_dict(self) -> dict | None:
+        return report_dict(self.identifiability)
+
+
+def verdict_options(section: Mapping[str, Any] | None) -> VerdictOptions:
+    """:class:`VerdictOptions` from a configuration's ``verdict`` thresholds (short names of the
+    ``verdict.*`` parameters, :attr:`CalibratorConfig.verdict`); None or empty: the defaults."""
+    return VerdictOptions(**dict(section or {}))
+
+
+def solve_and_assess(
+    problem: Problem,
+    *,
+    mode: str = "fast",
+    reject_outliers: bool = False,
+    priors=(),
+    unobservable_std_m: float = 1.0,
+    min_scale: float = 0.01,
+    thresholds: VerdictOptions | None = None,
+    expected_x: Iterable[str] = (),
+    expected_y: Iterable[str] = (),
+    excluded: Mapping[str, str] | None = None,
+    carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
+) -> Solved:
+    """Solve ``problem`` (as :func:`solve_problem`: ``mode``, ``reject_outliers``, ``priors``,
+    ``unobservable_std_m``, ``min_scale``), analyse identifiability at the solution and
+    :func:`~rwhec_ros.core.verdict.assess` it with ``thresholds``. ``expected_x``/``expected_y``
+    are the tags and cameras the user asked for, ``excluded`` the edges left out before the
+    solve (with reasons), ``carriers`` the camera and tag carrier frame names. Exceptions of the
+    solver propagate."""
+    from ..core.solve import blas_threads
 
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale)
-    if not reject_outliers:
-        result = solve(problem, options)
-        result.notes.extend(prior_notes)
-        return result, {}, list(prior_notes)
-    from ..core.outliers import RobustOptions, robust_solve
-
-    robust = robust_solve(problem, options=RobustOptions(solve=options))
-    dropped = {}
-    if robust.ransac is not None:
-        dropped = {str(edge): f"outlier rejection: {reason}" for edge, reason in
-                   robust.ransac.dropped}
-    notes = prior_notes + [f"outlier rejection: {len(robust.rejected)} of "
-                           f"{problem.n_measurements} pairs rejected ({len(dropped)} edges "
-                           "dropped)"]
-    robust.result.notes.extend(notes)
-    return robust.result, dropped, notes
+    result, solved, dropped, notes = _solve(problem, options, reject_outliers)
+    notes = prior_notes + notes
+    result.notes.extend(notes)
+    ident = analyze_at_solution(solved, result)
+    with blas_threads(1):
+        verdict = assess(result, solved, identifiability=ident, options=thresholds,
+                         expected_x=[*expected_x, *problem.x_names],
+                         expected_y=[*expected_y, *problem.y_names],
+                         excluded={**dict(excluded or {}), **dropped}, carriers=carriers)
+    return Solved(result, solved, dropped, notes, ident, verdict)

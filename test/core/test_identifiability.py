@@ -369,7 +369,17 @@ def test_grid_text_and_png(tmp_path):
     img = matplotlib.image.imread(str(path))[..., :3]
     blue = (img[..., 2] > 0.7) & (img[..., 0] < 0.3)
     red = (img[..., 0] > 0.7) & (img[..., 2] < 0.3)
-    assert blue.sum() > 100 and red.sum() > 100  # both categories are drawn as areas
+    amber = (img[..., 0] > 0.9) & (img[..., 1] > 0.7) & (img[..., 2] > 0.35) & \
+        (img[..., 2] < 0.55)
+    # the graph fixes the insufficient edges (one component with a good edge): amber, no alarm red
+    assert rep.identifiable
+    assert blue.sum() > 100 and amber.sum() > 100 and red.sum() == 0
+    # a problem that is not identifiable keeps the red
+    bad = analyze(_sphere_problem(np.random.default_rng(16), [1.0], True))
+    assert not bad.identifiable
+    bad.save_grid_png(path)
+    img = matplotlib.image.imread(str(path))[..., :3]
+    assert ((img[..., 0] > 0.7) & (img[..., 2] < 0.3)).sum() > 100
 
 
 def test_to_dict_is_plain_yaml():

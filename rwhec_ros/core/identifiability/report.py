@@ -153,20 +153,26 @@ class IdentifiabilityReport:
         return "\n".join(lines)
 
     def save_grid_png(self, path: str | Path, *, dpi: int = 120) -> None:
-        """Save the grid as a PNG (blue identifiable, light blue weak, red insufficient, white
-        not observed; cf. paper Fig. 10). Uses the Agg canvas, no pyplot state."""
+        """Save the grid as a PNG (blue identifiable, light blue weak, red insufficient -- amber
+        when the whole problem is identifiable anyway --, white not observed; cf. paper
+        Fig. 10). Uses the Agg canvas, no pyplot state."""
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
         from matplotlib.patches import Patch, Rectangle
 
         grid = self.grid()
         M, P = len(self.x_names), len(self.y_names)
+        colors, labels = dict(_GRID_COLORS), dict(_GRID_LABELS)
+        if self.identifiable:  # the graph fixes such edges: no alarm red
+            colors[IdentifiabilityStatus.INSUFFICIENT] = (0.98, 0.78, 0.45)
+            labels[IdentifiabilityStatus.INSUFFICIENT] = ("not identifiable on its own, fixed "
+                                                          "through the graph")
         fig = Figure(figsize=(max(4.0, 0.45 * M + 2.5), max(3.0, 0.45 * P + 2.5)))
         FigureCanvasAgg(fig)
         ax = fig.add_subplot(1, 1, 1)
         for k, row in enumerate(grid):
             for j, st in enumerate(row):
-                ax.add_patch(Rectangle((j, k), 1, 1, facecolor=_GRID_COLORS[st],
+                ax.add_patch(Rectangle((j, k), 1, 1, facecolor=colors[st],
                                        edgecolor="0.4", linewidth=0.6,
                                        hatch="//" if st is IdentifiabilityStatus.WEAK else None))
         ax.set_xlim(0, M)
@@ -179,9 +185,9 @@ class IdentifiabilityReport:
         ax.set_xlabel("X frames (tags)")
         ax.set_ylabel("Y frames (cameras)")
         ax.set_title(self.verdict.split(":")[0], fontsize=10)
-        handles = [Patch(facecolor=_GRID_COLORS[k], edgecolor="0.4", label=_GRID_LABELS[k],
+        handles = [Patch(facecolor=colors[k], edgecolor="0.4", label=labels[k],
                          hatch="//" if k is IdentifiabilityStatus.WEAK else None)
-                   for k in _GRID_COLORS]
+                   for k in colors]
         fig.legend(handles=handles, loc="lower center", fontsize=7, ncol=2, frameon=False)
         fig.tight_layout(rect=(0, 0.12, 1, 1))
         fig.savefig(str(path), dpi=dpi)

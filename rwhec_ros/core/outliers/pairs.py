@@ -38,11 +38,16 @@ class PairResiduals:
         Geodesic angle between ``R_A R_X`` and ``R_Y R_B`` [rad].
     normalised : ndarray (N,)
         ``J_i`` of eq. (33): ``|r_t|^2 / sigma_i^2 + kappa_i |R_A R_X - R_Y R_B|_F^2``.
+    normalised_translation, normalised_rotation : ndarray (N,)
+        Its two terms, ``|r_t|^2 / sigma_i^2`` and ``kappa_i |R_A R_X - R_Y R_B|_F^2`` (each
+        ~ chi-square with 3 degrees of freedom under the paper's noise model).
     """
 
     translation: np.ndarray
     rotation: np.ndarray
     normalised: np.ndarray
+    normalised_translation: np.ndarray
+    normalised_rotation: np.ndarray
 
 
 def pair_residuals(
@@ -79,11 +84,9 @@ def edge_residuals(e: Edge, X: np.ndarray, Y: np.ndarray, alpha: float) -> PairR
     # |R1 - R2|_F^2 = 4 (1 - cos theta): the half-angle form is accurate near theta = 0.
     rot = 2.0 * np.arcsin(np.clip(0.5 * np.sqrt(fro2 / 2.0), 0.0, 1.0))
     t2 = (rt**2).sum(axis=1)
-    return PairResiduals(
-        translation=np.sqrt(t2),
-        rotation=rot,
-        normalised=t2 / e.sigma**2 + e.kappa * fro2,
-    )
+    nt, nr = t2 / e.sigma**2, e.kappa * fro2
+    return PairResiduals(translation=np.sqrt(t2), rotation=rot, normalised=nt + nr,
+                         normalised_translation=nt, normalised_rotation=nr)
 
 
 

@@ -1,0 +1,128 @@
+"""The thresholds of the verdict (:class:`VerdictOptions`), each a named, documented parameter.
+
+The defaults were tuned on simulated data with the stated noise (the paper's Section 8 scenarios
+at its four noise levels and the demo rig; ``benchmarks/verdict.py``): ``good`` in >= 99 % of
+those runs, and not ``good`` when a tag size, a focal length, the time sync or a tag is wrong.
+The node and the CLI read them from the ``verdict.*`` parameters (same names).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+__all__ = ["VerdictOptions", "LEVELS", "level_rank", "worst_level"]
+
+#: The verdict levels, from best to worst.
+LEVELS = ("good", "caution", "unusable")
+
+
+def level_rank(level: str) -> int:
+    """0 for ``good``, 1 for ``caution``, 2 for ``unusable`` (``ValueError`` otherwise)."""
+    try:
+        return LEVELS.index(level)
+    except ValueError:
+        raise ValueError(f"level: expected one of {LEVELS}, got {level!r}") from None
+
+
+def worst_level(levels) -> str:
+    """The worst of ``levels`` (``good`` for none)."""
+    return LEVELS[max((level_rank(v) for v in levels), default=0)]
+
+
+@dataclass(frozen=True)
+class VerdictOptions:
+    """When a result is ``good``, ``caution`` or ``unusable`` (see :func:`~.assess.assess`).
+
+    Noise ratios are in standard-deviation units: the noise the residuals imply divided by the
+    stated noise (``sqrt`` of the a-posteriori variance factor), e.g. 2.0 when the data fit a
+    ``sigma`` twice the configured one.
+
+    Attributes
+    ----------
+    significance : float
+        A chi-square test counts as significant below this p-value (1e-3); the per-edge tests use
+        it divided by the number of edges (Bonferroni), so that 70 good edges give no false alarm.
+    fit_caution_ratio : float
+        Estimated / stated noise (translation or rotation) above which the fit is a caution
+        (1.5), when the chi-square test is significant too.
+    fit_unusable_ratio : float
+        ... above which the result is unusable (3.0).
+    edge_ratio : float
+        An edge whose noise ratio is this many times that of the median edge (5.0), significantly
+        so, is named as an outlier (its frames: caution; a frame with no other edge: unusable)
+        ...
+    edge_min_noise_ratio : float
+        ... if its noise ratio also reaches this (0.5: half the stated noise), so that
+        differences far below the stated noise (near and far tags, oblique views) are not named;
+    edge_noisy_ratio : float
+        an edge this many times the median edge (2.0), significantly so, whose noise ratio also
+        exceeds ``fit_caution_ratio``, is named too.
+    min_edges : int
+        Edges needed to compare an edge with the median edge (3).
+    scale_check : bool
+        With known scale, also solve with an unknown scale and check that it is 1 (True): wrong
+        tag sizes, focal lengths or pose-stream units show as a scale.
+    scale_sigmas : float
+        The scale counts as different from 1 beyond this many standard deviations (4.0) ...
+    scale_caution : float
+        ... and beyond this relative difference (0.02: 2 %) -> caution,
+    scale_unusable : float
+        ... beyond this one (0.05: 5 %) -> unusable.
+    caution_std_translation_m, caution_std_rotation_deg : float
+        A frame whose predicted standard deviation (worst direction; the larger of the stated-noise
+        prediction and that rescaled by the a-posteriori noise ratio) exceeds these is a caution
+        (0.06 m, 4.0 deg: the worst frame of the Section 8 scenarios at the noisiest level,
+        kappa 12 and sigma 5 cm, reaches 0.050 m and 3.1 deg in 300 runs).
+    unusable_std_translation_m, unusable_std_rotation_deg : float
+        ... unusable (0.1 m, 6.0 deg).
+    caution_scale_rel_std, unusable_scale_rel_std : float
+        Unknown scale: predicted relative standard deviation of the scale above which the result
+        is a caution (0.02) or unusable (0.1).
+    """
+
+    significance: float = 1e-3
+    fit_caution_ratio: float = 1.5
+    fit_unusable_ratio: float = 3.0
+    edge_ratio: float = 5.0
+    edge_min_noise_ratio: float = 0.5
+    edge_noisy_ratio: float = 2.0
+    min_edges: int = 3
+    scale_check: bool = True
+    scale_sigmas: float = 4.0
+    scale_caution: float = 0.02
+    scale_unusable: float = 0.05
+    caution_std_translation_m: float = 0.06
+    caution_std_rotation_deg: float = 4.0
+    unusable_std_translation_m: float = 0.1
+    unusable_std_rotation_deg: float = 6.0
+    caution_scale_rel_std: float = 0.02
+    unusable_scale_rel_std: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            if isinstance(value, bool):
+                continue
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"VerdictOptions.{name}: must be finite and > 0, got {value!r}")
+        if not self.significance < 1:
+            raise ValueError(f"VerdictOptions.significance: must be < 1, got {self.significance!r}")
+        if not self.min_edges >= 2 or int(self.min_edges) != self.min_edges:
+            raise ValueError(f"VerdictOptions.min_edges: must be an integer >= 2, got "
+                             f"{self.min_edges!r}")
+        for low, high in (("fit_caution_ratio", "fit_unusable_ratio"),
+                          ("scale_caution", "scale_unusable"),
+                          ("caution_std_translation_m", "unusable_std_translation_m"),
+                          ("caution_std_rotation_deg", "unusable_std_rotation_deg"),
+                          ("caution_scale_rel_std", "unusable_scale_rel_std")):
+            if getattr(self, low) > getattr(self, high):
+                raise ValueError(f"VerdictOptions.{low}: {getattr(self, low)!r} is above "
+                                 f"{high} {getattr(self, high)!r}")
+        if self.fit_caution_ratio < 1:
+            raise ValueError(f"VerdictOptions.fit_caution_ratio: must be >= 1 (the stated noise "
+                             f"itself), got {self.fit_caution_ratio!r}")
+        for name in ("edge_ratio", "edge_noisy_ratio"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"VerdictOptions.{name}: must be >= 1, got "
+                                 f"{getattr(self, name)!r}")

@@ -1,0 +1,138 @@
+"""The verdict a user can act on: use this calibration or not, and why (:func:`assess`).
+
+It combines, for a solution of a :class:`~rwhec_ros.core.problem.Problem`:
+
+* the certificate status (:class:`~rwhec_ros.core.result.Status`);
+* identifiability at the solution: frames the data do not determine (``result.unobservable``,
+  the numeric check's null directions, undetermined components) are **not calibrated**;
+* the goodness of fit (:mod:`.fit`): the noise the residuals imply against the stated one,
+  globally (chi-square test on the a-posteriori variance factor) and per edge (edges far beyond
+  the median edge are named);
+* the scale check of a known-scale problem (:mod:`.scale_check`);
+* the precision of each frame (:mod:`.precision`);
+* the frames the user asked for that got no estimate at all.
+
+The result is a :class:`Verdict`: a level (``good``, ``caution``, ``unusable``), the reasons as
+sentences (what, which frame or edge, the number, the likely cause, what to do), and a
+:class:`FrameVerdict` per frame. ``good`` and ``caution`` are usable; a frame marked ``unusable``
+must not be used (the node leaves it off ``/tf_static``). The cameras decide: the whole result
+is ``unusable`` as soon as one camera is (or a reason about the whole result is, e.g. a fit far
+beyond the stated noise); a tag that is not calibrated or not usable is named and left out, and
+makes the result a ``caution`` only (spare tags, tags seen a few times, are common).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from ..problem import Problem
+from ..result import CalibrationResult
+from .fit import FitStatistics, goodness_of_fit
+from .model import Builder, FrameVerdict, Reason, Verdict
+from .options import VerdictOptions
+from .reasons import (
+    all_determined,
+    certificate_reasons,
+    edge_reasons,
+    fit_reasons,
+    identifiability_reasons,
+    missing_frames,
+    pinned_frames,
+    precision_reasons,
+    scale_reason,
+)
+from .scale_check import ScaleCheck, check_scale
+from .words import deg, mm
+
+__all__ = ["Reason", "FrameVerdict", "Verdict", "assess"]
+
+def assess(
+    result: CalibrationResult,
+    problem: Problem,
+    *,
+    identifiability=None,
+    options: VerdictOptions | None = None,
+    expected_x: Iterable[str] = (),
+    expected_y: Iterable[str] = (),
+    excluded: Mapping[str, str] | None = None,
+    carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
+    scale_check: ScaleCheck | None = None,
+) -> Verdict:
+    """The verdict of ``result``, the solution of ``problem``.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+    problem : Problem
+        The pairs that were solved (for a robust solve: the inlier problem).
+    identifiability : IdentifiabilityReport, optional
+        At the solution, with the numeric check
+        (``analyze(problem, solution=(X, Y, scale))``); computed here when None.
+    options : VerdictOptions, optional
+    expected_x, expected_y : iterable of str
+        Every tag (X) and camera (Y) the user asked for; those without an estimate are reported
+        as not calibrated (default: the problem's frames).
+    excluded : mapping of str to str, optional
+        Edges ``"(x, y)"`` left out of the problem, and why (to say why a frame is missing).
+    carriers : (str, str)
+        Names of the camera and tag carrier frames, for directions in words.
+    scale_check : ScaleCheck, optional
+        A scale check already made (known scale); made here when None and enabled.
+    """
+    opts = options or VerdictOptions()
+    xs = list(dict.fromkeys([*expected_x, *problem.x_names]))
+    ys = list(dict.fromkeys([*expected_y, *problem.y_names]))
+    b = Builder(xs, ys)
+    certificate_reasons(b, result)
+    if identifiability is None:
+        identifiability = _analyze(problem, result)
+    identifiability_reasons(b, result, problem, identifiability, carriers)
+    missing_frames(b, problem, xs, ys, excluded or {})
+    fit = None
+    try:
+        fit = goodness_of_fit(problem, result, opts)
+    except (ValueError, FloatingPointError) as exc:
+        b.add("caution", "check_failed", f"the goodness of fit could not be computed ({exc})",
+              why="fit not checked")
+    if (scale_check is None and opts.scale_check and not problem.unknown_scale
+            and fit is not None and fit.testable and all_determined(b, problem)):
+        try:
+            scale_check = check_scale(problem)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            scale_check = ScaleCheck(float("nan"), float("inf"), message=str(exc))
+    if scale_check is not None:
+        scale_reason(b, scale_check, opts, fit)
+    if fit is not None:
+        edge_reasons(b, fit, problem, opts)
+        fit_reasons(b, fit, opts, scale_check)
+    precision_reasons(b, identifiability, fit, opts, problem, pinned_frames(result))
+    summary = _summary(result, fit, b)
+    return b.verdict(fit, scale_check, summary, opts)
+
+
+def _analyze(problem: Problem, result: CalibrationResult):
+    from ..identifiability import analyze
+
+    try:
+        return analyze(problem, solution=(result.X, result.Y, float(result.scale)))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
+
+
+def _summary(result: CalibrationResult, fit: FitStatistics | None, b: Builder) -> str:
+    c = result.certificate
+    parts = [f"certified globally optimal (rho_hat={c.suboptimality_bound:.2g})"
+             if c.certified else f"not certified ({c.status.value})"]
+    if fit is not None and fit.testable:
+        parts.append(f"the data fit {fit.noise_ratio_translation:.2g}x the stated translation "
+                     f"noise and {fit.noise_ratio_rotation:.2g}x the rotation noise")
+    known = [f for f in b.frames.values() if f.calibrated and np.isfinite(f.std_translation_m)
+             and np.isfinite(f.std_rotation_deg)]
+    if known:
+        wt = max(known, key=lambda f: f.std_translation_m)
+        wr = max(known, key=lambda f: f.std_rotation_deg)
+        parts.append(f"every frame within +-{mm(wt.std_translation_m)} ({wt.name}) and "
+                     f"+-{deg(wr.std_rotation_deg)} ({wr.name})")
+    return "; ".join(parts)

@@ -1,0 +1,95 @@
+"""A calibration report that answers "can I use this?" at a glance: a PNG and an HTML page.
+
+The verdict first (a coloured banner: green ``GOOD``, amber ``CAUTION``, red ``UNUSABLE``, with
+its reasons), then the summary, the identifiability grid of the paper's Fig. 10, the fit per edge
+on the same grid with the worst edges ranked (readable with 70+ edges), the estimated frames in
+3D and the residual histograms. The HTML page is self-contained (the figure embedded as base64)
+and gives the banner, the summary and the tables as text (frames with usability and precision,
+edges in natural order, edges left out, notes).
+
+Modules: :mod:`.residuals` (the numbers), :mod:`.figure` (the PNG), :mod:`.page` (the HTML).
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..core.problem import Problem
+from .figure import draw_report
+from .page import render_page
+from .residuals import (
+    EdgeResiduals,
+    edge_residuals,
+    estimates_from_document,
+    fit_of_document,
+    natural_key,
+)
+
+__all__ = [
+    "EdgeResiduals",
+    "edge_residuals",
+    "estimates_from_document",
+    "fit_of_document",
+    "natural_key",
+    "ReportFiles",
+    "write_report",
+]
+
+
+@dataclass(frozen=True)
+class ReportFiles:
+    """Paths written by :func:`write_report`."""
+
+    png: Path
+    html: Path
+
+
+def write_report(
+    doc: Mapping[str, Any],
+    problem: Problem,
+    png_path: str | Path,
+    html_path: str | Path,
+    *,
+    identifiability=None,
+    title: str = "rwhec_ros calibration report",
+    dpi: int = 80,
+) -> ReportFiles:
+    """Write the report PNG and the self-contained HTML page of one calibration.
+
+    Parameters
+    ----------
+    doc : mapping
+        The result YAML mapping (:func:`rwhec_ros.data.results.result_document`, the session's
+        result YAML, or :func:`rwhec_ros.data.results.load_result`); its ``verdict``,
+        ``reasons`` and ``verdict_details`` make the banner (a result without them gets a grey
+        "verdict unknown" banner).
+    problem : Problem
+        The measurement pairs that were solved (residuals, fit, identifiability).
+    png_path, html_path : str or Path
+        Output files (the page embeds its figure: it can be moved alone).
+    identifiability : IdentifiabilityReport, optional
+        Default: :func:`rwhec_ros.core.identifiability.analyze` of ``problem`` at the estimate.
+    title : str
+    dpi : int
+        Resolution of the PNG (18 inches wide).
+    """
+    png_path, html_path = Path(png_path), Path(html_path)
+    X, Y, scale = estimates_from_document(doc, problem)
+    residuals = edge_residuals(problem, X, Y, scale)
+    fit = fit_of_document(doc, problem)
+    if identifiability is None:
+        from ..core.identifiability import analyze
+
+        identifiability = analyze(problem, solution=(X, Y, scale))
+    draw_report(png_path, doc, problem, residuals, fit, identifiability, title, dpi)
+    with tempfile.TemporaryDirectory() as tmp:
+        figure = Path(tmp) / "figure.png"  # without the banner and summary: the page has them
+        draw_report(figure, doc, problem, residuals, fit, identifiability, title, dpi,
+                    with_text=False)
+        page = render_page(doc, problem, residuals, fit, identifiability, figure, title)
+    html_path.write_text(page, encoding="utf-8")
+    return ReportFiles(png_path, html_path)
