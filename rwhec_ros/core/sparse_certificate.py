@@ -7,7 +7,7 @@ blocks ``Gamma_l`` of the orthogonality constraints (50b) and ``lambda_s`` of ``
 bound is proven on the *unreduced* matrix (:mod:`rwhec_ros.core.sparse_problem` for ``z = [f;
 y]``)::
 
-    Z = Q_s - K,    K = Diag(0_f, Gamma_1 (x) I_3, ..., Gamma_n (x) I_3, lambda_s - sum_l tr Gamma_l),
+    Z = Q_s - K,   K = Diag(0_f, Gamma_1 (x) I_3, ..., Gamma_n (x) I_3, lambda_s - sum tr Gamma_l),
 
 with ``Q_s = Q / scale`` (``Q`` the symmetric matrix defined by the stored upper triangle; the
 division is exact in the proof and its rounding is accounted for below). For every feasible ``z``
@@ -49,10 +49,11 @@ the entries of ``K`` on the rotation blocks are the stored ``Gamma_l`` themselve
 hub rotation, seen by every camera, has a diagonal entry ``n`` times the others) and grows
 (8-fold, later 64-fold) while the factorisation fails; ``delta`` starts at a guess of the rounding
 and is raised to ``2 c`` when the check fails (one more factorisation with the same ordering).
-The numerical null space and the smallest eigenvalues of the *reduced* certificate matrix ``Z_y - Z_yf Z_ff^{-1} Z_fy`` (the
-quantities the dense certificate reports) are estimated by shift-invert Lanczos with the same
-factorisation: ``((Z + Diag(-delta, mu))^{-1} [0; b])_y = (Z_red + mu I)^{-1} b`` up to the tiny
-``delta``. They decide uniqueness (a one-dimensional null space), never the bound.
+The numerical null space and the smallest eigenvalues of the *reduced* certificate matrix
+``Z_y - Z_yf Z_ff^{-1} Z_fy`` (the quantities the dense certificate reports) are estimated by
+shift-invert Lanczos with the same factorisation: ``((Z + Diag(-delta, mu))^{-1} [0; b])_y =
+(Z_red + mu I)^{-1} b`` up to the tiny ``delta``. They decide uniqueness (a one-dimensional null
+space), never the bound.
 """
 
 from __future__ import annotations
