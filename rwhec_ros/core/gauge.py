@@ -252,16 +252,18 @@ def _weak_eigenpairs(E, opts: GaugeOptions, info_floor: float
     import scipy.sparse.linalg as spla
 
     from .sparse_ldl import SparseLDL, upper_with_diagonal
+    from .verified import lanczos_start
 
     m = E.shape[0]
-    w_top = spla.eigsh(E, k=1, which="LA", tol=1e-8, return_eigenvectors=False)
+    w_top = spla.eigsh(E, k=1, which="LA", tol=1e-8, return_eigenvectors=False,
+                       v0=lanczos_start(m))
     w_max = float(max(w_top[0], 0.0))
     thr = max(w_max / opts.max_condition, info_floor)
     factor = SparseLDL(upper_with_diagonal(E + thr * sp.eye(m)))
     op = spla.LinearOperator((m, m), matvec=factor.solve, dtype=float)
     k = min(6, m - 1)
     while True:
-        w, V = spla.eigsh(E, k=k, sigma=-thr, which="LM", OPinv=op)
+        w, V = spla.eigsh(E, k=k, sigma=-thr, which="LM", OPinv=op, v0=lanczos_start(m))
         order = np.argsort(w)
         w, V = w[order], V[:, order]
         weak = (w <= w_max / opts.max_condition) | (w < info_floor)

@@ -20,6 +20,7 @@ import scipy.sparse.linalg as spla
 from .cost import ReducedCost, StateLayout, build_cost_matrices
 from .lie import make_transform, project_to_so3, unvec
 from .problem import Problem
+from .verified import lanczos_start
 
 __all__ = ["Estimate", "rotations_from_vector", "closed_form_estimate", "estimate_from_rotations"]
 
@@ -96,7 +97,8 @@ def closed_form_estimate(
     else:
         L = sp.csr_matrix(L)
         shift = 1e-9 * abs(L).max()
-        w, V = spla.eigsh(L + shift * sp.eye(d), k=1, sigma=0, which="LM")
+        w, V = spla.eigsh(L + shift * sp.eye(d), k=1, sigma=0, which="LM",
+                          v0=lanczos_start(d))
         v = V[:, 0]
     R, _ = rotations_from_vector(v, n)
     return estimate_from_rotations(problem, reduced, R)

@@ -18,12 +18,13 @@ frames, the dense path (with its strengthened certificate and SDP fallback) is r
 larger problems return the uncertified result with a note.
 
 **Automatic choice** (``SolveOptions.fast_form = "auto"``): the sparse path when the problem has
-at least :data:`SPARSE_MIN_FRAMES` frames and a sparse factorisation stays sparse, i.e. the
-largest frame-level front of a minimum-degree elimination of the camera-tag graph
-(:func:`~rwhec_ros.core.sparsity.elimination_front`) is at most :data:`SPARSE_MAX_FRONT` frames
-(one target seen by every camera: 2, the target and nothing else; 16 targets each seen by some of
-1,000 cameras: 16; a random graph of 100 cameras and 100 tags, 5 tags per camera: ~60, where
-the dense ``Q'`` with LAPACK is faster than QDLDL's scalar loops on the large fronts).
+at least :data:`SPARSE_MIN_FRAMES` frames and a sparse factorisation stays sparse: the work of a
+minimum-degree elimination of the camera-tag graph at the level of frames
+(:func:`~rwhec_ros.core.sparsity.elimination_front`) is at most :data:`SPARSE_MAX_WORK` ``n^3``.
+One target seen by every camera: fronts of one frame; 16 targets each seen by 3 of 1,000 cameras:
+fronts of at most 15 frames; a random graph of 100 cameras and 100 tags, 5 tags per camera:
+fronts of 64 frames (0.017 n^3), where LAPACK on the dense ``Q'`` is as fast as QDLDL's scalar
+loops on the large sparse fronts.
 """
 
 from __future__ import annotations
@@ -41,18 +42,25 @@ from .initialization import Estimate
 from .problem import Problem
 from .result import CalibrationResult, Certificate
 from .sparse_certificate import CertificatePattern, certify_sparse
-from .sparse_problem import FullForm, build_full_form, translation_block
+from .sparse_problem import FullForm, build_full_form, pruned_gauge, translation_block
 from .sparse_solver import NewtonSystem, refine_rotations_sparse, rotation_blocks
 from .sparsity import elimination_front
+from .verified import lanczos_start
 
-__all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_FRONT", "use_sparse", "SparsePrepared",
+__all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "use_sparse", "SparsePrepared",
            "prepare_sparse", "estimate_sparse", "solve_fast_sparse", "failed_result"]
 
-#: Fewest frames for which ``auto`` takes the sparse path (measured: below it the dense path is
-#: as fast or faster, see ``benchmarks/solver_speed.md``).
-SPARSE_MIN_FRAMES = 60
-#: Largest frame-level elimination front for which ``auto`` takes the sparse path.
-SPARSE_MAX_FRONT = 24
+#: Fewest frames for which ``auto`` takes the sparse path (measured, one target seen by every
+#: camera, best of 5 on 2 busy cores: 21 frames dense 17 ms / sparse 19 ms, 41 frames 53 / 26 ms,
+#: 101 frames 383 / 49 ms; 4 targets x 30 cameras, all edges: dense 38 ms, sparse 64 ms).
+SPARSE_MIN_FRAMES = 40
+#: ``auto`` takes the sparse path while the work of a sparse factorisation, ``sum (front + 1)^2``
+#: over a minimum-degree elimination of the frame graph
+#: (:func:`~rwhec_ros.core.sparsity.elimination_front`), is at most this times ``n^3`` (the
+#: dense path's ``O(n^3)``). Measured on random camera-tag graphs, 5 tags per camera: 50 x 50
+#: (0.022 n^3) 265 ms dense / 264 ms sparse, 100 x 100 (0.017 n^3) 1.55 s / 1.78 s; 30 x 30 with
+#: 3 tags per camera (0.007 n^3) 75 / 47 ms. One target and 3,000 cameras: 4e-7 n^3.
+SPARSE_MAX_WORK = 0.01
 
 
 def use_sparse(problem: Problem, fast_form: str) -> bool:
@@ -61,9 +69,11 @@ def use_sparse(problem: Problem, fast_form: str) -> bool:
         return fast_form == "sparse"
     if problem.n_frames < SPARSE_MIN_FRAMES:
         return False
-    front = elimination_front(problem.M, problem.P, problem.edge_x, problem.edge_y,
-                              limit=SPARSE_MAX_FRONT)
-    return front <= SPARSE_MAX_FRONT
+    n = problem.n_frames
+    limit = SPARSE_MAX_WORK * float(n) ** 3
+    _, work = elimination_front(problem.M, problem.P, problem.edge_x, problem.edge_y,
+                                max_work=limit)
+    return work <= limit
 
 
 @dataclass
@@ -111,7 +121,7 @@ class SparsePrepared:
         w, V = spla.eigsh(spla.LinearOperator((m, m), matvec=no_matvec, dtype=float),
                           k=min(6, m - 1), sigma=-sig, which="LM",
                           OPinv=spla.LinearOperator((m, m), matvec=op, dtype=float),
-                          v0=np.ones(m))
+                          v0=lanczos_start(m))
         order = np.argsort(w)
         return w[order], V[:, order]
 
@@ -127,7 +137,8 @@ def prepare_sparse(problem: Problem, options) -> SparsePrepared:
     Qt = translation_block(problem, blocks)
     V_w, w_w, directions, w_max = find_unobservable_directions(Qt, layout, problem,
                                                                options.gauge)
-    gauge = build_gauge_fix(problem, V_w, w_w, directions, w_max, options.gauge.priors)
+    gauge = pruned_gauge(build_gauge_fix(problem, V_w, w_w, directions, w_max,
+                                         options.gauge.priors), problem.n_frames)
     form = build_full_form(problem, gauge, blocks)
     form.factor_free()
     timing["build"] = time.perf_counter() - t0
@@ -175,7 +186,8 @@ def solve_fast_sparse(prep: SparsePrepared, options, notes: list[str]
     notes.append(f"sparse unreduced path ({n} frames, {prep.form.size} variables)")
     t0 = time.perf_counter()
     try:
-        loc = refine_rotations_sparse(prep.form, prep.Qs, prep.init_R, options.local)
+        loc = refine_rotations_sparse(prep.form, prep.Qs, prep.init_R, options.local,
+                                      f_floor=prep.cost_floor / prep.scale)
     except NUMERICAL_ERRORS as exc:
         notes.append(f"local solver failed ({type(exc).__name__}: {exc})")
         est, p = estimate_sparse(prep, prep.init_R)
@@ -191,9 +203,12 @@ def solve_fast_sparse(prep: SparsePrepared, options, notes: list[str]
         return prep, _result(prep, est, Certificate.local_only(p), "local", status, 0.0, notes)
     t1 = time.perf_counter()
     try:
-        cert = certify_sparse(prep.form, prep.Qs, prep.pattern(), loc.R, p, prep.scale,
-                              homogeneous=prep.problem.unknown_scale,
-                              cost_floor=prep.cost_floor, options=options.certificate)
+        cert, strengthened = certify_sparse(
+            prep.form, prep.Qs, prep.pattern(), loc.R, p, prep.scale,
+            homogeneous=prep.problem.unknown_scale, cost_floor=prep.cost_floor,
+            options=options.certificate)
+        if strengthened:
+            notes.append("fast certificate strengthened with handedness multipliers")
     except NUMERICAL_ERRORS as exc:
         cert = _failed_certificate(options, p, f"the certificate's eigen-analysis failed "
                                    f"({type(exc).__name__}: {exc})")

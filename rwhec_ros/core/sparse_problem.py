@@ -20,18 +20,17 @@ auxiliary free variables ``u`` on a 4-ary tree over the frames (:func:`penalty_t
 ``v`` carries ``u_v`` (``k``-vector) and the spring ``rho_v |u_v - sum_{child nodes c} u_c -
 sum_{child frames f} G_f t_f|^2``, the root the spring ``rho_end |u_root - b h|^2``. Minimising
 over ``u`` leaves ``rho_eff |G t - b h|^2`` with ``1 / rho_eff = sum_v 1 / rho_v + 1 / rho_end``
-(springs in series: the slacks of all springs add up to ``G t - b h``), and the weights
-``rho_v = rho S / size_v``, ``rho_end = rho S / n`` (``size_v`` the frames below ``v``, ``S =
-sum_v size_v + n``) give ``rho_eff = rho``: the same problem as the dense path, with ``O(n)``
-nonzeros. (Weights proportional to ``1 / size_v`` keep the rounding analysis of the certificate,
-which grows with ``sum_v rho_v |u_v|^2``, within a ``log^2 n`` factor of that of the
-translations themselves.) ``u_v`` is stored scaled by ``sqrt(rho_v / rho)`` so that every entry
-is of the order of ``rho``.
+(springs in series: the slacks of all springs add up to ``G t - b h``), and weights with
+``sum 1 / rho = 1 / rho`` give ``rho_eff = rho``: the same problem as the dense path, with ``O(n)``
+nonzeros. (Weights inversely proportional to the expected size of ``u_v`` keep the rounding
+analysis of the certificate, which grows with ``sum_v rho_v |u_v|^2``, within a ``log^2 n``
+factor of that of the translations themselves; see :func:`penalty_tree`.) ``u_v`` is stored
+scaled by ``sqrt(rho_v / rho)`` so that every entry is of the order of ``rho``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,11 +41,49 @@ from .gauge import GaugeFix
 from .initialization import Estimate, rotations_from_vector
 from .problem import Problem
 from .sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+from .verified import lanczos_start
 
-__all__ = ["TREE_ARITY", "penalty_tree", "translation_block", "FullForm", "build_full_form"]
+__all__ = ["TREE_ARITY", "PRUNE_REL", "pruned_gauge", "penalty_tree", "translation_block", "FullForm", "build_full_form"]
 
 #: Children per node of the gauge penalty's tree.
 TREE_ARITY = 4
+
+
+#: Frames whose part of ``G`` is below this fraction of the largest are left out of the tree (and
+#: of the penalty, see :func:`pruned_gauge`): with a prior on one frame, ``G`` is that frame's row
+#: plus rounding noise elsewhere.
+PRUNE_REL = 1e-12
+
+
+def pruned_gauge(gauge: GaugeFix, n: int) -> GaugeFix:
+    """``gauge`` with the columns of ``G`` of negligible frames set to zero (:data:`PRUNE_REL`);
+    the sparse path certifies, and evaluates ``p`` with, this penalty."""
+    if gauge.empty:
+        return gauge
+    mass = np.linalg.norm(gauge.G.reshape(-1, n, 3), axis=(0, 2))
+    drop = mass <= PRUNE_REL * mass.max(initial=0.0)
+    G = gauge.G.reshape(-1, n, 3).copy()
+    G[:, drop, :] = 0.0
+    return replace(gauge, G=G.reshape(gauge.G.shape))
+
+
+def _tree(gauge: GaugeFix, n: int) -> tuple[list, np.ndarray]:
+    """The springs ``(node, child nodes, child frames)`` of the 4-ary tree over the frames with
+    a non-zero part of ``G``, and the masses ``m_v`` of the nodes (sum of ``|G_f|`` below)."""
+    mass_f = np.linalg.norm(gauge.G.reshape(-1, n, 3), axis=(0, 2))
+    level = [("f", int(f)) for f in np.flatnonzero(mass_f > 0)]
+    springs, mass = [], []
+    while level:
+        parents = []
+        for start in range(0, len(level), TREE_ARITY):
+            kids = level[start:start + TREE_ARITY]
+            frames = [i for kind, i in kids if kind == "f"]
+            nodes = [i for kind, i in kids if kind == "n"]
+            parents.append(("n", len(mass)))
+            springs.append((len(mass), nodes, frames))
+            mass.append(float(mass_f[frames].sum()) + sum(mass[c] for c in nodes))
+        level = parents if len(parents) > 1 else []
+    return springs, np.array(mass)
 
 
 def penalty_tree(gauge: GaugeFix, n: int, t_index: np.ndarray, h_index: int, aux_offset: int
@@ -54,6 +91,12 @@ def penalty_tree(gauge: GaugeFix, n: int, t_index: np.ndarray, h_index: int, aux
     """The penalty ``rho |G t - b h|^2`` as springs on a tree of auxiliary variables (module
     docstring), as COO triplets ``(rows, cols, values)`` in ``z`` and the number of auxiliary
     variables.
+
+    The spring of node ``v`` gets ``rho_v = rho M / m_v`` and the root's end spring ``rho M /
+    m_root`` (``m`` the masses of :func:`_tree`, ``M`` their sum with ``m_root`` once more), so
+    that ``sum 1 / rho_v = 1 / rho``: weights inversely proportional to the expected size of the
+    partial sums ``u_v``, the choice that minimises ``sum_v rho_v |u_v|^2`` (the size of the
+    rounding analysis' terms) for that size.
 
     Parameters
     ----------
@@ -69,30 +112,13 @@ def penalty_tree(gauge: GaugeFix, n: int, t_index: np.ndarray, h_index: int, aux
         Position of the first auxiliary variable.
     """
     k = gauge.G.shape[0]
-    if k == 0 or n == 0:
+    springs, mass = _tree(gauge, n) if k else ([], np.zeros(0))
+    if not springs:
         return np.zeros(0, int), np.zeros(0, int), np.zeros(0), 0
-    # levels of the tree: level 0 groups frames, higher levels group nodes
-    springs = []  # (own node, child nodes, child frames)
-    nodes_size = []
-    level = [("f", f) for f in range(n)]
-    while True:
-        parents = []
-        for start in range(0, len(level), TREE_ARITY):
-            kids = level[start:start + TREE_ARITY]
-            v = len(nodes_size)
-            frames = [i for kind, i in kids if kind == "f"]
-            nodes = [i for kind, i in kids if kind == "n"]
-            nodes_size.append(len(frames) + sum(nodes_size[c] for c in nodes))
-            springs.append((v, nodes, frames))
-            parents.append(("n", v))
-        level = parents
-        if len(level) == 1:
-            break
-    root = level[0][1]
-    size = np.array(nodes_size, dtype=float)
-    S = float(size.sum() + n)
-    rho_v = gauge.rho * S / size
-    rho_end = gauge.rho * S / n
+    root = len(mass) - 1
+    M = float(mass.sum() + mass[root])
+    rho_v = gauge.rho * M / mass
+    rho_end = gauge.rho * M / mass[root]
     scal = np.sqrt(gauge.rho / rho_v)  # u_v = scal_v * (stored variable)
     rows, cols, vals = [], [], []
 
@@ -117,8 +143,7 @@ def penalty_tree(gauge: GaugeFix, n: int, t_index: np.ndarray, h_index: int, aux
     for j in range(k):
         add(rho_end, [np.array([aux_offset + k * root + j, h_index])],
             [np.array([scal[root], -gauge.b[j]])])
-    return (np.concatenate(rows), np.concatenate(cols), np.concatenate(vals),
-            k * len(nodes_size))
+    return (np.concatenate(rows), np.concatenate(cols), np.concatenate(vals), k * len(mass))
 
 
 def translation_block(problem: Problem, blocks: tuple | None = None) -> sp.csr_matrix:
@@ -214,15 +239,27 @@ class FullForm:
     def closed_form_rotations(self) -> np.ndarray:
         """Rotations from the null vector of the rotation-only cost (cf.
         :func:`~rwhec_ros.core.initialization.closed_form_estimate`), by shift-invert Lanczos on a
-        sparse factorisation."""
+        sparse factorisation. When the smallest eigenvalues are nearly equal (within 10 times the
+        smallest: rotations about one axis leave the rotation-only cost with a near-degenerate
+        null space, whose Lanczos vector is then arbitrary), each of their eigenvectors is
+        tried and the one with the lowest cost (translations at their optimum) is kept."""
         L = self.L_rot
         d = L.shape[0]
         shift = 1e-9 * float(abs(L).max())
         factor = SparseLDL(upper_with_diagonal(L + shift * sp.eye(d)))
         op = spla.LinearOperator((d, d), matvec=factor.solve, dtype=float)
-        _, V = spla.eigsh(L, k=1, sigma=-shift, which="LM", OPinv=op)
-        R, _ = rotations_from_vector(V[:, 0], self.n)
-        return R
+        w, V = spla.eigsh(L, k=min(4, d - 1), sigma=-shift, which="LM", OPinv=op,
+                          v0=lanczos_start(d))
+        order = np.argsort(w)
+        w, V = w[order], V[:, order]
+        near = np.flatnonzero(w <= 10.0 * max(w[0], 0.0) + shift)
+        best, best_cost = None, np.inf
+        for i in near if near.size > 1 else [0]:
+            R, _ = rotations_from_vector(V[:, i], self.n)
+            cost = self.estimate(R).cost if near.size > 1 else 0.0
+            if cost < best_cost:
+                best, best_cost = R, cost
+        return best
 
 
 def build_full_form(problem: Problem, gauge: GaugeFix, blocks: tuple | None = None) -> FullForm:
@@ -235,13 +272,7 @@ def build_full_form(problem: Problem, gauge: GaugeFix, blocks: tuple | None = No
     k = gauge.G.shape[0] if not gauge.empty else 0
     aux_offset = n_t + (1 if unknown else 0)
     # the auxiliaries' count is known before their triplets: one k-vector per tree node
-    n_nodes, m = 0, n
-    while True:
-        m = -(-m // TREE_ARITY)
-        n_nodes += m
-        if m == 1:
-            break
-    n_aux = k * n_nodes if k else 0
+    n_aux = k * len(_tree(gauge, n)[1]) if k else 0
     n_free = aux_offset + n_aux
     size = n_free + 9 * n + 1
     zmap = np.empty(layout.size, dtype=np.int64)  # state index -> z index

@@ -152,11 +152,15 @@ def _evaluate(form: FullForm, Qs: sp.csr_matrix, R: np.ndarray):
 
 
 def refine_rotations_sparse(
-    form: FullForm, Qs: sp.csr_matrix, R0: np.ndarray, options: LocalSolverOptions | None = None
+    form: FullForm, Qs: sp.csr_matrix, R0: np.ndarray, options: LocalSolverOptions | None = None,
+    f_floor: float = 1.0,
 ) -> LocalSolution:
     """Minimise ``min_f z^T Qs z`` over SO(3)^n from ``R0`` (n, 3, 3) by damped Riemannian Newton
     on the sparse system of the module docstring; ``Qs`` is ``form.Q`` divided by the data scale.
-    The counterpart of :func:`~rwhec_ros.core.local_solver.refine_rotations`."""
+    The counterpart of :func:`~rwhec_ros.core.local_solver.refine_rotations`, except that the
+    gradient tolerance is relative to ``max(f, f_floor)`` (the dense solver: ``max(f, 1)``): a
+    start far above the optimum makes the scaled optimum ``f << 1``, and the certificate needs
+    the stationarity relative to the optimum (``f_floor``: the cost regarded as zero, scaled)."""
     opts = options or LocalSolverOptions()
     R = np.array(R0, dtype=float)
     n = R.shape[0]
@@ -172,7 +176,7 @@ def refine_rotations_sparse(
     step = np.zeros(3 * n)
     for it in range(1, opts.max_iterations + 1):
         gnorm = float(np.linalg.norm(g))
-        if gnorm <= opts.gradient_tol * max(1.0, abs(f)):
+        if gnorm <= opts.gradient_tol * max(f_floor, abs(f)):
             converged = True
             it -= 1
             break

@@ -264,15 +264,17 @@ def estimate_form_costs(Q_reduced: np.ndarray, n: int, Q_full: sp.spmatrix | Non
 
 
 def elimination_front(M: int, P: int, edge_x: np.ndarray, edge_y: np.ndarray,
-                      limit: int | None = None) -> int:
-    """The largest front of a minimum-degree elimination of the frame graph (X-Y edges): the
-    most frames adjacent to a frame when it is eliminated, fill included.
+                      max_work: float | None = None) -> tuple[int, float]:
+    """The largest front of a minimum-degree elimination of the frame graph (X-Y edges) -- the
+    most frames adjacent to a frame when it is eliminated, fill included -- and the sum of the
+    squared fronts (proportional to the work of the factorisation).
 
     A sparse factorisation of ``Q`` (eq. (42)) or of the unreduced certificate matrix eliminates
     whole frames (their translation and rotation, plus the shared ``alpha``/``s``); its dense
     fronts hold about 12 times this many variables, so the number says whether a sparse
     factorisation stays sparse. One target seen by every camera: 1 (each camera touches only
-    the target). The elimination stops as soon as the front exceeds ``limit``.
+    the target). The elimination stops as soon as the work exceeds ``max_work`` (both numbers are
+    then lower bounds).
     """
     import heapq
 
@@ -285,13 +287,15 @@ def elimination_front(M: int, P: int, edge_x: np.ndarray, edge_y: np.ndarray,
     heapq.heapify(heap)
     alive = np.ones(n, dtype=bool)
     front = 0
+    work = 0.0
     while heap:
         deg, v = heapq.heappop(heap)
         if not alive[v] or deg != len(adj[v]):
             continue  # a stale entry
         front = max(front, deg)
-        if limit is not None and front > limit:
-            return front
+        work += float(deg + 1) ** 2
+        if max_work is not None and work > max_work:
+            return front, work
         alive[v] = False
         nb = adj[v]
         for u in nb:
@@ -300,4 +304,4 @@ def elimination_front(M: int, P: int, edge_x: np.ndarray, edge_y: np.ndarray,
             adj[u].discard(u)
             heapq.heappush(heap, (len(adj[u]), u))
         adj[v] = set()
-    return front
+    return front, work
