@@ -43,7 +43,8 @@ from .problem import Problem
 from .sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 from .verified import lanczos_start
 
-__all__ = ["TREE_ARITY", "PRUNE_REL", "pruned_gauge", "penalty_tree", "translation_block", "FullForm", "build_full_form"]
+__all__ = ["TREE_ARITY", "PRUNE_REL", "pruned_gauge", "penalty_tree", "translation_block",
+           "FullForm", "build_full_form"]
 
 #: Children per node of the gauge penalty's tree.
 TREE_ARITY = 4
