@@ -14,13 +14,14 @@ This path never forms ``Q'``:
    with ``p`` the direct cost of the returned estimate, as on the dense path.
 
 When that certificate is inconclusive and the problem has at most ``sdp_fallback_max_frames``
-frames, the dense path (with its strengthened certificate and SDP fallback) is run instead;
+frames, the dense path (with its SDP fallback) is run instead;
 larger problems return the uncertified result with a note.
 
 **Automatic choice** (``SolveOptions.fast_form = "auto"``): the sparse path when the problem has
 at least :data:`SPARSE_MIN_FRAMES` frames and a sparse factorisation stays sparse: the work of a
 minimum-degree elimination of the camera-tag graph at the level of frames
-(:func:`~rwhec_ros.core.sparsity.elimination_front`) is at most :data:`SPARSE_MAX_WORK` ``n^3``.
+(:func:`~rwhec_ros.core.sparsity.elimination_front`) is at most :data:`SPARSE_MAX_WORK` ``n^3``,
+or the problem has :data:`SPARSE_ALWAYS_FRAMES` frames or more.
 One target seen by every camera: fronts of one frame; 16 targets each seen by 3 of 1,000 cameras:
 fronts of at most 15 frames; a random graph of 100 cameras and 100 tags, 5 tags per camera:
 fronts of 64 frames (0.017 n^3), where LAPACK on the dense ``Q'`` is as fast as QDLDL's scalar
@@ -47,7 +48,7 @@ from .sparse_solver import NewtonSystem, refine_rotations_sparse, rotation_block
 from .sparsity import elimination_front
 from .verified import lanczos_start
 
-__all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "use_sparse", "SparsePrepared",
+__all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "SPARSE_ALWAYS_FRAMES", "use_sparse", "SparsePrepared",
            "prepare_sparse", "estimate_sparse", "solve_fast_sparse", "failed_result"]
 
 #: Fewest frames for which ``auto`` takes the sparse path (measured, one target seen by every
@@ -61,6 +62,11 @@ SPARSE_MIN_FRAMES = 40
 #: (0.022 n^3) 265 ms dense / 264 ms sparse, 100 x 100 (0.017 n^3) 1.55 s / 1.78 s; 30 x 30 with
 #: 3 tags per camera (0.007 n^3) 75 / 47 ms. One target and 3,000 cameras: 4e-7 n^3.
 SPARSE_MAX_WORK = 0.01
+#: From this many frames ``auto`` takes the sparse path whatever the fill: the dense ``Q'`` (9 n + 1
+#: square) then costs more than the fill of a sparse factorisation (random graphs with 5 tags per
+#: camera: 150 x 150, 20 s and 466 MB dense / 7.8 s and 151 MB sparse; 300 x 300, dense
+#: unfinished after 36 min at 1.8 GB / sparse 129 s and 316 MB; busy 2-core machine).
+SPARSE_ALWAYS_FRAMES = 250
 
 
 def use_sparse(problem: Problem, fast_form: str) -> bool:
@@ -69,6 +75,8 @@ def use_sparse(problem: Problem, fast_form: str) -> bool:
         return fast_form == "sparse"
     if problem.n_frames < SPARSE_MIN_FRAMES:
         return False
+    if problem.n_frames >= SPARSE_ALWAYS_FRAMES:
+        return True
     n = problem.n_frames
     limit = SPARSE_MAX_WORK * float(n) ** 3
     _, work = elimination_front(problem.M, problem.P, problem.edge_x, problem.edge_y,

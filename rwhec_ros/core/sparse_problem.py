@@ -175,6 +175,10 @@ class FullForm:
         Free variables ``f`` (translations, ``alpha`` for unknown scale, gauge auxiliaries).
     n_aux : int
         Gauge auxiliaries (0 without unobservable directions).
+    t_shift : ndarray, shape (3 n,), optional
+        ``t0`` of the change of variables ``t = t' + t0 h`` (``h = s``, or ``alpha`` for unknown
+        scale) with ``G t0 = b`` that removes the prior's constant from the gauge penalty: ``z``
+        holds ``t'`` (see :func:`build_full_form`).
     """
 
     problem: Problem
@@ -182,6 +186,7 @@ class FullForm:
     L_rot: sp.csr_matrix
     n_free: int
     n_aux: int
+    t_shift: np.ndarray | None = None
     _ff: SparseLDL | None = field(default=None, repr=False)
     _Qfy: sp.csr_matrix | None = field(default=None, repr=False)
 
@@ -232,8 +237,9 @@ class FullForm:
         n = self.n
         z = self.state(R)
         cost = float(z @ (self.Q @ z))
-        t_alpha = z[: 3 * n].reshape(n, 3)
         alpha = float(z[3 * n]) if self.problem.unknown_scale else 1.0
+        t_alpha = z[: 3 * n] + (0.0 if self.t_shift is None else self.t_shift * alpha)
+        t_alpha = t_alpha.reshape(n, 3)
         t = t_alpha / alpha if abs(alpha) > 1e-12 else t_alpha
         return Estimate(R=np.asarray(R, float), t=t, alpha=alpha, cost=cost)
 
@@ -265,7 +271,14 @@ class FullForm:
 
 def build_full_form(problem: Problem, gauge: GaugeFix, blocks: tuple | None = None) -> FullForm:
     """Assemble :class:`FullForm` from the edge blocks (:func:`~rwhec_ros.core.cost.edge_blocks`)
-    and the gauge penalty (:func:`penalty_tree`)."""
+    and the gauge penalty (:func:`penalty_tree`).
+
+    With priors the penalty ``rho |G t - b h|^2`` has ``b != 0``; the translations are then
+    shifted, ``t = t' + t0 h`` with ``G t0 = b``, an invertible change of the free variables for
+    each ``h`` (the same problem), so that the penalty on ``t'`` is ``rho |G t'|^2`` and the
+    homogenising variable, eliminated last with the longest row of ``L``, does not carry the
+    large ``rho |b|^2`` into the rounding bound of the certificate. ``Q`` becomes ``T^T Q T``.
+    """
     full, rot, idx = blocks if blocks is not None else edge_blocks(problem)
     layout = StateLayout(problem.M, problem.P)
     n, n_t = problem.n_frames, layout.n_t
@@ -284,15 +297,22 @@ def build_full_form(problem: Problem, gauge: GaugeFix, blocks: tuple | None = No
     rows = [np.repeat(zi[:, :, None], 25, axis=2).ravel()]
     cols = [np.repeat(zi[:, None, :], 25, axis=1).ravel()]
     vals = [full.ravel()]
-    if k:
-        h = n_t if unknown else size - 1
-        r_, c_, v_, n_aux_built = penalty_tree(gauge, n, np.arange(n_t), h, aux_offset)
-        assert n_aux_built == n_aux
-        rows.append(r_)
-        cols.append(c_)
-        vals.append(v_)
+    h = n_t if unknown else size - 1
     Q = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(size, size))
+    t_shift = np.zeros(n_t)
+    if k and np.any(gauge.b != 0.0):
+        # t = t' + t0 h with G t0 = b (least norm): the penalty becomes rho |G t'|^2, without the
+        # large rho b^2 on the homogenising variable, whose pivot is the last and longest
+        t_shift = gauge.G.T @ np.linalg.solve(gauge.G @ gauge.G.T, gauge.b)
+        T = sp.identity(size, format="csr") + sp.csr_matrix(
+            (t_shift, (np.arange(n_t), np.full(n_t, h))), shape=(size, size))
+        Q = (T.T @ Q @ T).tocsr()
+        gauge = replace(gauge, b=np.zeros_like(gauge.b))
+    if k:
+        r_, c_, v_, n_aux_built = penalty_tree(gauge, n, np.arange(n_t), h, aux_offset)
+        assert n_aux_built == n_aux
+        Q = Q + sp.csr_matrix((v_, (r_, c_)), shape=(size, size))
     U = sp.triu(Q, format="csr")
     Q = (U + sp.triu(U, k=1, format="csr").T).tocsr()  # exactly symmetric
     ri = zi[:, 7:] - n_free
@@ -300,4 +320,4 @@ def build_full_form(problem: Problem, gauge: GaugeFix, blocks: tuple | None = No
                            (np.repeat(ri[:, :, None], 18, axis=2).ravel(),
                             np.repeat(ri[:, None, :], 18, axis=1).ravel())),
                           shape=(9 * n, 9 * n))
-    return FullForm(problem, Q, L_rot, n_free, n_aux)
+    return FullForm(problem, Q, L_rot, n_free, n_aux, t_shift)
