@@ -48,8 +48,9 @@ from .sparse_solver import NewtonSystem, refine_rotations_sparse, rotation_block
 from .sparsity import elimination_front
 from .verified import lanczos_start
 
-__all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "SPARSE_ALWAYS_FRAMES", "use_sparse", "SparsePrepared",
-           "prepare_sparse", "estimate_sparse", "solve_fast_sparse", "failed_result"]
+__all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "SPARSE_ALWAYS_FRAMES", "use_sparse",
+           "SparsePrepared", "prepare_sparse", "estimate_sparse", "solve_fast_sparse",
+           "failed_result"]
 
 #: Fewest frames for which ``auto`` takes the sparse path (measured, one target seen by every
 #: camera, best of 5 on 2 busy cores: 21 frames dense 17 ms / sparse 19 ms, 41 frames 53 / 26 ms,
