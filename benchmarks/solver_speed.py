@@ -40,7 +40,7 @@ from rwhec_ros.core.baselines import opencv_robot_world_hand_eye  # noqa: E402
 from rwhec_ros.core.lie import rotation_distance  # noqa: E402
 from rwhec_ros.core.relaxation import SdpOptions  # noqa: E402
 from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
-from rwhec_ros.core.synthetic import random_instance  # noqa: E402
+from rwhec_ros.core.synthetic import random_camera_tag_graph, random_instance  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "paper_real_world"
 PHASES = ("build", "initialise", "local", "constraints", "compile", "solve", "extract",
@@ -204,18 +204,6 @@ def scaling(quick, repeats, sdp_limit, sdp_max_frames):
     print()
 
 
-def random_graph(rng, M: int, P: int, per: int) -> list[tuple[int, int]]:
-    """Camera-tag edges: every camera (Y) sees ``per`` random tags (X); an unseen tag is given
-    to a random camera."""
-    edges = set()
-    for k in range(P):
-        for j in rng.choice(M, per, replace=False):
-            edges.add((int(j), k))
-    seen = {j for j, _ in edges}
-    edges |= {(j, int(rng.integers(P))) for j in range(M) if j not in seen}
-    return sorted(edges)
-
-
 def _rss_mb() -> float:
     """Current resident set size of this process [MB] (Linux), else nan."""
     try:
@@ -236,7 +224,7 @@ def large_row(spec: str, form: str, repeats: int) -> dict:
     parts = [int(x) for x in spec.split("x")]
     M, P = parts[:2]
     rng = np.random.default_rng(M * 100003 + P)
-    edges = random_graph(rng, M, P, parts[2]) if len(parts) > 2 else None
+    edges = random_camera_tag_graph(rng, M, P, parts[2]) if len(parts) > 2 else None
     problem, _ = random_instance(rng, M, P, edges=edges, n_per_edge=20, sigma=0.02, kappa=100)
     solve(problem, SolveOptions(mode="local", fast_form=form))  # warm-up of the imports
     rss_before = _rss_mb()

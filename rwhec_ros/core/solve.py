@@ -32,7 +32,7 @@ import scipy.sparse.linalg
 from threadpoolctl import ThreadpoolController
 
 from .certificate import CertificateOptions, certificate_matrix, certify
-from .cost import StateLayout, build_cost_matrices, direct_cost, reduce_cost
+from .cost import StateLayout, build_cost_matrices, reduce_cost
 from .gauge import (
     GaugeFix,
     GaugeOptions,
@@ -40,7 +40,13 @@ from .gauge import (
     build_gauge_fix,
     find_unobservable_directions,
 )
-from .initialization import closed_form_estimate, estimate_from_rotations, rotations_from_vector
+from .initialization import (
+    closed_form_estimate,
+    estimate_from_rotations,
+    initial_rotations,
+    primal_cost,
+    rotations_from_vector,
+)
 from .lie import make_transform
 from .local_solver import (
     LocalSolverOptions,
@@ -191,12 +197,8 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
     timing["build"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     if options.initial is not None:
-        X0, Y0 = options.initial
-        R0 = np.concatenate([np.asarray(X0, float), np.asarray(Y0, float)])[:, :3, :3]
-        if R0.shape != (problem.n_frames, 3, 3):
-            raise ValueError(f"initial: expected {problem.M} X and {problem.P} Y transforms, "
-                             f"got {R0.shape[0]} in total")
-        init = estimate_from_rotations(problem, reduced, R0)
+        init = estimate_from_rotations(problem, reduced,
+                                       initial_rotations(problem, options.initial))
     else:
         init = closed_form_estimate(problem, reduced, Q_rot)
     timing["initialise"] = time.perf_counter() - t1
@@ -213,11 +215,7 @@ def _estimate(prep: _Prepared, R: np.ndarray):
     """Translations and scale for rotations ``R`` (eq. (47)) and the cost ``p`` of that
     estimate evaluated directly (eq. (33) plus the prior's term)."""
     est = estimate_from_rotations(prep.problem, prep.reduced, R)
-    X, Y = est.split(prep.problem.M)
-    p = direct_cost(prep.problem, X, Y, est.alpha)
-    if prep.gauge is not None and not prep.gauge.empty:
-        p += prep.gauge.penalty_value(est.t, est.alpha if prep.problem.unknown_scale else 1.0)
-    return est, p
+    return est, primal_cost(prep.problem, est, prep.gauge)
 
 
 def _result(prep: _Prepared, est, cert: Certificate, mode: str, solver_status: str,

@@ -142,6 +142,18 @@ class CertificatePattern:
         self.abs_rows_Q = np.asarray(abs(Qs).sum(axis=1)).ravel()
         self.nf, self.n, self.size = nf, n, size
 
+    def factorise(self, data: np.ndarray, factor: SparseLDL | None = None) -> SparseLDL | None:
+        """``L D L^T`` of the matrix with the upper data ``data`` (refactoring ``factor`` when
+        given: same pattern, same ordering); ``None`` on a breakdown."""
+        try:
+            if factor is None:
+                return SparseLDL(sp.csc_matrix((data, self.U.indices, self.U.indptr),
+                                               shape=self.U.shape))
+            factor.refactor(data)
+            return factor
+        except FactorizationError:
+            return None
+
     def matrix_data(self, Gamma: np.ndarray, lambda_s: float, t: float = 0.0,
                     hand: tuple[np.ndarray, np.ndarray] | None = None
                     ) -> tuple[np.ndarray, np.ndarray]:
@@ -227,15 +239,8 @@ def sparse_dual_bound(pattern: CertificatePattern, data: np.ndarray, err_rows: n
         A = data.copy()
         A[diag[:nf]] -= delta
         A[diag[nf:]] += mu
-        try:
-            if factor is None:
-                factor = SparseLDL(sp.csc_matrix((A, pattern.U.indices, pattern.U.indptr),
-                                                 shape=pattern.U.shape))
-            else:
-                factor.refactor(A)
-            ok = factor.positive_definite
-        except FactorizationError:
-            factor, ok = None, False
+        factor = pattern.factorise(A, factor)
+        ok = factor is not None and factor.positive_definite
         if not ok:
             floor_mu = mu * (8.0 if attempts <= 6 else 64.0)
             mu = max(floor_mu, mu_for(delta))
@@ -384,15 +389,8 @@ def _strengthen(pattern: CertificatePattern, dual: _Dual, R: np.ndarray, v2: np.
         data, _ = pattern.matrix_data(dual.Gamma, dual.lambda_s, t, hand)
         data[pattern.diag[:nf]] -= delta
         data[pattern.diag[nf:]] -= opts.null_tol
-        try:
-            if probe is None:
-                probe = SparseLDL(sp.csc_matrix((data, pattern.U.indices, pattern.U.indptr),
-                                                shape=pattern.U.shape))
-            else:
-                probe.refactor(data)
-            below = probe.n_negative
-        except FactorizationError:
-            probe, below = None, -1
+        probe = pattern.factorise(data, probe)
+        below = -1 if probe is None else probe.n_negative
         if below == 1:
             passed.append(t)
         elif passed:

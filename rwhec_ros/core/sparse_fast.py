@@ -37,9 +37,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .cost import StateLayout, direct_cost, edge_blocks
+from .cost import StateLayout, edge_blocks
 from .gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
-from .initialization import Estimate
+from .initialization import Estimate, initial_rotations, primal_cost
 from .problem import Problem
 from .result import CalibrationResult, Certificate
 from .sparse_certificate import CertificatePattern, certify_sparse
@@ -153,11 +153,7 @@ def prepare_sparse(problem: Problem, options) -> SparsePrepared:
     timing["build"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     if options.initial is not None:
-        X0, Y0 = options.initial
-        R0 = np.concatenate([np.asarray(X0, float), np.asarray(Y0, float)])[:, :3, :3]
-        if R0.shape != (problem.n_frames, 3, 3):
-            raise ValueError(f"initial: expected {problem.M} X and {problem.P} Y transforms, "
-                             f"got {R0.shape[0]} in total")
+        R0 = initial_rotations(problem, options.initial)
     else:
         R0 = form.closed_form_rotations()
     init = form.estimate(R0)
@@ -178,11 +174,7 @@ def estimate_sparse(prep: SparsePrepared, R: np.ndarray) -> tuple[Estimate, floa
     """Translations and scale for rotations ``R`` and the direct cost ``p`` (eq. (33) plus the
     prior's term), as the dense ``_estimate``."""
     est = prep.form.estimate(R)
-    X, Y = est.split(prep.problem.M)
-    p = direct_cost(prep.problem, X, Y, est.alpha)
-    if not prep.gauge.empty:
-        p += prep.gauge.penalty_value(est.t, est.alpha if prep.problem.unknown_scale else 1.0)
-    return est, p
+    return est, primal_cost(prep.problem, est, prep.gauge)
 
 
 def solve_fast_sparse(prep: SparsePrepared, options, notes: list[str]

@@ -27,9 +27,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .lie import so3_exp, vee
-from .local_solver import LocalSolution, LocalSolverOptions, _basis_jacobian
-from .sparse_ldl import FactorizationError, SparseLDL
+from .lie import vee
+from .local_solver import LocalSolution, LocalSolverOptions, _basis_jacobian, damped_newton
+from .sparse_ldl import SparseLDL
 from .sparse_problem import FullForm
 
 __all__ = ["NewtonSystem", "refine_rotations_sparse", "rotation_blocks"]
@@ -106,6 +106,7 @@ class NewtonSystem:
         self._pos_om = P.positions(np.arange(nf, N), np.arange(nf, N))
         self._factor: SparseLDL | None = None
         self._data = self._base
+        self.owner: object | None = None  # the model the matrix is assembled for
 
     def assemble(self, R: np.ndarray, G: np.ndarray) -> float:
         """Set the matrix for rotations ``R`` (n, 3, 3) and gradient blocks ``G`` (n, 3, 3);
@@ -143,12 +144,38 @@ class NewtonSystem:
         return factor.solve(rhs)[self.nf:]
 
 
-def _evaluate(form: FullForm, Qs: sp.csr_matrix, R: np.ndarray):
-    z = form.state(R)
-    Qz = Qs @ z
-    G = rotation_blocks(Qz, form.n_free, form.n)
-    g = 4.0 * vee(np.swapaxes(R, 1, 2) @ G)
-    return float(z @ Qz), g.reshape(-1), G, z
+class _SparseModel:
+    """Cost, gradient and (lazily) the Newton system of ``min_f z^T Qs z`` at ``R`` for
+    :func:`~rwhec_ros.core.local_solver.damped_newton`; the models share one
+    :class:`NewtonSystem`, assembled for whichever model asks for a step."""
+
+    def __init__(self, form: FullForm, Qs: sp.csr_matrix, system: NewtonSystem,
+                 R: np.ndarray) -> None:
+        self.R, self.system = R, system
+        self.z = form.state(R)
+        Qz = Qs @ self.z
+        self.f = float(self.z @ Qz)
+        self.G = rotation_blocks(Qz, form.n_free, form.n)
+        self.g = (4.0 * vee(np.swapaxes(R, 1, 2) @ self.G)).reshape(-1)
+        self._scale: float | None = None
+
+    def _assembled(self) -> None:
+        if self.system.owner is not self:
+            self._scale = max(1.0, self.system.assemble(self.R, self.G))
+            self.system.owner = self
+
+    @property
+    def scale_h(self) -> float:
+        self._assembled()
+        return self._scale
+
+    def step(self, damping: float) -> np.ndarray:
+        self._assembled()
+        return self.system.step(self.g, damping)
+
+    def curvature(self, step: np.ndarray, damping: float) -> float:
+        # (H_red + damping I) step = -g  =>  step^T H_red step = -g.step - damping |step|^2
+        return float(-(self.g @ step) - damping * (step @ step))
 
 
 def refine_rotations_sparse(
@@ -156,57 +183,17 @@ def refine_rotations_sparse(
     f_floor: float = 1.0,
 ) -> LocalSolution:
     """Minimise ``min_f z^T Qs z`` over SO(3)^n from ``R0`` (n, 3, 3) by damped Riemannian Newton
-    on the sparse system of the module docstring; ``Qs`` is ``form.Q`` divided by the data scale.
-    The counterpart of :func:`~rwhec_ros.core.local_solver.refine_rotations`, except that the
-    gradient tolerance is relative to ``max(f, f_floor)`` (the dense solver: ``max(f, 1)``): a
-    start far above the optimum makes the scaled optimum ``f << 1``, and the certificate needs
-    the stationarity relative to the optimum (``f_floor``: the cost regarded as zero, scaled)."""
-    opts = options or LocalSolverOptions()
-    R = np.array(R0, dtype=float)
-    n = R.shape[0]
-    system = NewtonSystem(Qs, form.n_free, n)
-    mu = 1e-6
-    f, g, G, z = _evaluate(form, Qs, R)
+    (:func:`~rwhec_ros.core.local_solver.damped_newton`) on the sparse system of the module
+    docstring; ``Qs`` is ``form.Q`` divided by the data scale. The counterpart of
+    :func:`~rwhec_ros.core.local_solver.refine_rotations`, except that the gradient tolerance is
+    relative to ``max(f, f_floor)`` (the dense solver: ``max(f, 1)``): a start far above the
+    optimum makes the scaled optimum ``f << 1``, and the certificate needs the stationarity
+    relative to the optimum (``f_floor``: the cost regarded as zero, scaled)."""
+    R0 = np.asarray(R0, dtype=float)
+    system = NewtonSystem(Qs, form.n_free, R0.shape[0])
+    first = _SparseModel(form, Qs, system, R0)
     # round-off level of f = z^T Q z: decreases below it are noise
-    az = np.abs(z)
+    az = np.abs(first.z)
     f_noise = 64.0 * np.finfo(float).eps * float(az @ (abs(Qs) @ az))
-    scale_h = max(1.0, system.assemble(R, G))
-    converged = False
-    it = 0
-    step = np.zeros(3 * n)
-    for it in range(1, opts.max_iterations + 1):
-        gnorm = float(np.linalg.norm(g))
-        if gnorm <= opts.gradient_tol * max(f_floor, abs(f)):
-            converged = True
-            it -= 1
-            break
-        accepted = False
-        for _ in range(30):
-            lam = mu * scale_h
-            try:
-                step = system.step(g, lam)
-            except FactorizationError:
-                mu *= 10.0
-                continue
-            if not g @ step < 0.0:  # not a descent direction: H + mu I is not positive definite
-                mu *= 10.0
-                continue
-            R_new = R @ so3_exp(step.reshape(n, 3))
-            f_new, g_new, G_new, z_new = _evaluate(form, Qs, R_new)
-            # (H_red + lam I) step = -g  =>  step^T H_red step = -g.step - lam |step|^2
-            predicted = -(0.5 * (g @ step) - 0.5 * lam * (step @ step))
-            actual = f - f_new
-            if actual >= 0.25 * predicted or abs(actual) <= f_noise:
-                R, f, g, G, z = R_new, f_new, g_new, G_new, z_new
-                scale_h = max(1.0, system.assemble(R, G))
-                mu = max(mu / 10.0, 1e-12)
-                accepted = True
-                break
-            mu *= 10.0
-        if not accepted:
-            break
-        if float(np.linalg.norm(step)) < opts.step_tol:
-            converged = True
-            break
-    return LocalSolution(R=R, cost=f, gradient_norm=float(np.linalg.norm(g)), iterations=it,
-                         converged=converged)
+    return damped_newton(R0, lambda R: _SparseModel(form, Qs, system, R),
+                         options or LocalSolverOptions(), f_noise, f_floor, first)
