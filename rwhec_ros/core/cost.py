@@ -102,8 +102,7 @@ def _edge_blocks(
     ksum = half_k.sum(axis=1)
     # sum k/2 R_B^T (x) R_A^T per edge
     C = np.einsum("en,enba,enji->eaibj", half_k, RB, RA).reshape(E, 9, 9)
-    diag = np.arange(7, 25)
-    rot[:, diag, diag] = ksum[:, None]
+    rot.reshape(E, 625)[:, _ROT_DIAG] = ksum[:, None]
     rot[:, 7:16, 16:25] = -C
     rot[:, 16:25, 7:16] = -np.swapaxes(C, 1, 2)
     # translation rows on the 16 columns [t_X, t_Y, alpha, r_Y]
@@ -118,10 +117,16 @@ def _edge_blocks(
     Mt *= np.sqrt(0.5 / sigma**2)[..., None, None]
     Mt2 = Mt.reshape(E, 3 * N, 16)
     G = np.matmul(np.swapaxes(Mt2, 1, 2), Mt2)
-    cols = np.r_[0:7, 16:25]
-    full = rot.copy()
-    full[:, cols[:, None], cols[None, :]] += G
+    full = rot.copy()  # G lives on the columns [t_X, t_Y, alpha] (0:7) and r_Y (16:25)
+    full[:, 0:7, 0:7] += G[:, :7, :7]
+    full[:, 0:7, 16:25] += G[:, :7, 7:]
+    full[:, 16:25, 0:7] += G[:, 7:, :7]
+    full[:, 16:25, 16:25] += G[:, 7:, 7:]
     return full, rot
+
+
+#: Flat indices of the rotation diagonal (local variables 7..24) of a 25 x 25 edge block.
+_ROT_DIAG = np.arange(7, 25) * 26
 
 
 def _all_edge_blocks(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
