@@ -183,7 +183,8 @@ class CertificatePattern:
             off = self._h_rows != self._h_cols
             h_rows = (np.bincount(self._h_rows, weights=a, minlength=self.size)
                       + np.bincount(self._h_cols[off], weights=a[off], minlength=self.size))
-            err += gamma(n + 8) * h_rows
+            # ... and one more rounding where the subtraction meets those of Q_s and K
+            err += gamma(n + 8) * h_rows + gamma(2) * (self.abs_rows_Q + k_rows + h_rows)
         return data, err
 
 
@@ -260,7 +261,9 @@ def sparse_dual_bound(pattern: CertificatePattern, data: np.ndarray, err_rows: n
         c_y = c[nf:]
         e_y = float(min(c_y.sum(), ny * c_y.max(initial=0.0)) * (1.0 + gamma(ny)))
         eig_term = float(ny * mu * (1.0 + gamma(2)))
+        # the two subtractions themselves round: 4 u of the magnitudes, subtracted too
         value = float(lambda_s - eig_term - e_y)
+        value -= 4.0 * UNIT_ROUNDOFF * (abs(lambda_s) + eig_term + e_y)
         lower = -(mu + float(c_y.max(initial=0.0)))
         return SparseBound(DualBound(value, float(lambda_s), lower, eig_term, e_y, 0.0),
                            factor, mu, attempts)
