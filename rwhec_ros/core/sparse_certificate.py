@@ -19,9 +19,10 @@ entrywise (``E`` symmetric, nonnegative), and choose shifts ``delta_i >= 0`` on 
 coordinates and ``mu`` on ``y``. Let ``A = fl(Z_fl + Diag(-delta, mu I))`` and suppose its
 ``L D L^T`` factorisation (:class:`~rwhec_ros.core.sparse_ldl.SparseLDL`) runs to completion with
 every pivot ``D_ii > 0``, so that ``(I + L) D (I + L)^T = P^T (A + dA) P`` is positive
-semidefinite with ``|dA| <= W`` (the bound of :mod:`rwhec_ros.core.sparse_ldl`). Put::
+semidefinite, and let ``w`` be weights with ``(|dA| 1)_i <= w_i``
+(:meth:`~rwhec_ros.core.sparse_ldl.SparseLDL.backward_error_rows`). Put::
 
-    c_i = (W 1)_i + u |A_ii| + (E 1)_i.
+    c_i = w_i + u |A_ii| + (E 1)_i.
 
 If ``delta_i >= c_i`` for every free coordinate ``i``, then for every feasible ``z``::
 
@@ -43,7 +44,16 @@ dense rows of a hub (a target seen by every camera) do not inflate the margin of
 
 ``E`` covers the division by the scale (``u |Q_s|``), the subtraction of ``K`` (``u (|Q_s| +
 |K|)``) and the sum ``lambda_s - sum tr Gamma_l`` (``gamma_{3n+1}`` times the sum of magnitudes);
-the entries of ``K`` on the rotation blocks are the stored ``Gamma_l`` themselves (exact).
+the entries of ``K`` on the rotation blocks are the stored ``Gamma_l`` themselves (exact). The
+final subtractions of ``d`` are rounded down by ``4 u`` of their magnitudes. The theorem holds for
+any multipliers; the *strengthened* certificate uses ``lambda + t lambda_h`` with the handedness
+direction ``lambda_h`` of :func:`~rwhec_ros.core.local_solver.handedness_multipliers` (whose
+matrix ``D`` has ``D z = 0``), its entries' rounding added to ``E``.
+
+Scope, as for the dense certificate: ``Q`` as computed in double precision -- here the unreduced
+cost of :mod:`rwhec_ros.core.sparse_problem`, with the gauge penalty as its spring tree and the
+translations shifted by the prior's particular solution, the same problem in exact arithmetic --
+and ``p`` the direct cost of eq. (33) plus the penalty at the returned estimate.
 
 **Choice of the shifts.** ``mu`` starts at ``gamma_64`` times the mean ``|Z_ii|`` over ``y`` (a
 hub rotation, seen by every camera, has a diagonal entry ``n`` times the others) and grows
