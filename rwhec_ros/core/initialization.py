@@ -91,8 +91,8 @@ def closed_form_estimate(
         L = L.toarray() if sp.issparse(L) else np.asarray(L)
         w, V = np.linalg.eigh(L)
         v = V[:, 0]
-    elif d <= 3000:
-        L = L.toarray() if sp.issparse(L) else np.asarray(L)
+    elif d <= 1000 or not sp.issparse(L):
+        L = np.asarray(L)
         w, V = scipy.linalg.eigh(L, subset_by_index=[0, 0], driver="evr")
         v = V[:, 0]
     else:

@@ -24,8 +24,8 @@ minimum-degree elimination of the camera-tag graph at the level of frames
 or the problem has :data:`SPARSE_ALWAYS_FRAMES` frames or more.
 One target seen by every camera: fronts of one frame; 16 targets each seen by 3 of 1,000 cameras:
 fronts of at most 15 frames; a random graph of 100 cameras and 100 tags, 5 tags per camera:
-fronts of 64 frames (0.017 n^3), where LAPACK on the dense ``Q'`` is as fast as QDLDL's scalar
-loops on the large sparse fronts.
+fronts of 64 frames (0.017 n^3); 50 x 50 of the same kind (0.022 n^3) is where LAPACK on the dense
+``Q'`` becomes as fast as QDLDL's scalar loops on the large sparse fronts.
 """
 
 from __future__ import annotations
@@ -60,9 +60,10 @@ SPARSE_MIN_FRAMES = 40
 #: over a minimum-degree elimination of the frame graph
 #: (:func:`~rwhec_ros.core.sparsity.elimination_front`), is at most this times ``n^3`` (the
 #: dense path's ``O(n^3)``). Measured on random camera-tag graphs, 5 tags per camera: 50 x 50
-#: (0.022 n^3) 265 ms dense / 264 ms sparse, 100 x 100 (0.017 n^3) 1.55 s / 1.78 s; 30 x 30 with
-#: 3 tags per camera (0.007 n^3) 75 / 47 ms. One target and 3,000 cameras: 4e-7 n^3.
-SPARSE_MAX_WORK = 0.01
+#: (0.022 n^3) 265 ms dense / 264 ms sparse, 100 x 100 (0.017 n^3) 1.77 s / 1.2 s (best of 3,
+#: three alternations); 30 x 30 with 3 tags per camera (0.007 n^3) 75 / 47 ms. One target and
+#: 3,000 cameras: 4e-7 n^3.
+SPARSE_MAX_WORK = 0.02
 #: From this many frames ``auto`` takes the sparse path whatever the fill: the dense ``Q'`` (9 n + 1
 #: square) then costs more than the fill of a sparse factorisation (random graphs with 5 tags per
 #: camera: 150 x 150, 20 s and 466 MB dense / 7.8 s and 151 MB sparse; 300 x 300, dense
