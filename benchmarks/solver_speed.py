@@ -227,8 +227,8 @@ def large_row(spec: str, form: str, repeats: int) -> dict:
     rng = np.random.default_rng(M * 100003 + P)
     edges = random_camera_tag_graph(rng, M, P, parts[2]) if len(parts) > 2 else None
     problem, _ = random_instance(rng, M, P, edges=edges, n_per_edge=20, sigma=0.02, kappa=100)
-    solve(problem, SolveOptions(mode="local", fast_form=form))  # warm-up of the imports
-    rss_before = _rss_mb()
+    rss_before = _rss_mb()  # the problem built; the solves below make the peak
+    solve(problem, SolveOptions(mode="local", fast_form=form))  # warm-up of first calls
     best = None
     for _ in range(repeats):
         res = solve(problem, SolveOptions(fast_form=form))
@@ -264,7 +264,7 @@ def large_rigs(quick: bool, repeats: int, dense_max_frames: int, timeout: float)
     print("Mode `fast`, `fast_form=\"auto\"` (the path it chose in brackets), 20 pairs per edge, "
           "sigma 2 cm, kappa 100; best of the repeats, each row in a fresh subprocess. Peak RSS: "
           "the subprocess's `VmHWM` (Python, the imports and the problem included); "
-          "'solve' = peak minus the RSS before the first solve. The dense path (`fast_form="
+          "'solve' = peak minus the RSS once the problem is built. The dense path (`fast_form="
           f"\"dense\"`) is run up to {dense_max_frames} frames.\n")
     print("| problem | frames | edges | status | rho_hat | time | build | initialise | local | "
           "certify | peak RSS [MB] | solve RSS [MB] | dense path time | dense peak RSS [MB] |")
