@@ -29,7 +29,7 @@ setup(
         "opencv-contrib-python-headless>=4.10,<5",
         "PyYAML>=6",
         "threadpoolctl>=3",
-        "matplotlib>=3.7",
+        "matplotlib>=3.6",  # Ubuntu 24.04's python3-matplotlib is 3.6.3 (tested by .ci/run)
         "rosbags>=0.10",
     ],
     extras_require={"test": ["pytest>=7"]},

@@ -1,8 +1,15 @@
-"""Session load benchmark: 1 kHz poses and 8 cameras at 20 Hz into the live session (Markdown).
+"""Session load benchmark: 8 cameras into the live session, at 640 x 480 and at camera rate at
+1280 x 1024 (Markdown).
 
-Run from the repository root (about 5 minutes; it writes ``benchmarks/session_load.md``)::
+Run from the repository root (about 30 minutes on a busy 2-core machine; it writes
+``benchmarks/session_load.md``)::
 
-    python benchmarks/session_load.py [--seconds 60] [--pool 20] [--output FILE.md]
+    python benchmarks/session_load.py [--seconds 60] [--pool 20] [--hd-seconds 12]
+                                      [--cache DIR] [--section all|vga|hd] [--output FILE.md]
+
+The second section (1280 x 1024, 8 cameras x 30 Hz, 200 Hz poses, live-paced, plus
+``rwhec-calibrate bag`` on a compressed recording) is ``benchmarks/camera_rate_load.py``; its
+docstring describes it. The first section:
 
 The scene is the paper's real-world setting in miniature: :func:`rwhec_ros.simulation.demo_rig`
 with 8 cameras (640 x 480) and 16 tags, a motion-capture pose stream ``T_world_rig`` at 1 kHz
@@ -18,10 +25,11 @@ in as (H, W) uint8 arrays (the node's ``mono8`` conversion, a zero-copy view, is
 The session processes images synchronously in ``add_image``. Runs:
 
 1. **live, 1 worker** -- the node's arrangement: a producer thread paced to the wall clock calls
-   ``add_pose`` for every pose (as the pose callback does) and puts every image into the
-   session's bounded drop-oldest :class:`~rwhec_ros.session.ImageQueue` (size 16, as in
-   ``config/mobile_rig_mocap.yaml``); one :class:`~rwhec_ros.session.QueueWorker` runs
-   ``add_image``. Dropped images are those the queue discarded because the worker fell behind.
+   ``add_pose`` for every pose (as the pose callback does, then ``FairImageQueue.notify``) and
+   puts every image into the node's :class:`~rwhec_ros.session.FairImageQueue` (one bounded
+   drop-oldest queue per camera, ``sync.image_queue_size`` = 4 each, images held until their
+   pose is there); one :class:`~rwhec_ros.session.QueueWorker` runs ``add_image``. Dropped
+   images are those the queue discarded because the worker fell behind.
 2. **live, 2 workers** -- the same with ``sync.detection_threads: 2``.
 3. **live, 1 worker, producer 4x real time** -- the producer paced at four times the wall clock
    (640 images/s): the producer is faster than the consumer, the queue drops.
@@ -56,48 +64,20 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from camera_rate_load import DetectTimer, pace  # noqa: E402 - beside this script
+
 from rwhec_ros.cli import demo_parameters  # noqa: E402
 from rwhec_ros.config import CalibratorConfig  # noqa: E402
-from rwhec_ros.session import CalibrationSession, ImageQueue, QueueWorker  # noqa: E402
+from rwhec_ros.session import CalibrationSession, FairImageQueue, QueueWorker  # noqa: E402
 from rwhec_ros.simulation import demo_rig  # noqa: E402
-from rwhec_ros.vision.detection import TagDetector  # noqa: E402
 
 NS = 1_000_000_000
 POSE_RATE_HZ = 1000
 IMAGE_RATE_HZ = 20
 N_CAMERAS = 8
 N_TAGS = 16
-QUEUE_SIZE = 16
+QUEUE_SIZE = 4  # per camera, the default
 START_NS = NS
-
-
-class DetectTimer:
-    """Wraps ``TagDetector.detect`` to sum its wall time over all threads."""
-
-    def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.total = 0.0
-        self.calls = 0
-        self._original = TagDetector.detect
-
-    def __enter__(self) -> DetectTimer:
-        original, timer = self._original, self
-
-        def timed(det, gray, intrinsics):
-            t0 = time.perf_counter()
-            try:
-                return original(det, gray, intrinsics)
-            finally:
-                dt = time.perf_counter() - t0
-                with timer.lock:
-                    timer.total += dt
-                    timer.calls += 1
-
-        TagDetector.detect = timed
-        return self
-
-    def __exit__(self, *exc) -> None:
-        TagDetector.detect = self._original
 
 
 @dataclass
@@ -153,13 +133,15 @@ def new_session(stream: Stream, out_dir: str) -> CalibrationSession:
 def run_live(stream: Stream, seconds: float, workers: int, out_dir: str,
              speed: float = 1.0) -> dict:
     session = new_session(stream, out_dir)
-    queue = ImageQueue(QUEUE_SIZE)
+    queue = FairImageQueue(stream.rig.cameras, QUEUE_SIZE,
+                           ready=lambda item: session.pose_ready(item[0]))
     busy = {"t": 0.0}
     busy_lock = threading.Lock()
 
-    def handler(item):
+    def handler(entry):
+        cam, (stamp, payload) = entry
         t0 = time.perf_counter()
-        session.add_image(*item)
+        session.add_image(cam, stamp, payload)
         dt = time.perf_counter() - t0
         with busy_lock:
             busy["t"] += dt
@@ -171,23 +153,17 @@ def run_live(stream: Stream, seconds: float, workers: int, out_dir: str,
         pool = [QueueWorker(queue, handler, name=f"bench-{i}").start() for i in range(workers)]
         t_start, c_start = time.perf_counter(), time.process_time()
         for stamp, cam, payload in events(stream, seconds):
-            target = t_start + (stamp - START_NS) / NS / speed
-            now = time.perf_counter()
-            if target > now:
-                time.sleep(target - now)
-            else:
-                max_lag = max(max_lag, now - target)
+            max_lag = max(max_lag, pace(t_start, stamp - START_NS, speed))
             if cam is None:
                 t0 = time.perf_counter()
                 session.add_pose(stamp, payload, source="world")
                 pose_time += time.perf_counter() - t0
+                queue.notify()
             else:
-                queue.put((cam, stamp, payload))
+                queue.put(cam, (stamp, payload))
                 produced += 1
-        t_produced = time.perf_counter()
-        while len(queue) and time.perf_counter() - t_produced < 30.0:  # drain
-            time.sleep(0.005)
-        time.sleep(0.05)
+        queue.close()  # the rest, also the last images whose later pose never comes
+        queue.join(30.0)
         for w in pool:
             w.stop(timeout=30.0)
         wall = time.perf_counter() - t_start
@@ -241,12 +217,33 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds (60)")
     ap.add_argument("--pool", type=int, default=20, help="pre-rendered images per camera (20)")
+    ap.add_argument("--hd-seconds", type=float, default=12.0,
+                    help="simulated seconds of the 1280 x 1024 section (12)")
+    ap.add_argument("--cache", type=Path, default=None,
+                    help="keep the 1280 x 1024 image pool in this directory between runs")
+    ap.add_argument("--section", choices=("all", "vga", "hd"), default="all")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--output", type=Path,
                     default=Path(__file__).resolve().with_name("session_load.md"),
-                    help="Markdown file to write (default benchmarks/session_load.md)")
+                    help="Markdown file to write (default benchmarks/session_load.md; "
+                         "'-' prints only)")
     args = ap.parse_args(argv)
+    lines = ["# Session load benchmark", ""]
+    if args.section in ("all", "vga"):
+        lines += vga_section(args)
+    if args.section in ("all", "hd"):
+        from camera_rate_load import section
 
+        lines += section(args.hd_seconds, args.cache, args.seed)
+    text = "\n".join(lines)
+    print(text)
+    if str(args.output) != "-":
+        args.output.write_text(text + "\n", encoding="utf-8")
+    return 0
+
+
+def vga_section(args: argparse.Namespace) -> list[str]:
+    """The 640 x 480 section (the runs of the module docstring)."""
     rss_start = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     t0 = time.perf_counter()
     stream = make_stream(args.pool, np.random.default_rng(args.seed))
@@ -263,8 +260,8 @@ def main(argv: list[str] | None = None) -> int:
     rss_end = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 
     n_img = N_CAMERAS * IMAGE_RATE_HZ
-    lines = [
-        "# Session load benchmark",
+    return [
+        f"## {N_CAMERAS} cameras x {IMAGE_RATE_HZ} Hz at 640 x 480, poses at 1 kHz",
         "",
         f"- generated by `python benchmarks/session_load.py` on "
         f"{_dt.date.today().isoformat()}, Python {platform.python_version()}, "
@@ -274,8 +271,8 @@ def main(argv: list[str] | None = None) -> int:
         f"and {POSE_RATE_HZ} poses/s for {args.seconds:g} s of simulated time; "
         f"{N_TAGS} tags; {args.pool} pre-rendered images per camera replayed in a loop "
         f"(rendered in {t_render:.1f} s)",
-        "- live runs are paced to the wall clock: images into the session's bounded drop-oldest "
-        f"`ImageQueue` (size {QUEUE_SIZE}) served by `QueueWorker` threads calling "
+        "- live runs are paced to the wall clock: images into the node's `FairImageQueue` "
+        f"({QUEUE_SIZE} per camera, drop-oldest) served by `QueueWorker` threads calling "
         "`add_image`; poses by the producer thread calling `add_pose` (as the node). The "
         "offline run feeds everything synchronously on one thread, as fast as possible "
         "(`rwhec-calibrate bag`).",
@@ -306,11 +303,6 @@ def main(argv: list[str] | None = None) -> int:
         "shared by other jobs, the drops follow the machine's load",
         "",
     ]
-    text = "\n".join(lines)
-    print(text)
-    if str(args.output) != "-":
-        args.output.write_text(text + "\n", encoding="utf-8")
-    return 0
 
 
 if __name__ == "__main__":

@@ -4,7 +4,10 @@
     ros2 service call /calibrate std_srvs/srv/Trigger          (or /<namespace>/calibrate)
 
 The parameter file is the one configuration format of the package (see config/*.yaml and
-rwhec_ros/config.py); its top-level key must be the node name, ``calibrator`` (or ``/**``).
+rwhec_ros/config/). Its sections apply by ROS's rule for the node /<namespace>/calibrator: the
+shipped files use ``/**`` (any node, any namespace), so ``namespace:=rig1`` works with them; a
+section named ``calibrator`` would apply only without a namespace (``/**/calibrator`` works in any).
+Outputs go to $ROS_HOME/rwhec_ros (~/.ros/rwhec_ros) unless output.directory says otherwise.
 """
 
 from launch import LaunchDescription

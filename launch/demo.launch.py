@@ -2,9 +2,10 @@
 
     ros2 launch rwhec_ros demo.launch.py
     ros2 service call /calibrate std_srvs/srv/Trigger          # after ~20 s of motion
-    ros2 topic echo /calibrator/suboptimality_bound
+    ros2 topic echo --once --qos-durability transient_local --qos-reliability reliable \
+        /calibrator/suboptimality_bound
 
-The simulator (rwhec_demo_sim, model in rwhec_ros/simulation.py) publishes /demo/rig/pose,
+The simulator (rwhec_demo_sim, model in rwhec_ros/simulation/rig.py) publishes /demo/rig/pose,
 /demo/<cam>/image_raw and /demo/<cam>/camera_info, plus the TRUE extrinsics on /tf_static as
 *_true frames; the calibrator (config/demo.yaml) publishes its estimates as *_calibrated frames.
 """

@@ -7,7 +7,9 @@ sqlite3, ``/tf`` in mcap) and calibrate them exactly as the node would.
 
 from __future__ import annotations
 
+import argparse
 import io
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -17,7 +19,14 @@ import pytest
 import yaml
 from launch_helpers import launch_transforms
 
-from rwhec_ros.cli import EXIT_BAD_INPUT, EXIT_CERTIFIED, demo_parameters, main
+from rwhec_ros.cli import (
+    EXIT_BAD_INPUT,
+    EXIT_CERTIFIED,
+    EXIT_NO_SOLUTION,
+    build_parser,
+    demo_parameters,
+    main,
+)
 from rwhec_ros.config import CalibratorConfig, read_parameter_file
 from rwhec_ros.core.lie import rotation_distance
 from rwhec_ros.data.dataset import Dataset
@@ -58,7 +67,7 @@ def paper_dir() -> Path:
 
 @pytest.fixture(scope="module")
 def paper_known(paper_dir, tmp_path_factory):
-    out = tmp_path_factory.mktemp("paper") / "paper.yaml"
+    out = tmp_path_factory.mktemp("paper") / "paper"
     code, stdout, stderr = run(["csv", paper_dir, "-o", out, "--report"])
     return code, stdout, stderr, out
 
@@ -66,7 +75,7 @@ def paper_known(paper_dir, tmp_path_factory):
 def test_csv_known_scale_is_certified_with_all_outputs(paper_known):
     code, stdout, stderr, out = paper_known
     assert code == EXIT_CERTIFIED, stdout + stderr
-    doc = yaml.safe_load(out.read_text())
+    doc = yaml.safe_load((out / "result.yaml").read_text())
     for key in RESULT_KEYS:
         assert key in doc, key
     assert doc["certified"] is True and doc["scale"] == 1.0
@@ -78,34 +87,39 @@ def test_csv_known_scale_is_certified_with_all_outputs(paper_known):
     assert stdout.startswith("CERTIFIED globally optimal (rho_hat=")
     assert "3230 pairs on 73 edges" in stdout
     assert "rig->cam_3_calibrated: t=[" in stdout and "world->tag_12_calibrated: t=[" in stdout
-    # launch file and data set beside the result, same stem
-    parsed = launch_transforms(out.with_name("paper.launch.py").read_text())
+    # launch file and data set beside the result, in the -o directory
+    parsed = launch_transforms((out / "static_transforms.launch.py").read_text())
     cam3 = next(f for f in doc["frames"] if f["name"] == "cam_3")
     parent, T = parsed["cam_3_calibrated"]
     assert parent == "rig" and np.allclose(T, cam3["matrix"], atol=1e-12)  # repr() round trip
-    data = Dataset.load(out.with_name("paper.dataset.yaml"))
+    data = Dataset.load(out / "dataset.yaml")
     assert data.n_pairs == 3230 and len(data.edges) == 73
-    # report files (PNG and HTML page linking it)
-    png = out.with_name("paper.report.png")
+    # report files (PNG and HTML page linking it); every written path printed as "what: path"
+    png = out / "report.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "paper.report.png" in out.with_name("paper.report.html").read_text()
+    assert "report.png" in (out / "report.html").read_text()
+    for what, name in (("result", "result.yaml"), ("launch", "static_transforms.launch.py"),
+                       ("dataset", "dataset.yaml"), ("report", "report.png"),
+                       ("report page", "report.html")):
+        assert f"{what}: {out / name}\n" in stdout
 
 
 def test_csv_refuses_to_overwrite_without_force(paper_known, paper_dir):
     _, _, _, out = paper_known
-    before = out.read_bytes()
+    before = (out / "result.yaml").read_bytes()
     code, stdout, stderr = run(["csv", paper_dir, "-o", out])
     assert code == EXIT_BAD_INPUT
-    assert "refusing to overwrite" in stderr and str(out) in stderr and "--force" in stderr
-    assert out.read_bytes() == before
+    assert "refusing to overwrite" in stderr and str(out / "result.yaml") in stderr
+    assert "--force" in stderr
+    assert (out / "result.yaml").read_bytes() == before
 
 
 def test_csv_unknown_scale(paper_dir, tmp_path):
-    out = tmp_path / "scaled.yaml"
+    out = tmp_path / "scaled"
     code, stdout, stderr = run(["csv", paper_dir, "--unknown-scale", "--min-pairs", "10",
                                 "-o", out])
     assert code == EXIT_CERTIFIED, stdout + stderr
-    doc = yaml.safe_load(out.read_text())
+    doc = yaml.safe_load((out / "result.yaml").read_text())
     assert doc["certified"] is True and doc["config"]["tags.unknown_scale"] is True
     # paper: the tags came out ~2.5 % smaller than hand-measured, i.e. B translations ~2.5 %
     # too long (alpha > 1); measured 1.0255
@@ -129,11 +143,11 @@ def test_csv_bad_file_names_file_and_line(tmp_path, line, message):
     good = "1,0,0,0,0.1,0.2,0.3\n"
     (tmp_path / "tag_0_cam_0_A.csv").write_text(good * 3)
     (tmp_path / "tag_0_cam_0_B.csv").write_text(good + good + line + "\n")
-    code, stdout, stderr = run(["csv", tmp_path, "-o", tmp_path / "out.yaml"])
+    code, stdout, stderr = run(["csv", tmp_path, "-o", tmp_path / "out"])
     assert code == EXIT_BAD_INPUT
     assert f"tag_0_cam_0_B.csv:3: {message}" in stderr
     assert "Traceback" not in stderr and stdout == ""
-    assert not (tmp_path / "out.yaml").exists()
+    assert not (tmp_path / "out").exists()
 
 
 def test_csv_missing_inputs_are_bad_input(tmp_path):
@@ -153,8 +167,8 @@ def test_csv_missing_inputs_are_bad_input(tmp_path):
 def recorded(tmp_path_factory):
     """The demo rig rendered once and written as two bags: PoseStamped/sqlite3 and /tf/mcap."""
     pytest.importorskip("rosbags.rosbag2")
-    from rwhec_ros.data.rosbag import simulated_stream, simulation_messages, write_bag
-    from rwhec_ros.simulation import Trajectory, demo_rig
+    from rwhec_ros.data.rosbag import write_bag
+    from rwhec_ros.simulation import Trajectory, demo_rig, simulated_stream, simulation_messages
 
     rig = demo_rig(3, 6, trajectory=Trajectory(yaw_rate=2 * np.pi / 12.0))
     root = tmp_path_factory.mktemp("bags")
@@ -163,6 +177,8 @@ def recorded(tmp_path_factory):
               storage="sqlite3")
     write_bag(root / "tf_mcap", simulation_messages(rig, samples, pose_source="tf"),
               storage="mcap")
+    write_bag(root / "compressed", simulation_messages(rig, samples, pose_source="topic",
+                                                       image_transport="compressed"))
     flat = demo_parameters(rig, output_directory=str(root / "out_topic"))
     (root / "topic.yaml").write_text(CalibratorConfig.from_parameters(flat).to_yaml())
     flat.update({"pose_source.type": "tf", "pose_source.topic": "",
@@ -174,12 +190,19 @@ def recorded(tmp_path_factory):
 @pytest.mark.parametrize("bag, config", [("poses_sqlite", "topic"), ("tf_mcap", "tf")])
 def test_bag_is_calibrated_to_the_truth(recorded, bag, config):
     rig, root = recorded
+    # the tf run names its output directory and overrides solver.min_pairs (3 in the file)
+    extra = ["-o", root / "tf_out", "--min-pairs", "4"] if config == "tf" else []
     code, stdout, stderr = run(["bag", root / bag, "--config", root / f"{config}.yaml",
-                                "--quiet"])
+                                "--quiet", *extra])
     assert code == EXIT_CERTIFIED, stdout + stderr
     assert stdout.startswith("input: ") and "CERTIFIED globally optimal" in stdout
-    result = next((root / f"out_{config}").glob("calibration_*/result.yaml"))
+    if config == "tf":
+        result = root / "tf_out" / "result.yaml"
+        assert not (root / "out_tf").exists()  # -o replaces output.directory/calibration_*
+    else:
+        result = next((root / f"out_{config}").glob("calibration_*/result.yaml"))
     doc = yaml.safe_load(result.read_text())
+    assert doc["config"]["solver.min_pairs"] == (4 if config == "tf" else 3)
     assert doc["certified"] is True
     assert {f["name"] for f in doc["frames"]} == set(rig.cameras) | {
         f"tag_{i}" for i in rig.tag_ids}
@@ -198,12 +221,38 @@ def test_dataset_round_trip_of_a_session_data_set(recorded, tmp_path):
     first = yaml.safe_load(result.read_text())
     code, stdout, stderr = run(["dataset", result.parent / "dataset.yaml", "-o", tmp_path])
     assert code == EXIT_CERTIFIED, stdout + stderr
-    again = yaml.safe_load(next(tmp_path.glob("calibration_*/result.yaml")).read_text())
+    again = yaml.safe_load((tmp_path / "result.yaml").read_text())
     assert again["config"] == first["config"]  # the session's configuration came along
     for a, b in zip(first["frames"], again["frames"], strict=True):
         assert (a["name"], a["parent"], a["child"]) == (b["name"], b["parent"], b["child"])
         # same pairs, same solver: equal up to the solver's convergence tolerance
         assert np.allclose(a["matrix"], b["matrix"], atol=1e-6)
+
+
+def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tmp_path):
+    rig, root = recorded
+    pairs = {}
+    for threads in (1, 2):
+        flat = demo_parameters(rig, output_directory=str(tmp_path / "unused"))
+        flat["sync.detection_threads"] = threads
+        for cam in rig.cameras:
+            flat[f"cameras.{cam}.image_transport"] = "compressed"
+        cfg = tmp_path / f"compressed_{threads}.yaml"
+        cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+        out = tmp_path / f"out_{threads}"
+        code, stdout, stderr = run(["bag", root / "compressed", "--config", cfg, "--quiet",
+                                    "-o", out])
+        assert code == EXIT_CERTIFIED, stdout + stderr
+        pairs[threads] = {(e.x, e.y): e for e in Dataset.load(out / "dataset.yaml").edges}
+    # each camera's images are examined in order on any number of threads: the same pairs
+    assert pairs[1].keys() == pairs[2].keys() and len(pairs[1]) >= 9
+    for key, e in pairs[1].items():
+        for field in ("stamps_ns", "A", "B"):
+            np.testing.assert_array_equal(getattr(e, field), getattr(pairs[2][key], field))
+    # a raw-image configuration on this bag says which setting to change
+    code, _, stderr = run(["bag", root / "compressed", "--config", root / "topic.yaml",
+                           "-o", tmp_path / "raw"])
+    assert "cameras.cam0.image_transport: compressed" in stderr
 
 
 def test_bag_errors_are_bad_input(recorded, tmp_path):
@@ -229,7 +278,7 @@ def test_dataset_of_a_synthetic_problem(tmp_path):
     path = Dataset.from_problem(problem).save(tmp_path / "in.yaml")
     code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "--mode", "sdp"])
     assert code == EXIT_CERTIFIED, stdout + stderr
-    doc = yaml.safe_load(next((tmp_path / "out").glob("calibration_*/result.yaml")).read_text())
+    doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     assert doc["mode"] == "sdp" and doc["certified"] is True
     frames = {f["name"]: np.asarray(f["matrix"]) for f in doc["frames"]}
     assert frames["y0"].shape == (4, 4)
@@ -246,26 +295,161 @@ def test_demo_parameters_match_the_demo_config_file():
     from rwhec_ros.simulation import demo_rig
 
     flat = read_parameter_file(DEMO_YAML)
-    ours = demo_parameters(demo_rig(), output_directory=flat["output.directory"])
+    ours = demo_parameters(demo_rig())  # both leave output.directory at its default
     assert CalibratorConfig.from_parameters(ours) == CalibratorConfig.from_parameters(flat)
 
 
 def test_demo_end_to_end_and_report_subcommand(tmp_path):
-    code, stdout, stderr = run(["demo", "--seed", "2", "-o", tmp_path])  # default 3 x 6, 24 s
+    # settings from a parameter file (noise.sigma 0.006 instead of the built-in 0.005) and
+    # --min-pairs over both; the rig's frames, topics and tags stay the simulation's
+    flat = read_parameter_file(DEMO_YAML)
+    flat.update({"noise.sigma": 0.006, "cameras.names": ["other"], "tags.ids": [7]})
+    flat = {k: v for k, v in flat.items() if not k.startswith("cameras.cam")}
+    flat.update({"cameras.other.image_topic": "/o/image", "cameras.other.camera_info_topic":
+                 "/o/info"})
+    cfg = tmp_path / "settings.yaml"
+    cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+    out = tmp_path / "demo"
+    code, stdout, stderr = run(["demo", "--seed", "2", "-o", out, "--config", cfg,
+                                "--min-pairs", "2"])  # default 3 x 6, 24 s
     assert code == EXIT_CERTIFIED, stdout + stderr
+    doc = yaml.safe_load((out / "result.yaml").read_text())
+    assert doc["config"]["noise.sigma"] == 0.006 and doc["config"]["solver.min_pairs"] == 2
+    assert doc["config"]["cameras.names"] == ["cam0", "cam1", "cam2"]
+    assert "solving: " in stderr and "simulating: " in stderr  # progress lines without -q
     assert "errors against the simulation's ground truth:" in stdout
     max_line = next(line for line in stdout.splitlines() if line.strip().startswith("max:"))
     t_mm, r_deg = (float(v.split()[0]) for v in max_line.split(":")[1].split(",")[:2])
     # same acceptance bound as the bag tests; measured ~2.5 mm / ~0.15 deg
     assert t_mm < 5.0 and r_deg < 0.5, max_line
     assert max_line.endswith("s in total)") and "over 9 frames" in max_line  # a full turn
-    result = next(tmp_path.glob("calibration_*/result.yaml"))
+    result = out / "result.yaml"
     code, stdout, stderr = run(["report", result])
     assert code == EXIT_CERTIFIED, stdout + stderr
-    assert (result.parent / "report.png").stat().st_size > 10_000
-    assert "report.png" in (result.parent / "report.html").read_text()
+    assert (out / "report.png").stat().st_size > 10_000
+    assert "report.png" in (out / "report.html").read_text()
+    assert stdout == f"report: {out / 'report.png'}\nreport page: {out / 'report.html'}\n"
+    # the report is refused like every other output, unless --force or another -o
+    code, _, stderr = run(["report", result])
+    assert code == EXIT_BAD_INPUT and "refusing to overwrite" in stderr
+    code, stdout, stderr = run(["report", result, "-o", tmp_path / "elsewhere"])
+    assert code == EXIT_CERTIFIED and (tmp_path / "elsewhere" / "report.html").is_file()
     code, _, stderr = run(["report", tmp_path / "missing.yaml"])
     assert code == EXIT_BAD_INPUT and "missing.yaml" in stderr
+
+
+# --- one meaning per option --------------------------------------------------------------------
+
+SOLVING = ("csv", "bag", "dataset", "demo")
+SHARED = {"output", "force", "config", "node_name", "mode", "min_pairs", "robust", "report",
+          "prior",
+          "quiet"}
+
+
+def subcommands() -> dict[str, argparse.ArgumentParser]:
+    action = next(a for a in build_parser()._actions
+                  if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+def test_every_solving_subcommand_takes_the_shared_options_in_the_same_words():
+    subs = subcommands()
+    helps = {}
+    for name in SOLVING:
+        actions = {a.dest: a for a in subs[name]._actions}
+        assert SHARED <= set(actions), (name, SHARED - set(actions))
+        assert actions["output"].option_strings == ["-o", "--output"]
+        assert actions["quiet"].option_strings == ["-q", "--quiet"]
+        helps[name] = {d: actions[d].help for d in SHARED - {"config"}}  # --config: per command
+    assert all(h == helps["csv"] for h in helps.values())
+    assert {"output", "force"} <= {a.dest for a in subs["report"]._actions}
+
+
+def test_every_option_help_ends_with_its_default():
+    for name, sub in subcommands().items():
+        for a in sub._actions:
+            if a.option_strings and a.dest != "help":
+                text = a.help % {"default": a.default}
+                end = r"\(required\)$" if a.required else r"\(default: [^()]+\)$"
+                assert re.search(end, text), (name, a.option_strings, text)
+
+
+def synthetic_inputs(tmp_path) -> dict[str, list]:
+    """A small synthetic problem as the paper's CSV files and as a data set."""
+    from rwhec_ros.core.synthetic import random_instance
+    from rwhec_ros.data.paper_csv import write_paper_csv
+
+    problem, _ = random_instance(np.random.default_rng(7), 2, 2, n_per_edge=8, sigma=0.005,
+                                 kappa=400.0)
+    write_paper_csv(problem, tmp_path / "csv")
+    data = Dataset.from_problem(problem).save(tmp_path / "in.yaml")
+    return {"csv": ["csv", tmp_path / "csv"], "dataset": ["dataset", data]}
+
+
+OUTPUT_FILES = (("result", "result.yaml"), ("launch", "static_transforms.launch.py"),
+                ("dataset", "dataset.yaml"))
+
+
+@pytest.mark.parametrize("command", ["csv", "dataset"])
+def test_output_directory_is_refused_then_forced_the_same_way(tmp_path, command):
+    argv = synthetic_inputs(tmp_path)[command]
+    out = tmp_path / "out"
+    code, stdout, stderr = run([*argv, "-o", out, "-q"])
+    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert stderr == ""  # -q: no progress lines
+    assert {p.name for p in out.iterdir()} == {name for _, name in OUTPUT_FILES}
+    for what, name in OUTPUT_FILES:
+        assert f"{what}: {out / name}\n" in stdout
+    before = (out / "result.yaml").read_bytes()
+    code, stdout, stderr = run([*argv, "-o", out, "--report"])
+    assert code == EXIT_BAD_INPUT and stdout == ""
+    assert stderr.startswith(f"rwhec-calibrate {command}: error: refusing to overwrite "
+                             "existing file(s) [") and "(use --force to overwrite)" in stderr
+    assert (out / "result.yaml").read_bytes() == before and not (out / "report.png").exists()
+    code, stdout, stderr = run([*argv, "-o", out, "--report", "--force"])
+    assert code == EXIT_CERTIFIED, stdout + stderr
+    assert "solving: 32 pairs on 4 edges, mode fast" in stderr  # progress without -q
+    assert f"report: {out / 'report.png'}\n" in stdout and (out / "report.png").is_file()
+
+
+def test_output_must_be_a_directory(tmp_path):
+    argv = synthetic_inputs(tmp_path)["dataset"]
+    code, _, stderr = run([*argv, "-o", tmp_path / "out.yaml"])
+    assert code == EXIT_BAD_INPUT and "-o/--output: expects a directory" in stderr
+    (tmp_path / "a_file").write_text("x")
+    code, _, stderr = run([*argv, "-o", tmp_path / "a_file"])
+    assert code == EXIT_BAD_INPUT and "exists and is not a directory" in stderr
+
+
+def test_default_output_and_settings_come_from_the_configuration(tmp_path, monkeypatch):
+    argv = synthetic_inputs(tmp_path)["csv"]
+    monkeypatch.chdir(tmp_path)
+    for _ in range(2):  # never reused: a new directory each run
+        assert run([*argv, "-q"])[0] == EXIT_CERTIFIED
+    runs = sorted((tmp_path / "rwhec_output").glob("calibration_*"))
+    assert len(runs) == 2 and all((d / "result.yaml").is_file() for d in runs)
+    flat = read_parameter_file(DEMO_YAML)
+    flat["output.directory"] = str(tmp_path / "from_config")
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+    code, stdout, stderr = run([*argv, "--config", cfg, "--mode", "local", "-q"])
+    assert code != EXIT_BAD_INPUT, stdout + stderr
+    doc = yaml.safe_load(next((tmp_path / "from_config").glob("calibration_*/result.yaml"))
+                         .read_text())
+    # noise and carriers from the file (demo.yaml: sigma 0.005, kappa 400), mode from the flag
+    assert doc["config"]["noise.sigma"] == 0.005 and doc["config"]["noise.kappa"] == 400.0
+    assert doc["mode"] == "local" and doc["config"]["solver.mode"] == "local"
+    code, stdout, _ = run([*argv, "--config", cfg, "--sigma", "0.02", "--min-pairs", "9"])
+    assert code == EXIT_NO_SOLUTION and "not enough data" in stdout  # 8 pairs per edge
+
+
+def test_dataset_robust_flag_reaches_the_solver(tmp_path):
+    argv = synthetic_inputs(tmp_path)["dataset"]
+    code, stdout, stderr = run([*argv, "--robust", "-o", tmp_path / "out", "-q"])
+    assert code == EXIT_CERTIFIED, stdout + stderr
+    doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
+    assert doc["config"]["solver.reject_outliers"] is True
+    assert any("outlier rejection" in n for n in doc["notes"])
 
 
 def test_installed_console_script():
@@ -276,3 +460,60 @@ def test_installed_console_script():
                           timeout=120)
     assert done.returncode == EXIT_BAD_INPUT
     assert "rwhec-calibrate csv: error: not a directory" in done.stderr
+
+
+# --- priors for translations the data do not determine (issue 10) -----------------------------
+
+
+def _planar_dataset(tmp_path, seed=1):
+    """A ground robot (rig yaws about z and drives in xy): camera heights relative to the tags
+    are not determined by the data."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "test" / "core"))
+    from test_gauge import _planar_rig
+
+    problem, X, Y = _planar_rig(np.random.default_rng(seed), jitter=1e-6)
+    return Dataset.from_problem(problem).save(tmp_path / "planar.yaml"), X, Y
+
+
+def test_planar_motion_without_prior_names_the_height(tmp_path):
+    path, X, Y = _planar_dataset(tmp_path)
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "-q"])
+    doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
+    assert doc["status"] == "not_identifiable" and not doc["certified"]
+    assert "translation along rig z of cam0, cam1 and along world z of tag_0, tag_1" in stdout
+    assert "give a prior" in stdout
+    assert doc["unobservable"][0]["fixed_by"] == "default"
+    assert set(doc["unobservable"][0]["frames"]) == {"cam0", "cam1", "tag_0", "tag_1"}
+
+
+def test_planar_motion_with_a_prior_is_certified(tmp_path):
+    path, X, Y = _planar_dataset(tmp_path)
+    height = float(Y[0, 2, 3])
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "-q",
+                                "--prior", f"cam0.z={height!r}"])
+    assert code == EXIT_CERTIFIED, stdout + stderr
+    doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
+    assert doc["certified"] and doc["unobservable"][0]["fixed_by"] == "prior"
+    frames = {f["name"]: np.asarray(f["matrix"]) for f in doc["frames"]}
+    assert frames["cam0"][2, 3] == pytest.approx(height, abs=1e-5)
+    # the other heights follow from the data (1 cm noise, 80 pairs)
+    assert frames["tag_1"][2, 3] == pytest.approx(X[1, 2, 3], abs=0.02)
+    assert doc["config"]["priors.frames"] == ["cam0"]
+
+
+@pytest.mark.parametrize("text", ["cam0=0.4", "cam0.w=0.4", "cam0.z=abc", ".z=1", "cam0.z=nan"])
+def test_bad_prior_syntax_is_bad_input(tmp_path, text):
+    path, _, _ = _planar_dataset(tmp_path)
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "--prior", text])
+    assert code == EXIT_BAD_INPUT
+    assert "--prior" in stdout + stderr and "FRAME.AXIS=VALUE" in stdout + stderr
+
+
+def test_prior_on_an_unknown_frame_is_bad_input(tmp_path):
+    path, _, _ = _planar_dataset(tmp_path)
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "out", "--prior",
+                                "cam9.z=0.3"])
+    assert code == EXIT_BAD_INPUT
+    assert "no frame 'cam9'" in stdout + stderr

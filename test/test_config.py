@@ -13,9 +13,12 @@ from rwhec_ros.config import (
     GLOBAL_SPECS,
     CalibratorConfig,
     flatten_parameters,
+    fully_qualified_name,
     load_config,
+    matching_sections,
     parameter_specs,
     read_parameter_file,
+    section_pattern,
 )
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
@@ -55,6 +58,7 @@ def test_examples_present():
         "arm_eye_in_hand.yaml",
         "fixed_cameras_handheld_target.yaml",
         "mobile_rig_mocap.yaml",
+        "mobile_robot_floor.yaml",
         "demo.yaml",
     } <= names
 
@@ -114,6 +118,28 @@ def test_defaults_and_derived_values():
     defaults = {s.name: s.default for s in GLOBAL_SPECS}
     assert cfg.noise.sigma == defaults["noise.sigma"]
     assert cfg.sync.max_gap_s == defaults["sync.max_gap_s"]
+
+
+def test_auto_or_integer_parameters_and_image_transport():
+    cfg = CalibratorConfig.from_parameters(minimal())
+    assert cfg.sync.detection_threads == "auto" and cfg.detection.decimate == "auto"
+    assert cfg.detection.motion_gate is True and cfg.sync.image_queue_size == 4
+    # auto: the cores available, at most one thread per camera (2 cameras here)
+    assert cfg.detection_thread_count(available_cores=1) == 1
+    assert cfg.detection_thread_count(available_cores=16) == 2
+    assert 1 <= cfg.detection_thread_count() <= 2
+    p = minimal()
+    p.update({"sync.detection_threads": 3, "detection.decimate": 1,
+              "cameras.cam1.image_transport": "compressed"})
+    cfg = CalibratorConfig.from_parameters(p)
+    assert cfg.detection_thread_count(available_cores=1) == 3  # an explicit number is kept
+    assert cfg.detection.decimate == 1
+    assert cfg.camera("cam0").image_transport == "raw"
+    assert cfg.camera("cam0").subscribed_topic == "/cam0/image_raw"
+    assert cfg.camera("cam1").subscribed_topic == "/cam1/image_raw/compressed"
+    assert CalibratorConfig.from_parameters(cfg.to_parameters()) == cfg
+    p["detection.decimate"] = "AUTO"  # the string is read case-insensitively
+    assert CalibratorConfig.from_parameters(p).detection.decimate == "auto"
 
 
 def test_values_as_rclpy_returns_them():
@@ -188,7 +214,15 @@ BAD = [
     ({"camera_carrier.frame": "/rig"}, "camera_carrier.frame"),
     ({"tags.frame_prefix": "cam", "tags.ids": [0, 1]}, "tags.frame_prefix"),
     ({"ros.image_qos": "best"}, "ros.image_qos"),
-    ({"output.directory": ""}, "output.directory"),
+    ({"ros.image_queue_depth": 0}, "ros.image_queue_depth"),
+    ({"output.directory": 3}, "output.directory"),
+    ({"sync.detection_threads": 0}, "sync.detection_threads"),
+    ({"sync.detection_threads": "many"}, "sync.detection_threads"),
+    ({"sync.detection_threads": True}, "sync.detection_threads"),
+    ({"detection.decimate": 0}, "detection.decimate"),
+    ({"detection.decimate": 2.0}, "detection.decimate"),
+    ({"detection.motion_gate": "on"}, "detection.motion_gate"),
+    ({"cameras.cam1.image_transport": "theora"}, "cameras.cam1.image_transport"),
 ]
 
 
@@ -265,6 +299,7 @@ def test_exponent_floats_read_as_doubles(tmp_path):
 
 
 def test_wildcard_and_node_sections(tmp_path):
+    # ROS's rule: a section applies when its key matches the node's fully qualified name.
     p = minimal()
     path = tmp_path / "multi.yaml"
     path.write_text(
@@ -273,17 +308,90 @@ def test_wildcard_and_node_sections(tmp_path):
                 "/**": {"ros__parameters": {"solver.mode": "sdp"}},
                 "other_node": {"ros__parameters": {"rate_hz": 3.0}},
                 "/rig1/calibrator": {"ros__parameters": p},
-            }
+            },
+            sort_keys=False,
         )
     )
-    cfg = load_config(path)  # no node name: the 'calibrator' sections
+    cfg = load_config(path, node_name="/rig1/calibrator")
     assert cfg.solver.mode == "sdp"
-    assert load_config(path, node_name="/rig1/calibrator") == cfg
+    assert load_config(path, node_name="calibrator", namespace="rig1") == cfg
+    assert load_config(path, node_name="calibrator", namespace="/rig1/") == cfg
+    # without a namespace the node is /calibrator: only '/**' applies to it
     with pytest.raises(ValueError, match="cameras.names: missing"):
-        load_config(path, node_name="nobody")  # only '/**' applies to it
+        load_config(path)
+    with pytest.raises(ValueError, match="cameras.names: missing"):
+        load_config(path, node_name="calibrator", namespace="rig2")
     path.write_text(yaml.safe_dump({"other_node": {"ros__parameters": {"rate_hz": 3.0}}}))
-    with pytest.raises(ValueError, match="no section for node"):
+    with pytest.raises(ValueError, match="no section applies to node '/calibrator'.*'/\\*\\*'"):
         load_config(path, node_name="calibrator")
+
+
+@pytest.mark.parametrize(
+    "key, fqn, applies",
+    [
+        ("/**", "/calibrator", True),
+        ("/**", "/rig1/calibrator", True),
+        ("/**", "/a/b/other", True),
+        ("/**/calibrator", "/calibrator", True),
+        ("/**/calibrator", "/rig1/calibrator", True),
+        ("/**/calibrator", "/a/b/calibrator", True),
+        ("/**/calibrator", "/rig1/other", False),
+        ("/**/calibrator", "/rig1/calibrator2", False),
+        ("calibrator", "/calibrator", True),  # a bare key is /calibrator: no namespace
+        ("calibrator", "/rig1/calibrator", False),  # the failure of issue 17, item 1
+        ("/calibrator", "/calibrator", True),
+        ("/rig1/calibrator", "/rig1/calibrator", True),
+        ("/rig1/calibrator", "/calibrator", False),
+        ("/rig1/calibrator", "/rig2/calibrator", False),
+        ("/*/calibrator", "/rig1/calibrator", True),  # exactly one namespace level
+        ("/*/calibrator", "/calibrator", False),
+        ("/*/calibrator", "/a/b/calibrator", False),
+        ("rig1/*", "/rig1/calibrator", True),
+        ("/rig.1/calibrator", "/rigx1/calibrator", False),  # the rest is literal
+    ],
+)
+def test_section_keys_match_as_in_ros(key, fqn, applies):
+    assert bool(section_pattern(key).fullmatch(fqn)) is applies
+    assert matching_sections([key], fqn) == ([key] if applies else [])
+
+
+def test_later_matching_sections_override_earlier_ones(tmp_path):
+    # rclpy merges the matching sections in file order: the later one wins, whatever its key
+    p = minimal()
+    path = tmp_path / "order.yaml"
+    for first, second, expected in [("/**", "/**/calibrator", "local"),
+                                    ("/**/calibrator", "/**", "sdp")]:
+        values = {"/**": "sdp", "/**/calibrator": "local"}
+        doc = {first: {"ros__parameters": {**p, "solver.mode": values[first]}},
+               second: {"ros__parameters": {"solver.mode": values[second]}}}
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        assert load_config(path, "calibrator", "rig1").solver.mode == expected
+
+
+@pytest.mark.parametrize(
+    "name, namespace, fqn",
+    [("calibrator", "", "/calibrator"), ("calibrator", "rig1", "/rig1/calibrator"),
+     ("calibrator", "/a/b/", "/a/b/calibrator"), ("/rig1/calibrator", "", "/rig1/calibrator")],
+)
+def test_fully_qualified_name(name, namespace, fqn):
+    assert fully_qualified_name(name, namespace) == fqn
+
+
+@pytest.mark.parametrize("name, namespace", [("", ""), ("/", ""), ("/**", ""),
+                                             ("/rig1/calibrator", "rig2")])
+def test_fully_qualified_name_refuses(name, namespace):
+    with pytest.raises(ValueError, match="node name"):
+        fully_qualified_name(name, namespace)
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=[p.name for p in EXAMPLES])
+def test_examples_apply_under_any_namespace_and_node_name(path):
+    # shipped files use '/**' so that namespace:= and a renamed node still get them
+    assert list(yaml.safe_load(path.read_text())) == ["/**"]
+    cfg = load_config(path)
+    for name, namespace in [("calibrator", "rig1"), ("my_calibrator", ""),
+                            ("calibrator", "robots/rig2")]:
+        assert load_config(path, name, namespace) == cfg
 
 
 @pytest.mark.parametrize(
@@ -323,3 +431,41 @@ def test_flatten_parameters():
 def test_read_parameter_file_returns_dotted_names(tmp_path):
     path = write_params(tmp_path, minimal())
     assert read_parameter_file(path) == minimal()
+
+
+# --- priors (issue 10) --------------------------------------------------------------------------
+
+
+def test_ground_robot_example_has_height_priors():
+    cfg = load_config(CONFIG_DIR / "mobile_robot_floor.yaml")
+    assert cfg.priors.entries == (("cam_front", "z", 0.62), ("cam_left", "z", 0.48),
+                                  ("cam_right", "z", 0.48))
+    assert cfg.solver.unobservable_std_m == 1.0 and cfg.solver.min_scale == 0.01
+    assert cfg.pose_source.invert  # T_map_base_link -> A = T_base_link_map
+
+
+@pytest.mark.parametrize("priors,message", [
+    ({"frames": ["cam0"], "axes": ["z", "x"], "values_m": [0.4]}, "same length"),
+    ({"frames": ["cam0"], "axes": ["w"], "values_m": [0.4]}, "priors.axes[0]"),
+    ({"frames": ["cam9"], "axes": ["z"], "values_m": [0.4]}, "priors.frames[0]"),
+    ({"frames": ["cam0", "cam0"], "axes": ["z", "z"], "values_m": [0.4, 0.5]}, "given twice"),
+    ({"frames": ["cam0"], "axes": ["z"], "values_m": [float("inf")]}, "priors.values_m[0]"),
+])
+def test_bad_priors_are_refused(tmp_path, priors, message):
+    params = yaml.safe_load((CONFIG_DIR / "demo.yaml").read_text())
+    inner = next(iter(params.values()))["ros__parameters"]
+    inner["priors"] = priors
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump(params))
+    with pytest.raises(ValueError, match=re.escape(message)):
+        load_config(path)
+
+
+def test_priors_on_tag_frames_are_accepted(tmp_path):
+    params = yaml.safe_load((CONFIG_DIR / "demo.yaml").read_text())
+    inner = next(iter(params.values()))["ros__parameters"]
+    tag = f"tag_{inner['tags']['ids'][0]}"
+    inner["priors"] = {"frames": [tag], "axes": ["z"], "values_m": [1.25]}
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump(params))
+    assert load_config(path).priors.entries == ((tag, "z", 1.25),)

@@ -48,6 +48,7 @@ __all__ = [
     "UnobservableDirection",
     "GaugeFix",
     "find_unobservable_directions",
+    "unobservable_directions_of_block",
     "build_gauge_fix",
     "axis_words",
 ]
@@ -159,13 +160,28 @@ class UnobservableDirection:
     def frames(self) -> list[str]:
         return list(self.components)
 
+    def component_of(self, translations: dict[str, np.ndarray]) -> float:
+        """The component along this direction (its translation part, normalised) of the frames'
+        translations ``{name: t (3,)}``, in metres."""
+        norm2 = sum(float(v @ v) for v in self.components.values())
+        if norm2 <= 0.0:
+            return float("nan")
+        return float(sum(v @ np.asarray(translations[n], float)
+                         for n, v in self.components.items() if n in translations)
+                     / np.sqrt(norm2))
+
     def describe(self, x_parent: str = "the tag carrier", y_parent: str = "the camera carrier",
-                 x_names: tuple[str, ...] = ()) -> str:
+                 x_names: tuple[str, ...] = (), parents: dict[str, str] | None = None) -> str:
         """One sentence in words, e.g. ``translation along rig z of cam0, cam1 and along world z
-        of tag_0 not determined by the data (predicted std 3.1e+03 m)``."""
+        of tag_0 not determined by the data (predicted std 3.1e+03 m)``. ``parents`` (frame ->
+        name of its carrier) overrides ``x_parent``/``y_parent``."""
         groups: dict[tuple[str, str], list[str]] = {}
-        for name, vec in self.components.items():
+        # cameras (Y) first, then tags (X), each in problem order
+        ordered = sorted(self.components.items(), key=lambda kv: kv[0] in x_names)
+        for name, vec in ordered:
             parent = x_parent if name in x_names else y_parent
+            if parents and name in parents:
+                parent = parents[name]
             groups.setdefault((parent, axis_words(vec)), []).append(name)
         parts = [f"along {parent} {axis} of {', '.join(names)}"
                  for (parent, axis), names in groups.items()]
@@ -285,9 +301,20 @@ def find_unobservable_directions(
     :data:`SPARSE_MIN_SIZE` entries (sparse ``Q``) the same is done with sparse factorisations and
     Lanczos (large rigs).
     """
-    opts = options or GaugeOptions()
     idx = _eliminated(layout, problem.unknown_scale)
-    E = _block(Q, idx)
+    return unobservable_directions_of_block(_block(Q, idx), problem, options)
+
+
+def unobservable_directions_of_block(
+    E, problem: Problem, options: GaugeOptions | None = None
+) -> tuple[np.ndarray, np.ndarray, list[UnobservableDirection], float]:
+    """:func:`find_unobservable_directions` on the translation block ``E = Q_ee`` itself
+    (m, m), dense or (above :data:`SPARSE_MIN_SIZE` entries) sparse: ``m = 3 (M + P)``
+    translations (``alpha t`` for unknown scale) and then ``alpha`` (unknown scale only), as the
+    Schur reduction eliminates them."""
+    opts = options or GaugeOptions()
+    E = sp.csr_matrix(E) if sp.issparse(E) else np.asarray(E, float)
+    E = 0.5 * (E + E.T)
     info_floor = 1.0 / (2.0 * opts.max_std_m**2)
     # quick exit (the usual case): E - tau I positive definite with tau above both thresholds,
     # using an upper bound on w_max (largest absolute row sum), so no eigenvalue can be weak
@@ -352,6 +379,10 @@ class GaugeFix:
     def empty(self) -> bool:
         return not self.directions
 
+    @property
+    def has_penalty(self) -> bool:
+        return self.G.shape[0] > 0
+
     def penalty_matrix(self, layout: StateLayout) -> sp.csr_matrix:
         """The penalty as a quadratic form on the state ``x`` of eq. (44) (sparse, size of Q)."""
         n_t, h = layout.n_t, layout.alpha
@@ -388,10 +419,16 @@ def build_gauge_fix(
     n_t = 3 * n
     names = problem.frame_names
     index = {name: i for i, name in enumerate(names)}
-    k = V_w.shape[1]
-    Vt = V_w[:n_t]  # drop the alpha part (unknown scale), re-orthonormalise
-    if k:
-        Vt, _ = np.linalg.qr(Vt)
+    # the translation parts of the directions (the alpha part dropped for unknown scale) and an
+    # orthonormal basis of their span: with unknown scale there can be more directions than
+    # translation dimensions, and a direction of the scale alone has no translation part
+    T_parts = V_w[:n_t]
+    if T_parts.shape[1]:
+        U, sv, _ = np.linalg.svd(T_parts, full_matrices=False)
+        Vt = U[:, sv > 1e-6 * max(float(sv.max(initial=0.0)), 1e-300)]
+    else:
+        Vt = np.zeros((n_t, 0))
+    k = Vt.shape[1]
     rows, vals = [], []
     prior_rows = []
     for i, p in enumerate(priors):
@@ -405,7 +442,8 @@ def build_gauge_fix(
         prior_rows.append((p, row))
     n_user = len(rows)
     if k == 0:
-        return GaugeFix([], np.zeros((0, n_t)), np.zeros(0), 0.0, Vt, True, prior_rows)
+        return GaugeFix(list(directions), np.zeros((0, n_t)), np.zeros(0), 0.0, Vt,
+                        not directions, prior_rows)
     # The rule's rows P: the user's priors (weight 1), then the default rule -- camera (Y)
     # frames' translations zero on average along the direction, then the tag (X) frames' (a far
     # smaller weight, so it only decides what the cameras cannot): one identity row per
@@ -429,10 +467,10 @@ def build_gauge_fix(
     KA = K_u @ A_u + K_d @ Vt
     G = Vt.T + KP - KA @ Vt.T
     b = K_u @ c_u
-    A = A_u
     notes = []
     for i, d in enumerate(directions):
-        by_user = n_user and np.linalg.norm(A[:n_user, i]) >= 1e-3
+        t_part = T_parts[:, i] / max(float(np.linalg.norm(T_parts[:, i])), 1e-300)
+        by_user = n_user and np.linalg.norm(P_u @ t_part) >= 1e-3
         d.fixed_by = "prior" if pinned or by_user else "default"
     rho = float(max(w_max, 1.0))
     return GaugeFix(directions, G, b, rho, Vt, pinned, prior_rows, notes)

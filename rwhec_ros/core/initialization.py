@@ -113,7 +113,7 @@ def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
 
     X, Y = est.split(problem.M)
     p = direct_cost(problem, X, Y, est.alpha)
-    if gauge is not None and not gauge.empty:
+    if gauge is not None and gauge.has_penalty:
         p += gauge.penalty_value(est.t, est.alpha if problem.unknown_scale else 1.0)
     return p
 

@@ -55,7 +55,9 @@ class Certificate:
         ``d``: rigorous lower bound on the global optimum,
         ``lambda_s + min(0, lambda_min(Z)) (3 (M + P) + 1)``.
     suboptimality_bound : float
-        ``rho_hat = (p - d) / d`` (eq. (73)); ``nan`` when no dual bound exists.
+        ``rho_hat = (p - d) / max(d, cost_floor)`` (eq. (73), with a floor for noise-free data
+        whose optimum is 0: the floor is ``1e-4`` of the largest entry of ``Q'``); ``nan`` when
+        no dual bound exists.
     lambda_min : float
         Smallest eigenvalue of ``Z(lambda)`` (scaled problem units).
     eigenvalues : ndarray

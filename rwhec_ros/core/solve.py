@@ -22,6 +22,7 @@ cost. Numerical failures (Clarabel, eigensolvers, singular systems) become the s
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import time
 from dataclasses import dataclass, field
@@ -68,7 +69,7 @@ from .result import CalibrationResult, Certificate, Status
 from .sparse_fast import failed_result, prepare_sparse, solve_fast_sparse, use_sparse
 from .sparsity import ArrowSplit, arrow_split, estimate_form_costs
 
-__all__ = ["SolveOptions", "solve", "MODES"]
+__all__ = ["SolveOptions", "solve", "MODES", "blas_threads"]
 
 MODES = ("sdp", "fast", "local")
 FAST_FORMS = ("auto", "dense", "sparse")
@@ -190,7 +191,7 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
     Q, Q_rot = build_cost_matrices(problem)
     V_w, w_w, directions, w_max = find_unobservable_directions(Q, layout, problem, options.gauge)
     gauge = build_gauge_fix(problem, V_w, w_w, directions, w_max, options.gauge.priors)
-    if not gauge.empty:
+    if gauge.has_penalty:
         pen = gauge.penalty_matrix(layout)
         Q = (sp.csr_matrix(Q) + pen).tocsr() if sp.issparse(Q) else Q + pen.toarray()
     reduced = reduce_cost(Q, layout, problem.unknown_scale)
@@ -444,10 +445,7 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
         CERTIFIED_OPTIMAL.
     """
     options = options or SolveOptions()
-    threads = options.blas_threads
-    if threads is None:
-        return _solve(problem, options)
-    with _blas_controller().limit(limits=threads, user_api="blas"):
+    with blas_threads(options.blas_threads):
         return _solve(problem, options)
 
 
@@ -455,6 +453,14 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
 def _blas_controller() -> ThreadpoolController:
     """One controller per process: scanning the loaded libraries costs ~3 ms, limiting is cheap."""
     return ThreadpoolController()
+
+
+def blas_threads(threads: int | None):
+    """Context manager limiting BLAS to ``threads`` threads (``None``: leave it as it is); see
+    :attr:`SolveOptions.blas_threads` for why one thread is the default everywhere."""
+    if threads is None:
+        return contextlib.nullcontext()
+    return _blas_controller().limit(limits=threads, user_api="blas")
 
 
 def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
@@ -520,8 +526,10 @@ def _check_identifiability(prep: _Prepared, options: SolveOptions,
             reasons.append(words)
     if gauge is not None and not gauge.empty:
         t = np.concatenate([res.X, res.Y])[:, :3, 3].reshape(-1)
-        for i, d in enumerate(gauge.directions):
-            d.value_m = float(gauge.V_w[:, i] @ t)
+        translations = {name: T[:3, 3] for name, T in zip(
+            problem.frame_names, np.concatenate([res.X, res.Y]), strict=True)}
+        for d in gauge.directions:
+            d.value_m = d.component_of(translations)
         res.unobservable = list(gauge.directions)
         words = "; ".join(d.describe(x_names=problem.x_names) for d in gauge.directions)
         if any(d.involves_scale for d in gauge.directions):

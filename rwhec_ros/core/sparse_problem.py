@@ -59,7 +59,7 @@ PRUNE_REL = 1e-12
 def pruned_gauge(gauge: GaugeFix, n: int) -> GaugeFix:
     """``gauge`` with the columns of ``G`` of negligible frames set to zero (:data:`PRUNE_REL`);
     the sparse path certifies, and evaluates ``p`` with, this penalty."""
-    if gauge.empty:
+    if not gauge.has_penalty:
         return gauge
     mass = np.linalg.norm(gauge.G.reshape(-1, n, 3), axis=(0, 2))
     drop = mass <= PRUNE_REL * mass.max(initial=0.0)
@@ -283,7 +283,7 @@ def build_full_form(problem: Problem, gauge: GaugeFix, blocks: tuple | None = No
     layout = StateLayout(problem.M, problem.P)
     n, n_t = problem.n_frames, layout.n_t
     unknown = problem.unknown_scale
-    k = gauge.G.shape[0] if not gauge.empty else 0
+    k = gauge.G.shape[0]
     aux_offset = n_t + (1 if unknown else 0)
     # the auxiliaries' count is known before their triplets: one k-vector per tree node
     n_aux = k * len(_tree(gauge, n)[1]) if k else 0

@@ -22,6 +22,7 @@ __all__ = [
     "GroundTruth",
     "random_instance",
     "random_camera_tag_graph",
+    "planar_instance",
 ]
 
 
@@ -155,3 +156,36 @@ def random_camera_tag_graph(rng: np.random.Generator, M: int, P: int, per_camera
     seen = {j for j, _ in edges}
     edges |= {(j, int(rng.integers(P))) for j in range(M) if j not in seen}
     return sorted(edges)
+
+
+def planar_instance(
+    rng: np.random.Generator,
+    M: int = 2,
+    P: int = 2,
+    n_per_edge: int = 20,
+    sigma: float = 0.01,
+    kappa: float = 125.0,
+    *,
+    tilt: float = 0.0,
+) -> tuple[Problem, GroundTruth]:
+    """A ground robot: the rig (camera carrier) yaws about the world ``z`` axis and drives in the
+    world ``xy`` plane among tags fixed in the world (``A = T_rig_world``), with Gaussian roll and
+    pitch of ``tilt`` rad. With ``tilt = 0`` the heights of the cameras relative to the tags are
+    not observable (motion about one axis, paper Section 6). Complete graph, frame names
+    ``tag_<j>`` and ``cam<k>``, weights equal to the noise; ``B`` perturbed with
+    :func:`perturb_measurements`."""
+    X = random_transforms(rng, M)
+    Y = random_transforms(rng, P)
+    edges = []
+    for j in range(M):
+        for k in range(P):
+            yaw = rng.uniform(-np.pi, np.pi, n_per_edge)
+            rotvec = np.column_stack([tilt * rng.standard_normal((n_per_edge, 2)), yaw])
+            T_world_rig = make_transform(Rotation.from_rotvec(rotvec).as_matrix(),
+                                         np.column_stack([rng.uniform(-2, 2, (n_per_edge, 2)),
+                                                          np.zeros(n_per_edge)]))
+            A = invert_transform(T_world_rig)
+            B = perturb_measurements(rng, invert_transform(Y[k]) @ A @ X[j], sigma, kappa)
+            edges.append(Edge.build(f"tag_{j}", f"cam{k}", A, B, sigma=sigma, kappa=kappa))
+    problem = Problem([f"tag_{j}" for j in range(M)], [f"cam{k}" for k in range(P)], edges)
+    return problem, GroundTruth(X=X, Y=Y)

@@ -44,7 +44,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import yaml
 
-from ..core.problem import DEFAULT_ROTATION_TOL, Edge, Problem, check_transforms
+from ..core.problem import Edge, Problem
+from ..sync.edge_pairs import DatasetEdge, check_name
 
 if TYPE_CHECKING:
     from ..sync.accumulator import PairAccumulator
@@ -90,82 +91,6 @@ def _plain(value: Any, where: str) -> Any:
     raise ValueError(f"{where}: cannot store a {type(value).__name__} in a data set: {value!r}")
 
 
-def _check_name(value: object, what: str) -> str:
-    if not isinstance(value, str) or not value:
-        raise ValueError(f"{what}: expected a non-empty string, got {value!r}")
-    return value
-
-
-@dataclass(frozen=True, eq=False)
-class DatasetEdge:
-    """The pairs of one edge; arrays are validated and converted on construction.
-
-    Attributes
-    ----------
-    x, y : str
-        X-frame (tag) and Y-frame (camera) names.
-    stamps_ns : ndarray, shape (N,), int64
-        Image stamps [ns] (``0..N-1`` when unknown, see :meth:`Dataset.from_problem`).
-    A, B : ndarray, shape (N, 4, 4), float64
-        ``T_<camera carrier>_<tag carrier>`` and ``T_cam_tag``, ``A_i X = Y B_i``.
-    sigma, kappa : ndarray, shape (N,), float64
-        Translation standard deviation [m] and Langevin concentration of each ``B``.
-    rotation_tol : float
-        Tolerance of the rotation checks (:func:`~rwhec_ros.core.problem.check_transforms`);
-        the pair accumulator passes its own, files are read with the default.
-
-    This is also the record :meth:`rwhec_ros.sync.PairAccumulator.edges` returns.
-    """
-
-    x: str
-    y: str
-    stamps_ns: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
-    sigma: np.ndarray
-    kappa: np.ndarray
-    rotation_tol: float = field(default=DEFAULT_ROTATION_TOL, repr=False)
-
-    def __post_init__(self) -> None:
-        name = f"edge ({self.x}, {self.y})"
-        _check_name(self.x, f"{name} x")
-        _check_name(self.y, f"{name} y")
-        stamps = np.asarray(self.stamps_ns)
-        if stamps.ndim != 1 or stamps.shape[0] < 1:
-            raise ValueError(
-                f"{name} stamps_ns: expected shape (N,) with N >= 1, got {stamps.shape}"
-            )
-        if stamps.dtype.kind not in "iu":
-            raise ValueError(f"{name} stamps_ns: expected integers, got dtype {stamps.dtype}")
-        if stamps.dtype.kind == "u" and (stamps > np.iinfo(np.int64).max).any():
-            raise ValueError(f"{name} stamps_ns: value above the int64 range: {stamps.max()!r}")
-        if (stamps < 0).any():
-            i = int(np.argmax(stamps < 0))
-            raise ValueError(f"{name} stamps_ns[{i}]: must be >= 0, got {int(stamps[i])}")
-        n = stamps.shape[0]
-        A = check_transforms(self.A, what=f"{name} A", rotation_tol=self.rotation_tol)
-        B = check_transforms(self.B, what=f"{name} B", rotation_tol=self.rotation_tol)
-        for what, T in (("A", A), ("B", B)):
-            if T.shape[0] != n:
-                raise ValueError(f"{name} {what}: expected {n} transforms, got {T.shape[0]}")
-        arrays = {"stamps_ns": stamps.astype(np.int64), "A": A, "B": B}
-        for what in ("sigma", "kappa"):
-            v = np.asarray(getattr(self, what), dtype=float)
-            if v.shape != (n,):
-                raise ValueError(f"{name} {what}: expected shape ({n},), got {v.shape}")
-            bad = ~np.isfinite(v) | (v <= 0)
-            if bad.any():
-                i = int(np.argmax(bad))
-                raise ValueError(f"{name} {what}[{i}]: must be finite and > 0, got {float(v[i])!r}")
-            arrays[what] = v
-        for key, value in arrays.items():
-            object.__setattr__(self, key, value)
-
-    @property
-    def n(self) -> int:
-        return int(self.stamps_ns.shape[0])
-
-
 @dataclass(eq=False)
 class Dataset:
     """A collected data set: frames, measurement pairs per edge, and where they came from.
@@ -195,8 +120,8 @@ class Dataset:
     carriers: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.x_names = tuple(_check_name(n, f"x_names[{i}]") for i, n in enumerate(self.x_names))
-        self.y_names = tuple(_check_name(n, f"y_names[{i}]") for i, n in enumerate(self.y_names))
+        self.x_names = tuple(check_name(n, f"x_names[{i}]") for i, n in enumerate(self.x_names))
+        self.y_names = tuple(check_name(n, f"y_names[{i}]") for i, n in enumerate(self.y_names))
         names = self.x_names + self.y_names
         if len(set(names)) != len(names):
             dup = sorted({n for n in names if names.count(n) > 1})
@@ -224,7 +149,7 @@ class Dataset:
         for frame, carrier in self.carriers.items():
             if frame not in names:
                 raise ValueError(f"carriers: {frame!r} is not a frame of the data set")
-            _check_name(carrier, f"carriers[{frame!r}]")
+            check_name(carrier, f"carriers[{frame!r}]")
         self.carriers = dict(self.carriers)
 
     # --- sizes -------------------------------------------------------------------------------

@@ -4,16 +4,16 @@ One module for every entry point: the live session (:class:`rwhec_ros.session.Ca
 writes into a new timestamped directory (``result.yaml``, ``static_transforms.launch.py``,
 ``dataset.yaml``), and the offline CLI, which solves a :class:`~rwhec_ros.core.problem.Problem`
 read from files (the paper's CSV layout, a saved data set), writes the same files with the same
-keys, possibly beside an explicit result path. Nothing here knows a ROS message.
+keys into such a directory or the one named by ``-o``. Nothing here knows a ROS message.
 
 * :class:`FrameNaming` says under which ``(parent, child)`` each estimated frame is published
   (from a :class:`~rwhec_ros.config.CalibratorConfig` or from two carrier frame names).
 * :func:`result_document` is the result YAML mapping (``certified``, ``suboptimality_bound``,
   ``scale``, ``frames`` with ``parent``/``child``, ``timing_s``, ``identifiability``,
   ``excluded_edges``, ``config``, ...).
-* :class:`OutputPaths` / :func:`output_paths` name the files beside an explicit result path
-  (``OUT.yaml``, ``OUT.launch.py``, ``OUT.dataset.yaml``, ``OUT.report.png``,
-  ``OUT.report.html``); :func:`new_output_dir` makes a new timestamped directory like the
+* :class:`OutputPaths` / :func:`session_output_paths` name the files of one output directory
+  (:func:`output_paths`: the older layout beside an explicit ``OUT.yaml``, still read by
+  ``rwhec-calibrate report``); :func:`new_output_dir` makes a new timestamped directory like the
   session's; :func:`write_outputs` writes them, refusing to overwrite unless ``force``.
 * :func:`load_result` reads a result YAML back (for ``rwhec-calibrate report``).
 """
@@ -39,6 +39,7 @@ __all__ = [
     "output_paths",
     "session_output_paths",
     "new_output_dir",
+    "utc_stamp",
     "write_outputs",
     "load_result",
     "plain",
@@ -191,14 +192,20 @@ def session_output_paths(directory: str | Path) -> OutputPaths:
                        d / "report.png", d / "report.html")
 
 
+def utc_stamp(now: _dt.datetime | None = None) -> str:
+    """``now`` (default: the current time) as the UTC stamp of output directory names,
+    e.g. ``20261121T061241_560269Z``."""
+    now = now if now is not None else _dt.datetime.now(_dt.timezone.utc)
+    return now.astimezone(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S_%fZ")
+
+
 def new_output_dir(root: str | Path, kind: str = "calibration",
                    now: _dt.datetime | None = None) -> Path:
     """A new directory ``<root>/<kind>_<UTC stamp>[_n]`` (never reused), named like the
     session's output directories."""
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
-    now = now if now is not None else _dt.datetime.now(_dt.timezone.utc)
-    base = f"{kind}_{now.astimezone(_dt.timezone.utc).strftime('%Y%m%dT%H%M%S_%fZ')}"
+    base = f"{kind}_{utc_stamp(now)}"
     for i in range(1000):
         path = root / (base if i == 0 else f"{base}_{i}")
         try:

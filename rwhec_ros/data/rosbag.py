@@ -2,8 +2,8 @@
 
 Reading uses ``rosbags`` (:class:`rosbags.rosbag2.Reader`, sqlite3 or mcap storage) with the
 ROS 2 Jazzy type store (``Stores.ROS2_JAZZY``); the messages it returns are dataclasses with the
-same field names as rclpy's, so :mod:`rwhec_ros.ros.conversions` and
-:class:`rwhec_ros.ros.handlers.MessageHandlers` take them unchanged.
+same field names as rclpy's, so :mod:`rwhec_ros.messages` and
+:class:`rwhec_ros.session.handlers.MessageHandlers` take them unchanged.
 
 * :func:`bag_topics` and :func:`read_messages` list the topics and yield
   ``(topic, log_time_ns, msg)`` in log-time order (the order in which the node would have
@@ -11,12 +11,9 @@ same field names as rclpy's, so :mod:`rwhec_ros.ros.conversions` and
 * :class:`TfTree` answers ``lookup(parent, child, stamp_ns) = T_parent_child`` from the whole
   recording's ``/tf`` and ``/tf_static``: chains of links, each dynamic link interpolated on
   SE(3) by a :class:`~rwhec_ros.sync.buffer.PoseBuffer` (``max_gap_ns``, ``tolerance_ns``).
-* :func:`message_from_fields` and :func:`write_bag` write bags (used by the tests): messages
-  are described by the field dicts of :mod:`rwhec_ros.ros.conversions` and built as
-  ``rosbags`` messages. :func:`simulated_stream` is the sensor stream of the simulated rig
-  (poses and rendered images in stamp order, also used by ``rwhec-calibrate demo``);
-  :func:`simulation_messages` turns it into the messages ``rwhec_demo_sim`` publishes and
-  :func:`write_simulated_bag` records them.
+* :func:`message_from_fields` and :func:`write_bag` write bags (used by the tests and by
+  :mod:`rwhec_ros.simulation.bag`): messages are described by the field dicts of
+  :mod:`rwhec_ros.messages` and built as ``rosbags`` messages.
 
 Frames: ``T_parent_child`` maps child coordinates to parent coordinates (tf2's convention, the
 transform of a ``TransformStamped`` with ``header.frame_id = parent``).
@@ -31,6 +28,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..core.lie import invert_transform
+from ..messages import transform_stamped_to_transform
 from ..sync.buffer import PoseBuffer
 
 __all__ = [
@@ -41,14 +39,11 @@ __all__ = [
     "TfTree",
     "message_from_fields",
     "write_bag",
-    "write_simulated_bag",
-    "SimulatedSample",
-    "simulated_stream",
-    "simulation_messages",
     "POSE_STAMPED",
     "TRANSFORM_STAMPED",
     "TF_MESSAGE",
     "IMAGE",
+    "COMPRESSED_IMAGE",
     "CAMERA_INFO",
 ]
 
@@ -56,10 +51,10 @@ POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 IMAGE = "sensor_msgs/msg/Image"
+COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 
 _STORAGES = ("sqlite3", "mcap")
-_NS = 1_000_000_000
 
 
 class BagMessage(NamedTuple):
@@ -229,8 +224,6 @@ class TfTree:
     def add_message(self, msg: Any, *, static: bool) -> int:
         """Add every ``TransformStamped`` of a ``tf2_msgs/TFMessage``; returns how many were
         stored (bad ones are counted in ``rejected``, never raised)."""
-        from ..ros.conversions import transform_stamped_to_transform
-
         n = 0
         for tfm in msg.transforms:
             try:
@@ -337,7 +330,7 @@ def message_from_fields(msgtype: str, fields: Mapping[str, Any], *, typestore=No
                         where: str | None = None) -> Any:
     """A ``rosbags`` message of type ``msgtype`` from a nested field dict.
 
-    The dicts are those of :mod:`rwhec_ros.ros.conversions` (``*_fields`` functions); missing
+    The dicts are those of :mod:`rwhec_ros.messages` (``*_fields`` functions); missing
     fields take ROS defaults (zero, empty string, zero-filled fixed arrays, empty sequences),
     ``bytes`` become ``uint8`` arrays. Raises ``ValueError`` for an unknown field or type.
     """
@@ -399,130 +392,3 @@ def write_bag(
                 raise ValueError(f"topic {topic}: {msgtype} after {conn.msgtype}")
             writer.write(conn, int(log_time_ns), store.serialize_cdr(msg, msgtype))
     return path
-
-
-class SimulatedSample(NamedTuple):
-    """One sample of :func:`simulated_stream`: a pose (``camera`` None, ``data`` the measured
-    ``T_world_rig`` (4, 4)) or an image (``data`` the (H, W) uint8 image of ``camera``)."""
-
-    stamp_ns: int
-    camera: str | None
-    data: np.ndarray
-
-
-def simulated_stream(
-    rig,
-    rng: np.random.Generator,
-    *,
-    seconds: float,
-    image_rate_hz: float = 5.0,
-    pose_rate_hz: float = 100.0,
-    pose_noise_m: float = 5e-4,
-    pose_noise_rad: float = 5e-4,
-    image_noise_std: float = 2.0,
-    supersample: int = 2,
-    start_ns: int = _NS,
-) -> Iterator[SimulatedSample]:
-    """The sensor stream of a :class:`~rwhec_ros.simulation.SimulatedRig` in stamp order.
-
-    Poses ``T_world_rig`` (measured: Gaussian noise ``pose_noise_m`` [m] and ``pose_noise_rad``
-    [rad] per axis) every ``1 / pose_rate_hz`` seconds from simulation time 0 to ``seconds``;
-    one image per camera every ``1 / image_rate_hz`` seconds, rendered at the TRUE pose, with
-    stamps half a pose period after a pose (so that the session interpolates ``A``). Stamps are
-    ``start_ns`` + simulation time [ns]; at equal stamps cameras come in ``rig.cameras`` order.
-    """
-    for name, value in (("seconds", seconds), ("image_rate_hz", image_rate_hz),
-                        ("pose_rate_hz", pose_rate_hz)):
-        if not (np.isfinite(value) and value > 0):
-            raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
-    pose_period_ns = int(round(_NS / pose_rate_hz))
-    image_period_ns = int(round(_NS / image_rate_hz))
-    end_ns = int(round(seconds * _NS))
-    poses = [(s, 0) for s in range(0, end_ns + 1, pose_period_ns)]
-    images = [(s, 1) for s in range(pose_period_ns // 2, end_ns, image_period_ns)]
-    for s, kind in sorted(poses + images):
-        t = s / _NS
-        if kind == 0:
-            T = rig.pose_measurement(t, rng, pose_noise_m, pose_noise_rad)
-            yield SimulatedSample(start_ns + s, None, T)
-            continue
-        T_world_rig = rig.T_world_rig(t)
-        for cam in rig.cameras:
-            gray = rig.render(cam, T_world_rig, rng, noise_std=image_noise_std,
-                              supersample=supersample)
-            yield SimulatedSample(start_ns + s, cam, gray)
-
-
-def simulation_messages(
-    rig,
-    samples: Iterable[SimulatedSample],
-    *,
-    pose_source: str = "topic",
-    pose_topic: str | None = None,
-    typestore=None,
-) -> Iterator[tuple[str, str, int, Any]]:
-    """The messages ``rwhec_demo_sim`` would publish for ``samples`` (:func:`simulated_stream`),
-    as ``(topic, msgtype, log_time_ns, msg)`` for :func:`write_bag`; log time = header stamp.
-
-    Poses ``T_world_rig``: ``pose_source="topic"`` a ``PoseStamped`` on ``pose_topic`` (default
-    :data:`~rwhec_ros.simulation.DEMO_POSE_TOPIC`, ``header.frame_id = world``), ``"tf"``
-    ``world -> rig`` on ``/tf``, ``"both"`` both. Images: a camera info and a ``mono8`` image on
-    the camera's demo topics, ``header.frame_id = <camera>_optical``.
-    """
-    from ..ros.conversions import (
-        gray_to_image_fields,
-        intrinsics_to_camera_info_fields,
-        transform_to_pose_stamped_fields,
-        transform_to_transform_stamped_fields,
-    )
-    from ..simulation import (
-        DEMO_POSE_TOPIC,
-        DEMO_RIG_FRAME,
-        DEMO_WORLD_FRAME,
-        demo_camera_topics,
-    )
-
-    if pose_source not in ("topic", "tf", "both"):
-        raise ValueError(f"pose_source: expected 'topic', 'tf' or 'both', got {pose_source!r}")
-    store = typestore if typestore is not None else jazzy_typestore()
-    topic = pose_topic or DEMO_POSE_TOPIC
-    for stamp, cam, data in samples:
-        if cam is None:
-            if pose_source in ("topic", "both"):
-                fields = transform_to_pose_stamped_fields(data, DEMO_WORLD_FRAME, stamp)
-                yield topic, POSE_STAMPED, stamp, message_from_fields(
-                    POSE_STAMPED, fields, typestore=store)
-            if pose_source in ("tf", "both"):
-                fields = transform_to_transform_stamped_fields(
-                    data, DEMO_WORLD_FRAME, DEMO_RIG_FRAME, stamp)
-                yield "/tf", TF_MESSAGE, stamp, message_from_fields(
-                    TF_MESSAGE, {"transforms": [fields]}, typestore=store)
-            continue
-        image_topic, info_topic = demo_camera_topics(cam)
-        frame = f"{cam}_optical"
-        info = intrinsics_to_camera_info_fields(rig.intrinsics[cam], stamp, frame)
-        yield info_topic, CAMERA_INFO, stamp, message_from_fields(
-            CAMERA_INFO, info, typestore=store)
-        yield image_topic, IMAGE, stamp, message_from_fields(
-            IMAGE, gray_to_image_fields(data, stamp, frame), typestore=store)
-
-
-def write_simulated_bag(
-    path: str | Path,
-    rig,
-    rng: np.random.Generator,
-    *,
-    seconds: float,
-    pose_source: str = "topic",
-    pose_topic: str | None = None,
-    storage: str = "sqlite3",
-    **stream_options,
-) -> Path:
-    """Render a :class:`~rwhec_ros.simulation.SimulatedRig` into a rosbag2 recording:
-    :func:`simulated_stream` (``seconds``, ``stream_options``) through
-    :func:`simulation_messages` (``pose_source``, ``pose_topic``) into :func:`write_bag`."""
-    store = jazzy_typestore()
-    samples = simulated_stream(rig, rng, seconds=seconds, **stream_options)
-    messages = simulation_messages(rig, samples, pose_source=pose_source,
-                                   pose_topic=pose_topic, typestore=store)
-    return write_bag(path, messages, storage=storage, typestore=store)

@@ -2,28 +2,43 @@
 
 Run::
 
-    ros2 run rwhec_ros calibrator --ros-args --params-file config/<file>.yaml
+    ros2 run rwhec_ros calibrator --ros-args \
+        --params-file $(ros2 pkg prefix --share rwhec_ros)/config/<file>.yaml
     ros2 service call /calibrate std_srvs/srv/Trigger
 
 Interfaces (relative names, so the node can be namespaced):
 
-* subscribes ``cameras.<name>.image_topic`` (``sensor_msgs/Image``) and
-  ``cameras.<name>.camera_info_topic`` (``sensor_msgs/CameraInfo``) with
-  ``qos_profile_sensor_data`` (``ros.image_qos: reliable`` for a reliable subscription), and
+* subscribes ``cameras.<name>.image_topic`` (``sensor_msgs/Image``; with
+  ``cameras.<name>.image_transport: compressed`` ``sensor_msgs/CompressedImage`` on
+  ``<image_topic>/compressed``) and ``cameras.<name>.camera_info_topic``
+  (``sensor_msgs/CameraInfo``) with
+  best effort like ``qos_profile_sensor_data`` (``ros.image_qos: reliable`` for a reliable
+  subscription), history depth ``ros.image_queue_depth``, and
   ``pose_source.topic`` (``geometry_msgs/PoseStamped``) or, with ``pose_source.type: tf``, looks
   ``T_parent_child`` up on tf at every image stamp (tf2 ``Buffer`` + ``TransformListener``);
 * services ``calibrate``, ``~/reset``, ``~/save_dataset`` (``std_srvs/Trigger``);
 * publishes the extrinsics on ``/tf_static`` (``StaticTransformBroadcaster``, child frames from
   the configuration), ``~/suboptimality_bound`` (``std_msgs/Float64``) and ``~/result``
   (``std_msgs/String``, the result YAML), both transient local, and
-  ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (per-edge pairs and identifiability).
+  ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (session, one row per camera:
+  received / dropped / skipped / searched and transport loss, one row per edge).
+
+Outputs go under ``$ROS_HOME/rwhec_ros`` (``~/.ros/rwhec_ros``) unless ``output.directory``
+says otherwise (:mod:`rwhec_ros.session.paths`); the start-up log and every service answer name
+the absolute directory (:mod:`rwhec_ros.session.responses`). ``ros2 param set`` of a live
+parameter (``solver.*``, ``noise.sigma``/``kappa``, ``keyframe.min_*``, ``output.*``) takes effect
+as :mod:`rwhec_ros.config.live_parameters` says; any other change is refused with the reason.
+Start-up errors and Ctrl-C (also the double SIGINT of ``ros2 launch``) are handled by
+:func:`rwhec_ros.ros.process.run_node_program`: one line, no traceback, exit code 0 on Ctrl-C.
 
 Threading: sensor callbacks (reentrant group) only convert cheap messages or enqueue images;
-tag detection runs on a worker thread fed by a bounded drop-oldest queue; the services have their
-own mutually exclusive group, so ``calibrate`` answers while data keep flowing under a
-``MultiThreadedExecutor``. Everything else is delegated to
+tag detection runs on ``sync.detection_threads`` worker threads fed by a
+:class:`~rwhec_ros.session.FairImageQueue` (one bounded drop-oldest queue per camera, served
+round-robin, one image per camera at a time, each held until the pose at its stamp has arrived);
+the services have their own mutually exclusive group, so ``calibrate`` answers while data keep
+flowing under a ``MultiThreadedExecutor``. Everything else is delegated to
 :class:`~rwhec_ros.session.CalibrationSession` through
-:class:`~rwhec_ros.ros.handlers.MessageHandlers`.
+:class:`~rwhec_ros.session.handlers.MessageHandlers`.
 """
 
 from __future__ import annotations
@@ -32,14 +47,11 @@ import sys
 import threading
 import time
 
-import rclpy
 import tf2_ros
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -49,13 +61,13 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 from rclpy.time import Time
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
 from ..config import DEFAULT_NODE_NAME
-from ..session import CalibrationSession, ImageQueue, QueueWorker
-from .conversions import (
+from ..config.live_parameters import review_changes
+from ..messages import (
     diagnostic_rows,
     fill_message,
     ns_to_stamp_fields,
@@ -63,8 +75,17 @@ from .conversions import (
     transform_stamped_to_transform,
     transform_to_transform_stamped_fields,
 )
-from .handlers import MessageHandlers
+from ..session import CalibrationSession, FairImageQueue, MessageHandlers, QueueWorker
+from ..session.camera_monitor import CameraDiagnostics
+from ..session.paths import node_output_root
+from ..session.responses import (
+    RESET_MESSAGE,
+    calibrate_message,
+    save_dataset_message,
+    should_publish_tf,
+)
 from .params import config_from_node
+from .process import rclpy_main
 
 __all__ = ["CalibratorNode", "main"]
 
@@ -98,7 +119,8 @@ class CalibratorNode(Node):
             self.destroy_node()
             raise
         cfg = self.config
-        self.session = CalibrationSession(cfg)
+        self.output_root = node_output_root(cfg.output.directory)
+        self.session = CalibrationSession(cfg, output_root=self.output_root)
         self._warn_lock = threading.Lock()
         self._warn_last: dict[str, float] = {}
         self._warn_suppressed: dict[str, int] = {}
@@ -108,27 +130,32 @@ class CalibratorNode(Node):
         self._service_group = MutuallyExclusiveCallbackGroup()
         self._timer_group = MutuallyExclusiveCallbackGroup()
 
-        # --- detection off the executor: bounded drop-oldest queue + worker thread ----------
-        self._queue = ImageQueue(cfg.sync.image_queue_size)
+        # --- detection off the executor: per-camera drop-oldest queues + worker threads -------
+        # Images wait in the queue (undecoded) until the session has the pose at their stamp.
+        ready = None if cfg.pose_source.type == "tf" else self._pose_ready
+        self._queue = FairImageQueue(cfg.camera_names, cfg.sync.image_queue_size, ready=ready)
+        self._camera_diagnostics = CameraDiagnostics(cfg.camera_names)
         self._workers = [
             QueueWorker(
                 self._queue, self._process_image, name=f"{node_name}-detection-{i}",
                 on_error=lambda exc: self._warn_throttled(
                     "image_worker_error", f"image worker error: {type(exc).__name__}: {exc}"),
             ).start()
-            for i in range(cfg.sync.detection_threads)
+            for i in range(cfg.detection_thread_count())
         ]
 
         # --- subscriptions ------------------------------------------------------------------------
-        if cfg.ros.image_qos == "sensor_data":
-            image_qos = qos_profile_sensor_data
-        else:
-            image_qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE,
-                                   history=HistoryPolicy.KEEP_LAST)
+        # qos_profile_sensor_data (best effort, volatile, keep last) with the configured depth
+        reliability = (qos_profile_sensor_data.reliability if cfg.ros.image_qos == "sensor_data"
+                       else ReliabilityPolicy.RELIABLE)
+        image_qos = QoSProfile(depth=cfg.ros.image_queue_depth, reliability=reliability,
+                               durability=DurabilityPolicy.VOLATILE,
+                               history=HistoryPolicy.KEEP_LAST)
         for cam in cfg.cameras:
+            compressed = cam.image_transport == "compressed"
             self.create_subscription(
-                Image, cam.image_topic,
-                lambda msg, name=cam.name: self._on_image(name, msg),
+                CompressedImage if compressed else Image, cam.subscribed_topic,
+                lambda msg, name=cam.name, c=compressed: self._on_image(name, msg, c),
                 image_qos, callback_group=self._sensor_group,
             )
             self.create_subscription(
@@ -142,7 +169,7 @@ class CalibratorNode(Node):
             pose_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT,
                                   history=HistoryPolicy.KEEP_LAST)
             self.create_subscription(
-                PoseStamped, cfg.pose_source.topic, self.handlers.on_pose_stamped, pose_qos,
+                PoseStamped, cfg.pose_source.topic, self._on_pose, pose_qos,
                 callback_group=self._sensor_group,
             )
         else:
@@ -164,13 +191,22 @@ class CalibratorNode(Node):
         self._result_pub = self.create_publisher(String, "~/result", latched)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._static_tf = tf2_ros.StaticTransformBroadcaster(self)
-        self.create_timer(cfg.ros.diagnostics_period_s, self._publish_diagnostics,
-                          callback_group=self._timer_group)
+        self._diag_timer = self.create_timer(cfg.ros.diagnostics_period_s,
+                                             self._publish_diagnostics,
+                                             callback_group=self._timer_group)
+
+        # --- run-time parameter changes (after every declaration: declaring calls these too) --
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        post = getattr(self, "add_post_set_parameters_callback", None)  # rclpy >= Iron
+        self._apply_in_post_set = post is not None
+        if post is not None:
+            post(self._on_parameters_set)
         self.get_logger().info(
             f"calibrating cameras {list(cfg.camera_names)} ({cfg.camera_carrier.frame}) and tags "
             f"{list(cfg.tags.ids)} ({cfg.tag_carrier.frame}); poses from "
             f"{cfg.pose_source.type} {cfg.pose_source.parent}->{cfg.pose_source.child}"
             + (f" on {cfg.pose_source.topic}" if cfg.pose_source.type == "topic" else "")
+            + f"; outputs under {self.output_root}"
         )
 
     # --- logging ------------------------------------------------------------------------------
@@ -187,22 +223,77 @@ class CalibratorNode(Node):
         more = f" (+{skipped} similar suppressed)" if skipped else ""
         self.get_logger().warning(text + more)
 
+    # --- parameters ---------------------------------------------------------------------------
+    def _review(self, params):
+        """The verdict on setting ``params`` against the configuration in use."""
+        return review_changes(self.config, {p.name: p.value for p in params})
+
+    def _on_set_parameters(self, params):
+        """Before rclpy stores new values: accept live parameters (validated), refuse the others
+        with the reason (``restart the node to change ...``)."""
+        from rcl_interfaces.msg import SetParametersResult
+
+        review = self._review(params)
+        if not review.accepted:
+            self.get_logger().warning(f"parameter change refused: {review.reason}")
+        elif not self._apply_in_post_set:
+            self._apply(review)
+        return SetParametersResult(successful=review.accepted, reason=review.reason)
+
+    def _on_parameters_set(self, params) -> None:
+        """After rclpy stored accepted values (every callback agreed): use them."""
+        review = self._review(params)
+        if review.accepted:
+            self._apply(review)
+
+    def _apply(self, review) -> None:
+        if not review.changed:
+            return
+        cfg = review.config
+        root = node_output_root(cfg.output.directory)
+        try:
+            self.session.update_config(cfg, output_root=root)
+        except ValueError as exc:  # cannot happen after review_changes; never crash a callback
+            self.get_logger().error(f"parameter change not applied: {exc}")
+            return
+        self.config, self.output_root = cfg, root
+        self.get_logger().info(f"parameters changed: {review.reason}"
+                               + (f"; outputs under {root}"
+                                  if "output.directory" in review.changed else ""))
+
     # --- sensor callbacks ---------------------------------------------------------------------
-    def _on_image(self, camera: str, msg: Image) -> None:
-        if not self._queue.put((camera, msg)):
+    def _on_pose(self, msg: PoseStamped) -> None:
+        self.handlers.on_pose_stamped(msg)
+        self._queue.notify()  # images waiting for this pose may go now
+
+    def _on_image(self, camera: str, msg, compressed: bool) -> None:
+        try:
+            stamp_ns = stamp_to_ns(msg.header.stamp)
+        except (ValueError, TypeError, AttributeError):
+            stamp_ns = None  # rejected and counted by the handlers
+        else:
+            self._camera_diagnostics.record(camera, stamp_ns)
+        if not self._queue.put(camera, (msg, stamp_ns, compressed)):
             self.session.record("image_queue_dropped")
 
-    def _process_image(self, item) -> None:
-        """Worker thread: optional tf lookup at the image stamp, then convert + detect."""
-        camera, msg = item
+    def _pose_ready(self, item) -> bool:
+        stamp_ns = item[1]
+        return stamp_ns is None or self.session.pose_ready(stamp_ns)
+
+    def _process_image(self, entry) -> None:
+        """Worker thread: optional tf lookup at the image stamp, then gate, decode, detect."""
+        camera, (msg, _, compressed) = entry
         T = None
         if self._tf_buffer is not None:
             T = self._lookup_pose(camera, msg)
             if T is None:
                 return
-        self.handlers.on_image(camera, msg, T)
+        if compressed:
+            self.handlers.on_compressed_image(camera, msg, T)
+        else:
+            self.handlers.on_image(camera, msg, T)
 
-    def _lookup_pose(self, camera: str, msg: Image):
+    def _lookup_pose(self, camera: str, msg):
         ps = self.config.pose_source
         try:
             stamp_ns = stamp_to_ns(msg.header.stamp)
@@ -223,16 +314,17 @@ class CalibratorNode(Node):
     # --- services -----------------------------------------------------------------------------
     def _on_calibrate(self, request, response):
         outcome = self.session.calibrate()
+        out = self.config.output
         response.success = bool(outcome.success)
-        response.message = outcome.message
         if not outcome.success:
-            self.get_logger().warning(f"calibrate: {outcome.message}")
+            response.message = calibrate_message(outcome, out, published=False)
+            self.get_logger().warning(f"calibrate: {response.message}")
             return response
         result = outcome.result
         self._bound_pub.publish(Float64(data=float(result.certificate.suboptimality_bound)))
         self._result_pub.publish(String(data=outcome.result_yaml))
-        out = self.config.output
-        if out.publish_tf and (result.certified or out.publish_uncertified):
+        published = should_publish_tf(outcome, out)
+        if published:
             stamp = self.get_clock().now().nanoseconds
             msgs = [
                 fill_message(TransformStamped(),
@@ -240,15 +332,14 @@ class CalibratorNode(Node):
                 for parent, child, T in self.session.published_transforms(result)
             ]
             self._static_tf.sendTransform(msgs)
-        elif out.publish_tf:
-            response.message += "; not published on /tf_static (not certified)"
+        response.message = calibrate_message(outcome, out, published=published)
         self.get_logger().info(f"calibrate: {response.message}")
         return response
 
     def _on_reset(self, request, response):
         self.session.reset()
         response.success = True
-        response.message = "session reset: poses, pairs and counters cleared"
+        response.message = RESET_MESSAGE
         return response
 
     def _on_save_dataset(self, request, response):
@@ -259,7 +350,8 @@ class CalibratorNode(Node):
             response.message = str(exc)
             return response
         response.success = True
-        response.message = path
+        response.message = save_dataset_message(path)
+        self.get_logger().info(f"save_dataset: {response.message}")
         return response
 
     # --- diagnostics --------------------------------------------------------------------------
@@ -273,6 +365,8 @@ class CalibratorNode(Node):
             identifiable=None if report is None else bool(report.identifiable),
             verdict="" if report is None else str(report.verdict),
         )
+        rows[1:1] = self._camera_diagnostics.rows(
+            self.session.camera_counters(), self._queue.stats(), prefix=self.get_name())
         msg = DiagnosticArray()
         fill_message(msg.header, {"stamp": ns_to_stamp_fields(self.get_clock().now().nanoseconds)})
         for row in rows:
@@ -287,32 +381,30 @@ class CalibratorNode(Node):
             )
         self._diag_pub.publish(msg)
 
-    def destroy_node(self) -> None:
+    def stop_activity(self) -> None:
+        """Stop the diagnostics timer and the detection workers (before the executor and the
+        node go away)."""
+        timer = getattr(self, "_diag_timer", None)
+        if timer is not None:
+            timer.cancel()
         for worker in getattr(self, "_workers", ()):
             worker.stop()
+
+    def destroy_node(self) -> None:
+        self.stop_activity()
         super().destroy_node()
 
 
+#: Seconds ``executor.shutdown`` waits for running callbacks (e.g. a solve) when stopping;
+#: ``ros2 launch`` escalates to SIGTERM after 5 s.
+EXECUTOR_SHUTDOWN_TIMEOUT_S = 3.0
+
+
 def main(args=None) -> int:
-    """Console script ``calibrator``: init, spin a MultiThreadedExecutor, shut down cleanly."""
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = CalibratorNode()
-        executor = MultiThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:  # invalid configuration: say which parameter, exit non-zero
-        get_logger(DEFAULT_NODE_NAME).fatal(f"invalid configuration: {exc}")
-        code = 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    """Console script ``calibrator``: init, spin a MultiThreadedExecutor, stop cleanly
+    (:func:`rwhec_ros.ros.process.rclpy_main`)."""
+    return rclpy_main(DEFAULT_NODE_NAME, CalibratorNode, args,
+                      shutdown_timeout_s=EXECUTOR_SHUTDOWN_TIMEOUT_S)
 
 
 if __name__ == "__main__":

@@ -4,8 +4,11 @@ The schema lives in :mod:`rwhec_ros.config` (one source for the node and the CLI
 created with ``automatically_declare_parameters_from_overrides=True``, so every parameter of the
 ``--params-file`` is declared with the type written in the file (unknown names included, which
 :meth:`CalibratorConfig.from_parameters` then rejects by name); :func:`declare_parameters` then
-declares every remaining schema parameter with its typed default, read-only, so that
-``ros2 param list/describe`` shows the whole schema. Parameters without a default (required ones,
+declares every remaining schema parameter with its typed default, so that
+``ros2 param list/describe`` shows the whole schema; each description ends with what a change
+at run time does (:mod:`rwhec_ros.config.live_parameters`). No parameter is declared read-only:
+the node's parameter callback accepts the live ones and refuses the others with the reason
+(rclpy's read-only refusal would not say why). Parameters without a default (required ones,
 empty arrays, ``tags.default_size``) are declared by type only (``Parameter.Type.*``): their value
 stays unset (``None``), which the configuration reads as "absent".
 
@@ -20,8 +23,15 @@ from collections.abc import Collection, Sequence
 from typing import Any
 
 from ..config import CalibratorConfig, is_valid_name, parameter_specs
+from ..config.live_parameters import live_effect
 
-__all__ = ["ROS_TYPE_NAMES", "declaration_plan", "declare_parameters", "config_from_node"]
+__all__ = [
+    "ROS_TYPE_NAMES",
+    "change_note",
+    "declaration_plan",
+    "declare_parameters",
+    "config_from_node",
+]
 
 #: Schema kind -> name of the ``rclpy.Parameter.Type`` member.
 ROS_TYPE_NAMES = {
@@ -32,6 +42,7 @@ ROS_TYPE_NAMES = {
     "int_array": "INTEGER_ARRAY",
     "double_array": "DOUBLE_ARRAY",
     "string_array": "STRING_ARRAY",
+    "int_or_auto": "STRING",  # default "auto"; a file's integer is declared INTEGER from it
 }
 
 
@@ -52,9 +63,15 @@ def declaration_plan(
             default = None
         elif isinstance(default, tuple):
             default = list(default)
-        doc = spec.doc + (" (required)" if spec.required else "")
+        doc = spec.doc + (" (required)" if spec.required else "") + " " + change_note(spec.name)
         plan.append((spec.name, ROS_TYPE_NAMES[spec.kind], default, doc))
     return plan
+
+
+def change_note(name: str) -> str:
+    """``[live: <effect>]`` or ``[restart to change]``, appended to each description."""
+    effect = live_effect(name)
+    return "[restart the node to change]" if effect is None else f"[live: {effect}]"
 
 
 def _declare(node: Any, plan: list[tuple[str, str, Any, str]]) -> None:
@@ -63,7 +80,7 @@ def _declare(node: Any, plan: list[tuple[str, str, Any, str]]) -> None:
 
     for name, type_name, default, doc in plan:
         value = default if default is not None else getattr(Parameter.Type, type_name)
-        node.declare_parameter(name, value, ParameterDescriptor(description=doc, read_only=True))
+        node.declare_parameter(name, value, ParameterDescriptor(description=doc))
 
 
 def declare_parameters(node: Any) -> dict[str, Any]:

@@ -11,23 +11,31 @@ Parameters: ``rate_hz`` (image rate, 5.0), ``pose_rate_hz`` (100.0), ``seed`` (0
 ``pose_noise_m`` / ``pose_noise_rad`` (pose-stream noise per axis, 0.0005), ``image_noise_std``
 (grey levels, 2.0), ``n_cameras`` (3), ``n_tags`` (6). Rendering runs in its own callback group
 so the pose stream keeps its rate under the ``MultiThreadedExecutor``. No maths here: the model
-is :func:`rwhec_ros.simulation.demo_rig`.
+is :func:`rwhec_ros.simulation.demo_rig`. Stopping (Ctrl-C, also under ``ros2 launch``) cancels
+the timers and waits for a running callback before the node is destroyed
+(:func:`rwhec_ros.ros.process.run_node_program`), so nothing publishes on a destroyed publisher.
 """
 
 from __future__ import annotations
 
 import sys
+import threading
 
 import numpy as np
-import rclpy
 import tf2_ros
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
+from ..messages import (
+    fill_message,
+    gray_to_image_fields,
+    intrinsics_to_camera_info_fields,
+    transform_to_pose_stamped_fields,
+    transform_to_transform_stamped_fields,
+)
 from ..simulation import (
     DEMO_POSE_TOPIC,
     DEMO_RIG_FRAME,
@@ -35,15 +43,12 @@ from ..simulation import (
     demo_camera_topics,
     demo_rig,
 )
-from .conversions import (
-    fill_message,
-    gray_to_image_fields,
-    intrinsics_to_camera_info_fields,
-    transform_to_pose_stamped_fields,
-    transform_to_transform_stamped_fields,
-)
+from .process import rclpy_main
 
 __all__ = ["DemoSimulatorNode", "main"]
+
+#: Seconds ``executor.shutdown`` waits for a running render/publish callback when stopping.
+EXECUTOR_SHUTDOWN_TIMEOUT_S = 2.0
 
 
 class DemoSimulatorNode(Node):
@@ -51,6 +56,7 @@ class DemoSimulatorNode(Node):
 
     def __init__(self, node_name: str = "rwhec_demo_sim", **kwargs) -> None:
         super().__init__(node_name, **kwargs)
+        self._stopping = threading.Event()
         rate = float(self.declare_parameter("rate_hz", 5.0).value)
         pose_rate = float(self.declare_parameter("pose_rate_hz", 100.0).value)
         seed = int(self.declare_parameter("seed", 0).value)
@@ -80,10 +86,12 @@ class DemoSimulatorNode(Node):
         self._static_tf = tf2_ros.StaticTransformBroadcaster(self)
         self._publish_truth()
 
-        self.create_timer(1.0 / pose_rate, self._on_pose_timer,
-                          callback_group=MutuallyExclusiveCallbackGroup())
-        self.create_timer(1.0 / rate, self._on_image_timer,
-                          callback_group=MutuallyExclusiveCallbackGroup())
+        self._timers = [
+            self.create_timer(1.0 / pose_rate, self._on_pose_timer,
+                              callback_group=MutuallyExclusiveCallbackGroup()),
+            self.create_timer(1.0 / rate, self._on_image_timer,
+                              callback_group=MutuallyExclusiveCallbackGroup()),
+        ]
         self.get_logger().info(
             f"demo rig: cameras {list(self.rig.cameras)}, tags {list(self.rig.tag_ids)}, "
             f"images at {rate:g} Hz, poses at {pose_rate:g} Hz on {DEMO_POSE_TOPIC}"
@@ -105,7 +113,15 @@ class DemoSimulatorNode(Node):
         ]
         self._static_tf.sendTransform(msgs)
 
+    def stop_activity(self) -> None:
+        """Cancel the timers; callbacks already running return before publishing again."""
+        self._stopping.set()
+        for timer in getattr(self, "_timers", ()):
+            timer.cancel()
+
     def _on_pose_timer(self) -> None:
+        if self._stopping.is_set():
+            return
         stamp = self.get_clock().now().nanoseconds
         T = self.rig.pose_measurement(self._sim_time(stamp), self._pose_rng,
                                       self._pose_noise_m, self._pose_noise_rad)
@@ -116,11 +132,15 @@ class DemoSimulatorNode(Node):
             transform_to_transform_stamped_fields(T, DEMO_WORLD_FRAME, DEMO_RIG_FRAME, stamp)))
 
     def _on_image_timer(self) -> None:
+        if self._stopping.is_set():
+            return
         stamp = self.get_clock().now().nanoseconds
         T_world_rig = self.rig.T_world_rig(self._sim_time(stamp))
         for cam in self.rig.cameras:
             gray = self.rig.render(cam, T_world_rig, self._image_rng,
                                    noise_std=self._image_noise, supersample=2)
+            if self._stopping.is_set():  # rendering takes a while: stop before publishing
+                return
             frame = f"{cam}_optical"
             self._image_pubs[cam].publish(
                 fill_message(Image(), gray_to_image_fields(gray, stamp, frame)))
@@ -130,21 +150,10 @@ class DemoSimulatorNode(Node):
 
 
 def main(args=None) -> int:
-    """Console script ``rwhec_demo_sim``."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = DemoSimulatorNode()
-        executor = MultiThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    """Console script ``rwhec_demo_sim`` (stops cleanly: see
+    :func:`rwhec_ros.ros.process.rclpy_main`)."""
+    return rclpy_main("rwhec_demo_sim", DemoSimulatorNode, args,
+                      shutdown_timeout_s=EXECUTOR_SHUTDOWN_TIMEOUT_S)
 
 
 if __name__ == "__main__":

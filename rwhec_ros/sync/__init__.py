@@ -2,9 +2,11 @@
 
 from .accumulator import PairAccumulator
 from .buffer import LookupStatus, PoseBuffer
+from .edge_pairs import DatasetEdge
 from .interpolation import interpolate_se3, se3_exp, se3_log
 
 __all__ = [
+    "DatasetEdge",
     "LookupStatus",
     "PairAccumulator",
     "PoseBuffer",

@@ -42,7 +42,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..core.problem import DEFAULT_ROTATION_TOL, Edge, Problem, check_transforms
-from ..data.dataset import DatasetEdge
+from .edge_pairs import DatasetEdge
 
 __all__ = ["PairAccumulator", "PairListener"]
 
@@ -296,22 +296,56 @@ class PairAccumulator:
             store = self._edges[key] = _EdgeStore(x, y, self.max_pairs_per_edge)
             self._x_frames.add(x)
             self._y_frames.add(y)
-        if store.n and np.any(store.stamps[: store.n] == stamp):
-            self._counters["duplicate_stamp"] += 1
-            return False
-        if store.last_A is not None and not self._moved(store.last_A, A):
-            self._counters["skipped_no_motion"] += 1
+        refusal = self._refusal(store, stamp, A)
+        if refusal is not None:
+            self._counters[refusal] += 1
             return False
         if store.n < self.max_pairs_per_edge:
             self._append(store, stamp, A, B, sigma, kappa)
-        elif not self._replace_most_redundant(store, stamp, A, B, sigma, kappa):
-            self._counters["dropped_full"] += 1
-            return False
+        else:
+            self._replace_most_redundant(store, stamp, A, B, sigma, kappa)
         store.last_A = A.copy()
         self._counters["kept"] += 1
         for callback in list(self._listeners):
             callback(x, y, A.copy(), B.copy())
         return True
+
+    def _refusal(self, store: _EdgeStore, stamp: int, A: np.ndarray) -> str | None:
+        """The counter of why ``store`` would refuse a pair at ``(stamp, A)`` whatever its ``B``,
+        or None when it would keep it (the keyframe rules of the module docstring)."""
+        if store.n and np.any(store.stamps[: store.n] == stamp):
+            return "duplicate_stamp"
+        if store.last_A is not None and not self._moved(store.last_A, A):
+            return "skipped_no_motion"
+        if store.n >= self.max_pairs_per_edge and self._replacement(store, A) is None:
+            return "dropped_full"
+        return None
+
+    def would_keep(self, x: str, y: str, stamp_ns: int, A: np.ndarray) -> bool:
+        """Whether :meth:`offer` would keep a valid pair of edge ``(x, y)`` at ``(stamp_ns, A)``
+        now; it changes nothing (no counter, no pair).
+
+        The keyframe rules use the stamp and ``A`` only, never ``B``, so this answers before a
+        detector has measured ``B`` (the live session skips tag detection where no edge of the
+        camera would keep a pair). An edge not seen yet would keep its first pair unless
+        ``max_edges`` edges exist already. ``A`` is assumed rigid (:meth:`offer` validates it).
+        """
+        store = self._edges.get((x, y))
+        if store is None:
+            return len(self._edges) < self.max_edges
+        return self._refusal(store, int(stamp_ns), np.asarray(A, dtype=float)) is None
+
+    def _replacement(self, store: _EdgeStore, A: np.ndarray) -> tuple[int, np.ndarray] | None:
+        """For a full edge: ``(r, d)``, the most redundant stored pair ``r`` and the distances
+        ``d`` of ``A`` to the stored pairs (``d[r] = inf``), when replacing ``r`` by ``A``
+        spreads the set better; None otherwise."""
+        n = store.n
+        r = int(np.argmin(store.nn_dist[:n]))
+        d = self._distances(store, A)
+        d[r] = np.inf
+        if not d.min() > store.nn_dist[r]:
+            return None
+        return r, d
 
     def _append(self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float) -> None:
         if store.n == store.slots:
@@ -329,13 +363,10 @@ class PairAccumulator:
 
     def _replace_most_redundant(
         self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float
-    ) -> bool:
+    ) -> None:
+        """Replace the most redundant pair by the new one (``_refusal`` said it spreads)."""
         n = store.n
-        r = int(np.argmin(store.nn_dist[:n]))
-        d = self._distances(store, A)
-        d[r] = np.inf
-        if not d.min() > store.nn_dist[r]:
-            return False
+        r, d = self._replacement(store, A)
         store.write(r, stamp, A, B, sigma, kappa)
         others = np.arange(n) != r
         affected = np.flatnonzero(others & (store.nn_idx[:n] == r))
@@ -350,7 +381,6 @@ class PairAccumulator:
         store.nn_dist[r] = d.min()
         store.nn_idx[r] = int(np.argmin(d))
         self._counters["replaced_redundant"] += 1
-        return True
 
     # --- output --------------------------------------------------------------------------------
     def edges(self) -> dict[tuple[str, str], DatasetEdge]:
@@ -376,6 +406,20 @@ class PairAccumulator:
         return self.max_edges * (
             _BYTES_PER_SLOT * self.max_pairs_per_edge + _BYTES_PER_EDGE_OVERHEAD
         )
+
+    def set_precisions(self, sigma: float, kappa: float) -> int:
+        """Give every kept pair the precisions ``sigma`` [m] and ``kappa`` (paper eq. (14),
+        (16)), e.g. after the stated noise changed; returns the number of pairs changed.
+        Keyframe bookkeeping does not depend on them."""
+        for field_name, value in (("sigma", sigma), ("kappa", kappa)):
+            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value > 0):
+                raise ValueError(f"{field_name}: must be finite and > 0, got {value!r}")
+        n = 0
+        for store in self._edges.values():
+            store.sigma[: store.n] = float(sigma)
+            store.kappa[: store.n] = float(kappa)
+            n += store.n
+        return n
 
     def clear(self) -> None:
         """Forget every pair and edge (counters and listeners are kept)."""

@@ -3,11 +3,15 @@
 Pipeline per image (:meth:`TagDetector.detect`):
 
 1. ``cv2.aruco.ArucoDetector`` with an AprilTag dictionary finds the four corners of each black
-   square (distorted pixels) with the configured corner refinement;
+   square (distorted pixels) with the configured corner refinement
+   (:class:`~rwhec_ros.vision.candidates.CandidateSearch`; on a decimated image for large images,
+   ``DetectorConfig.decimate``);
 2. the corners are undistorted with the camera model (:class:`CameraIntrinsics`) and
-   ``cv2.solvePnPGeneric(..., SOLVEPNP_IPPE_SQUARE)`` returns the (up to two) planar poses; the
-   one with the smaller reprojection error in the *distorted* image is kept and optionally
-   polished with ``cv2.solvePnPRefineLM``;
+   ``cv2.solvePnPGeneric(..., SOLVEPNP_IPPE_SQUARE)`` returns the (up to two) planar poses,
+   each optionally polished with ``cv2.solvePnPRefineLM``; the one with the smaller
+   reprojection error in the *distorted* image is kept unless the two are not clearly
+   separated (the pose flip, :mod:`rwhec_ros.vision.planar_pose`): then a predicted pose decides
+   or the tag is rejected as ``ambiguous_pose``;
 3. gates (tag id in the configuration, apparent size, obliquity, reprojection error) turn a
    detection into a :class:`TagObservation` or a :class:`TagRejection` with its reason;
 4. optionally a translation standard deviation ``sigma`` and a Langevin rotation concentration
@@ -43,15 +47,18 @@ and is meant for relative weighting, not as a calibrated covariance.
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
 import cv2
 import numpy as np
 
+from .candidates import CandidateSearch, check_decimate, decimation_factor
 from .edges import refine_corners_edges
-from .families import _family_key, aruco_dictionary, marker_cells
+from .families import _family_key, marker_cells
 from .intrinsics import CameraIntrinsics
+from .planar_pose import PoseStatus, check_flip_options, solve_planar_pose
 
 __all__ = [
     "TAG_CORNERS_UNIT",
@@ -95,6 +102,8 @@ class RejectReason(str, Enum):
     REPROJECTION_ERROR = "reprojection_error"
     TOO_OBLIQUE = "too_oblique"
     DETECTOR_ERROR = "detector_error"
+    AMBIGUOUS_POSE = "ambiguous_pose"
+    TOO_FEW_CORNERS = "too_few_corners"
 
 
 def tag_object_points(size: float) -> np.ndarray:
@@ -186,7 +195,24 @@ class DetectorConfig:
         Floors of the precision model (defaults 0.1 px, 1 mm, 0.05 degrees).
     detector_parameters : dict[str, float]
         Overrides of ``cv2.aruco.DetectorParameters`` attributes (e.g.
-        ``{"adaptiveThreshWinSizeStep": 20}``); names are checked.
+        ``{"adaptiveThreshWinSizeStep": 20}``); names are checked. They apply to the searched
+        (possibly decimated) image.
+    decimate : int or "auto"
+        Candidate search on the image shrunk by this integer factor, corners refined at full
+        resolution (:mod:`rwhec_ros.vision.candidates`); 1 searches the full image. ``"auto"``
+        (default) picks ``max(W, H) // 600`` (1280x1024 -> 2, 640x480 -> 1). Only the
+        ``"edge"`` and ``"subpix"`` refinements have a full-resolution step; the other modes
+        always search the full image. A factor ``d`` raises the smallest detectable tag about
+        ``d``-fold (``benchmarks/perception.md``).
+    flip_min_ratio : float
+        Pose-flip check (:mod:`rwhec_ros.vision.planar_pose`): a tag whose two IPPE poses
+        reproject within this ratio of each other (``e_alt / e_best``) is ambiguous (default 3;
+        1 disables the check).
+    flip_min_separation_deg : float
+        Two IPPE poses closer than this in rotation count as one (default 2 degrees).
+    flip_prediction_margin : float
+        An ambiguous tag is resolved by a predicted pose when the nearer solution is at most
+        this fraction of the other's angle from it (default 0.75).
     """
 
     family: str = "tag36h11"
@@ -203,6 +229,10 @@ class DetectorConfig:
     sigma_floor_m: float = 1e-3
     rotation_std_floor_deg: float = 0.05
     detector_parameters: dict[str, float] = field(default_factory=dict)
+    decimate: int | str = "auto"
+    flip_min_ratio: float = 3.0
+    flip_min_separation_deg: float = 2.0
+    flip_prediction_margin: float = 0.75
 
     def __post_init__(self) -> None:
         self.family = _family_key(self.family)
@@ -245,6 +275,16 @@ class DetectorConfig:
             if name.startswith("_") or not hasattr(params, name) or callable(getattr(params, name)):
                 raise ValueError(f"detector_parameters has an unknown name {name!r}")
         self.detector_parameters = dict(self.detector_parameters)
+        self.decimate = check_decimate(self.decimate)
+        check_flip_options(self.flip_min_ratio, self.flip_min_separation_deg,
+                           self.flip_prediction_margin, prefix="flip_")
+
+    def decimation_for(self, width: int, height: int) -> int:
+        """The decimation factor used for images of ``width x height`` (1 for refinements
+        without a full-resolution step)."""
+        if self.corner_refinement not in ("edge", "subpix"):
+            return 1
+        return decimation_factor(self.decimate, width, height)
 
     def size_of(self, tag_id: int) -> float | None:
         """Configured size of ``tag_id`` (metres), or None when the tag is not configured."""
@@ -285,6 +325,10 @@ class TagObservation:
         Langevin rotation concentration, cf. eq. (20); None if not estimated.
     size : float
         Tag size used (metres, nominal if the scale is unknown).
+    pose_status : str
+        ``"unique"`` or ``"resolved_by_prediction"`` (:class:`~.planar_pose.PoseStatus`).
+    flip_ratio : float
+        ``e_alt / e_best`` of the two IPPE poses (inf when only one was in front).
     """
 
     tag_id: int
@@ -296,6 +340,8 @@ class TagObservation:
     sigma: float | None
     kappa: float | None
     size: float
+    pose_status: str = PoseStatus.UNIQUE.value
+    flip_ratio: float = float("inf")
 
 
 @dataclass(frozen=True)
@@ -309,10 +355,15 @@ class TagRejection:
 
 @dataclass
 class DetectionResult:
-    """Output of :meth:`TagDetector.detect` (both lists empty when nothing is seen)."""
+    """Output of :meth:`TagDetector.detect` (every list empty when nothing is seen).
+
+    ``skipped`` holds the configured ids that the candidate search found but that were left
+    unexamined because the caller asked only for other ids (``detect(..., only_ids=...)``).
+    """
 
     observations: list[TagObservation] = field(default_factory=list)
     rejections: list[TagRejection] = field(default_factory=list)
+    skipped: list[int] = field(default_factory=list)
 
     def by_id(self) -> dict[int, TagObservation]:
         """Accepted observations keyed by tag id."""
@@ -321,13 +372,6 @@ class DetectionResult:
 
 def _rms(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
-
-
-def _transform(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))[0]
-    T[:3, 3] = np.asarray(tvec, dtype=float).reshape(3)
-    return T
 
 
 class TagDetector:
@@ -343,11 +387,20 @@ class TagDetector:
     def __init__(self, config: DetectorConfig | None = None) -> None:
         self.config = DetectorConfig() if config is None else config
         self._cells = marker_cells(self.config.family)
-        self._detector = cv2.aruco.ArucoDetector(
-            aruco_dictionary(self.config.family), self.config.aruco_parameters()
+        self._search = CandidateSearch(
+            self.config.family,
+            self.config.aruco_parameters(),
+            fixed_min_perimeter="minMarkerPerimeterRate" in self.config.detector_parameters,
         )
 
-    def detect(self, gray: np.ndarray, intrinsics: CameraIntrinsics) -> DetectionResult:
+    def detect(
+        self,
+        gray: np.ndarray,
+        intrinsics: CameraIntrinsics,
+        predicted: Mapping[int, np.ndarray] | None = None,
+        *,
+        only_ids: Collection[int] | None = None,
+    ) -> DetectionResult:
         """Detect tags in an 8-bit grayscale image and estimate their poses.
 
         Parameters
@@ -356,11 +409,20 @@ class TagDetector:
             Image of the camera ``intrinsics`` (see :func:`rwhec_ros.vision.image.image_to_gray`).
         intrinsics : CameraIntrinsics
             Calibration of the camera; its size must match the image.
+        predicted : mapping of int to ndarray (4, 4), optional
+            Predicted ``T_cam_tag`` per tag id (from the current estimate); resolves pose flips
+            (:mod:`rwhec_ros.vision.planar_pose`).
+        only_ids : collection of int, optional
+            Examine only these configured ids: the candidate search runs on the whole image as
+            always, but a configured tag outside ``only_ids`` gets no corner refinement, pose or
+            gates and is listed in ``DetectionResult.skipped`` (the live session passes the tags
+            whose pair the keyframe test could keep). Each tag is examined on its own, so the
+            observations of the ids examined are those of a full ``detect``.
 
         Returns
         -------
         DetectionResult
-            Accepted observations (ascending tag id) and rejections with reasons.
+            Accepted observations (ascending tag id), rejections with reasons and skipped ids.
 
         Raises
         ------
@@ -386,12 +448,36 @@ class TagDetector:
                 TagRejection(-1, RejectReason.DETECTOR_ERROR.value, str(exc).strip()[:200])
             )
             return result
+        return self.estimate_markers(img, ids, corners, intrinsics, predicted, result,
+                                     only_ids=only_ids)
+
+    def estimate_markers(
+        self,
+        gray: np.ndarray,
+        ids: list[int],
+        corners: list[np.ndarray],
+        intrinsics: CameraIntrinsics,
+        predicted: Mapping[int, np.ndarray] | None = None,
+        result: DetectionResult | None = None,
+        *,
+        only_ids: Collection[int] | None = None,
+    ) -> DetectionResult:
+        """The stages after :meth:`detect_markers` (duplicates, refinement, pose, gates) on given
+        markers (ids and corners (4, 2) in distorted pixels) of a validated image; appends to
+        ``result`` (a new one by default); ``only_ids`` as in :meth:`detect`."""
+        result = DetectionResult() if result is None else result
+        img = gray
         if not ids:
             return result
         counts: dict[int, int] = {}
         for tag_id in ids:
             counts[tag_id] = counts.get(tag_id, 0) + 1
+        wanted = None if only_ids is None else {int(i) for i in only_ids}
         for tag_id, quad in sorted(zip(ids, corners, strict=True), key=lambda p: p[0]):
+            if (wanted is not None and tag_id not in wanted
+                    and self.config.size_of(tag_id) is not None):
+                result.skipped.append(tag_id)
+                continue
             quad = np.asarray(quad, dtype=float).reshape(4, 2)
             if counts[tag_id] > 1:
                 result.rejections.append(
@@ -402,7 +488,9 @@ class TagDetector:
                     )
                 )
                 continue
-            outcome = self._estimate(img, tag_id, quad, intrinsics)
+            outcome = self._estimate(
+                img, tag_id, quad, intrinsics, None if predicted is None else predicted.get(tag_id)
+            )
             if isinstance(outcome, TagObservation):
                 result.observations.append(outcome)
             else:
@@ -410,13 +498,11 @@ class TagDetector:
         return result
 
     def detect_markers(self, gray: np.ndarray) -> tuple[list[int], list[np.ndarray]]:
-        """Only the ``cv2.aruco`` stage: tag ids and their corners (4, 2) in distorted pixels,
-        with aruco's own refinement (SUBPIX for ``"edge"``); no gates, no pose."""
-        corners, ids, _ = self._detector.detectMarkers(np.ascontiguousarray(gray))
-        if ids is None or len(ids) == 0:
-            return [], []
-        ids_list = [int(i) for i in np.asarray(ids).reshape(-1)]
-        return ids_list, [np.asarray(c, dtype=float).reshape(4, 2) for c in corners]
+        """Only the candidate search: tag ids and their corners (4, 2) in distorted pixels,
+        with aruco's own refinement (SUBPIX for ``"edge"``, at full resolution also when the
+        search ran on a decimated image, see ``DetectorConfig.decimate``); no gates, no pose."""
+        img = np.ascontiguousarray(gray)
+        return self._search.find(img, self.config.decimation_for(img.shape[1], img.shape[0]))
 
     def solve_pose(
         self, corners: np.ndarray, size: float, intrinsics: CameraIntrinsics
@@ -425,11 +511,17 @@ class TagDetector:
         :data:`TAG_CORNERS_UNIT`): IPPE_SQUARE, plus LM if ``refine_pose``; None if no pose in
         front of the camera. No corner refinement and no gates."""
         quad = np.asarray(corners, dtype=float).reshape(4, 2)
-        return self._solve_pose(quad, intrinsics.undistort_points(quad), float(size), intrinsics)
+        pose = self._solve_pose(quad, intrinsics.undistort_points(quad), float(size), intrinsics)
+        return pose.T
 
     # ------------------------------------------------------------------ one tag
     def _estimate(
-        self, gray: np.ndarray, tag_id: int, quad: np.ndarray, intrinsics: CameraIntrinsics
+        self,
+        gray: np.ndarray,
+        tag_id: int,
+        quad: np.ndarray,
+        intrinsics: CameraIntrinsics,
+        predicted: np.ndarray | None = None,
     ) -> TagObservation | TagRejection:
         cfg = self.config
         size = cfg.size_of(tag_id)
@@ -454,13 +546,14 @@ class TagDetector:
         try:
             if ideal is None:
                 ideal = intrinsics.undistort_points(quad)
-            T = self._solve_pose(quad, ideal, size, intrinsics)
+            pose = self._solve_pose(quad, ideal, size, intrinsics, predicted)
         except (cv2.error, np.linalg.LinAlgError, ValueError) as exc:
             return TagRejection(tag_id, RejectReason.POSE_FAILED.value, str(exc).strip()[:200])
-        if T is None:
-            return TagRejection(
-                tag_id, RejectReason.POSE_FAILED.value, "no pose in front of the camera"
-            )
+        if pose.T is None:
+            return TagRejection(tag_id, RejectReason.POSE_FAILED.value, pose.detail)
+        if pose.status == PoseStatus.AMBIGUOUS:
+            return TagRejection(tag_id, RejectReason.AMBIGUOUS_POSE.value, pose.detail)
+        T = pose.T
         obj = tag_object_points(size)
         rms = _rms(intrinsics.project_points(obj, T), quad)
         t = T[:3, 3]
@@ -500,29 +593,29 @@ class TagDetector:
             sigma=sigma,
             kappa=kappa,
             size=float(size),
+            pose_status=pose.status.value,
+            flip_ratio=pose.ratio,
         )
 
     def _solve_pose(
-        self, quad: np.ndarray, ideal: np.ndarray, size: float, intrinsics: CameraIntrinsics
-    ) -> np.ndarray | None:
-        """IPPE_SQUARE pose (4, 4) from undistorted corners; best of the two planar solutions."""
-        obj = tag_object_points(size)
-        K = np.array(intrinsics.K)
-        n, rvecs, tvecs, _ = cv2.solvePnPGeneric(
-            obj, ideal.reshape(-1, 1, 2), K, None, flags=cv2.SOLVEPNP_IPPE_SQUARE
+        self,
+        quad: np.ndarray,
+        ideal: np.ndarray,
+        size: float,
+        intrinsics: CameraIntrinsics,
+        predicted: np.ndarray | None = None,
+    ):
+        """IPPE_SQUARE poses from undistorted corners and the flip check (``PlanarPose``)."""
+        cfg = self.config
+        return solve_planar_pose(
+            tag_object_points(size),
+            quad,
+            ideal,
+            intrinsics,
+            square=True,
+            refine=cfg.refine_pose,
+            min_ratio=cfg.flip_min_ratio,
+            min_separation_deg=cfg.flip_min_separation_deg,
+            prediction_margin=cfg.flip_prediction_margin,
+            predicted=predicted,
         )
-        best, best_err = None, np.inf
-        for rvec, tvec in zip(rvecs[:n], tvecs[:n], strict=True):
-            if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
-                continue
-            if float(np.asarray(tvec).reshape(3)[2]) <= 0:
-                continue
-            if self.config.refine_pose:
-                rvec, tvec = cv2.solvePnPRefineLM(
-                    obj, ideal.reshape(-1, 1, 2), K, None, rvec.copy(), tvec.copy()
-                )
-            T = _transform(rvec, tvec)
-            err = _rms(intrinsics.project_points(obj, T), quad)
-            if err < best_err:
-                best, best_err = T, err
-        return best

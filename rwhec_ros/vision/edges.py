@@ -32,58 +32,106 @@ from .intrinsics import CameraIntrinsics
 __all__ = ["refine_corners_edges"]
 
 
-def _fit_line(points: np.ndarray) -> tuple[np.ndarray, float] | None:
-    """Total-least-squares line ``n . p = c`` through points (n, 2); None if degenerate."""
-    if points.shape[0] < 3:
-        return None
-    centre = points.mean(axis=0)
-    _, sv, Vt = np.linalg.svd(points - centre, full_matrices=False)
-    if sv[0] <= 0:
-        return None
-    normal = Vt[1]
-    return normal, float(normal @ centre)
+def _fit_lines(
+    points: np.ndarray, weights: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Total-least-squares lines ``n . p = c`` through weighted point sets, all edges at once.
 
+    Parameters
+    ----------
+    points : ndarray, shape (E, N, 2)
+    weights : ndarray, shape (E, N)
+        1 for the points of each set, 0 for padding.
 
-def _fit_line_robust(
-    points: np.ndarray, min_residual_px: float = 0.05, max_candidates: int = 12
-) -> tuple[np.ndarray, float] | None:
-    """Line fit that ignores a minority of bad edge points (occlusions, dirt, glints).
-
-    Least median of squares over the lines through up to ``max_candidates`` evenly spread point
-    pairs ``(i, i + n/2)`` (half an edge apart: well conditioned; deterministic; a contiguous
-    run of bad points spoils only some pairs), then a total-least-squares refit to the points
-    within 3 robust sigmas (``1.4826`` times that median; residuals below ``min_residual_px`` are
-    always kept).
+    Returns
+    -------
+    normals : ndarray, shape (E, 2)
+        Unit normals (eigenvector of the smallest eigenvalue of the scatter matrix).
+    offsets : ndarray, shape (E,)
+    ok : ndarray of bool, shape (E,)
+        At least 3 points and a non-degenerate spread.
     """
-    n = points.shape[0]
-    if n < 6:
-        return _fit_line(points)
+    count = weights.sum(axis=1)
+    centre = np.einsum("en,enk->ek", weights, points) / np.maximum(count, 1.0)[:, None]
+    d = (points - centre[:, None, :]) * np.sqrt(weights)[..., None]
+    scatter = np.einsum("eni,enj->eij", d, d)
+    values, vectors = np.linalg.eigh(scatter)
+    normals = vectors[:, :, 0]
+    ok = (count >= 3) & (values[:, 1] > 0)
+    return normals, np.einsum("ek,ek->e", normals, centre), ok
+
+
+def _fit_lines_robust(
+    points: np.ndarray,
+    valid: np.ndarray,
+    min_residual_px: float = 0.05,
+    max_candidates: int = 12,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Line fits that ignore a minority of bad edge points (occlusions, dirt, glints).
+
+    Per edge: least median of squares over the lines through up to ``max_candidates`` evenly
+    spread pairs ``(i, i + n/2)`` of its ``n`` valid points (half an edge apart: well
+    conditioned; deterministic; a contiguous run of bad points spoils only some pairs), then a
+    total-least-squares refit to the points within 3 robust sigmas (``1.4826`` times that median;
+    residuals below ``min_residual_px`` are always kept). Edges with fewer than 6 valid points,
+    no usable pair or too few inliers (< ``max(3, n/2)``) get the plain fit of all valid points.
+    All edges are processed together (the work per tag is dominated by call overhead).
+
+    Parameters
+    ----------
+    points : ndarray, shape (E, N, 2)
+        Edge points; only those with ``valid`` count, in their order along the edge.
+    valid : ndarray of bool, shape (E, N)
+
+    Returns
+    -------
+    normals (E, 2), offsets (E,), ok (E,) : as :func:`_fit_lines`.
+    """
+    n_edges, n_max = valid.shape
+    rows = np.arange(n_edges)
+    rows2 = rows[:, None]
+    # Valid points first, in their order (stable sort), padding after them.
+    pts = points[rows2, np.argsort(~valid, axis=1, kind="stable")]
+    n = valid.sum(axis=1)
+    is_point = np.arange(n_max) < n[:, None]
+    # Candidate pairs: np.linspace(0, half - 1, k).astype(int) with k = min(half, max_candidates).
     half = n // 2
-    first = np.unique(np.linspace(0, half - 1, min(half, max_candidates)).astype(int))
-    a, b = points[first], points[first + half]
-    d = b - a
-    length = np.linalg.norm(d, axis=1)
-    good = length > 1e-9
-    if not np.any(good):
-        return _fit_line(points)
-    normals = np.stack([-d[good, 1], d[good, 0]], axis=1) / length[good, None]
-    offsets = np.sum(normals * a[good], axis=1)
-    residual = np.abs(points @ normals.T - offsets)  # (n, candidates)
-    med = np.median(residual, axis=0)
-    best = int(np.argmin(med))
-    limit = max(3.0 * 1.4826 * float(med[best]), min_residual_px)
-    keep = residual[:, best] <= limit
-    if np.count_nonzero(keep) < max(3, half):
-        return _fit_line(points)
-    return _fit_line(points[keep])
+    k = np.minimum(half, max_candidates)
+    j = np.arange(max_candidates)
+    step = (half - 1) / np.maximum(k - 1, 1)
+    first = np.where(j == k[:, None] - 1, half[:, None] - 1, (j * step[:, None]).astype(int))
+    first = np.clip(first, 0, np.maximum(half - 1, 0)[:, None])  # (unused candidates j >= k)
+    a = pts[rows2, first]
+    d = pts[rows2, np.minimum(first + half[:, None], n_max - 1)] - a
+    length = np.hypot(d[..., 0], d[..., 1])
+    good = (j < k[:, None]) & (length > 1e-9)
+    normals = d[..., ::-1] * (-1.0, 1.0) / np.where(good, length, 1.0)[..., None]
+    offsets = np.einsum("eck,eck->ec", normals, a)
+    residual = np.abs(np.einsum("enk,eck->enc", pts, normals) - offsets[:, None, :])
+    # Median over each edge's valid points: padding sorts last as +inf.
+    ranked = np.sort(np.where(is_point[..., None], residual, np.inf), axis=1)
+    lo = np.maximum((n - 1) // 2, 0)
+    med = 0.5 * (ranked[rows, lo] + ranked[rows, np.minimum(n // 2, n_max - 1)])
+    med = np.where(good, med, np.inf)
+    best = np.argmin(med, axis=1)
+    limit = np.maximum(3.0 * 1.4826 * med[rows, best], min_residual_px)
+    keep = is_point & (residual[rows, :, best] <= limit[:, None])
+    robust = (n >= 6) & good.any(axis=1) & (keep.sum(axis=1) >= np.maximum(3, half))
+    weights = np.where(robust[:, None], keep, is_point).astype(float)
+    return _fit_lines(pts, weights)
 
 
-def _intersect(l1: tuple[np.ndarray, float], l2: tuple[np.ndarray, float]) -> np.ndarray | None:
-    A = np.array([l1[0], l2[0]])
-    det = np.linalg.det(A)
-    if abs(det) < 1e-9:
-        return None
-    return np.linalg.solve(A, np.array([l1[1], l2[1]]))
+def _intersect(
+    n1: np.ndarray, c1: np.ndarray, n2: np.ndarray, c2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Intersections (E, 2) of lines ``n1 . p = c1`` and ``n2 . p = c2`` (normals (E, 2)), and
+    whether each is well defined (lines not parallel)."""
+    det = n1[:, 0] * n2[:, 1] - n1[:, 1] * n2[:, 0]
+    ok = np.abs(det) >= 1e-9
+    det = np.where(ok, det, 1.0)
+    x = (c1 * n2[:, 1] - c2 * n1[:, 1]) / det
+    y = (n1[:, 0] * c2 - n2[:, 0] * c1) / det
+    return np.column_stack([x, y]), ok
 
 
 def _distort(intrinsics: CameraIntrinsics, ideal: np.ndarray) -> np.ndarray:
@@ -166,18 +214,19 @@ def refine_corners_edges(
     n_per_edge = int(np.clip(np.max(sides) / 2.0, 8, 64))
     fractions = np.linspace(0.12, 0.88, n_per_edge)
     ideal_corners = intrinsics.undistort_points(quad)
+    following = [1, 2, 3, 0]
     for _ in range(max(1, int(iterations))):
         a = ideal_corners
-        b = np.roll(ideal_corners, -1, axis=0)
+        b = ideal_corners[following]
         ideal_pts = (a[:, None, :] + fractions[None, :, None] * (b - a)[:, None, :]).reshape(-1, 2)
         step_dir = np.repeat(b - a, n_per_edge, axis=0)
         # Sample points and local edge directions in the distorted image.
         both = _distort(intrinsics, np.concatenate([ideal_pts, ideal_pts + 1e-3 * step_dir]))
         pts, ahead = both[: len(ideal_pts)], both[len(ideal_pts) :]
         tangent = ahead - pts
-        tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+        tangent /= np.hypot(tangent[:, 0], tangent[:, 1])[:, None]
         # Clockwise quad in image coordinates (y down): the outward normal is (t_y, -t_x).
-        normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
+        normal = tangent[:, ::-1] * (1.0, -1.0)
         samples = pts[:, None, :] + offsets[None, :, None] * normal[:, None, :] - origin
         profiles = cv2.remap(
             crop,
@@ -187,12 +236,10 @@ def refine_corners_edges(
             borderMode=cv2.BORDER_CONSTANT,
             borderValue=-1.0,
         ).astype(float)
-        in_image = (
-            (samples[..., 0] >= 0)
-            & (samples[..., 0] <= crop.shape[1] - 1)
-            & (samples[..., 1] >= 0)
-            & (samples[..., 1] <= crop.shape[0] - 1)
-        ).all(axis=1)
+        # A profile is a straight segment: inside the crop iff both of its ends are.
+        ends_xy = samples[:, [0, -1], :]
+        inside = (ends_xy >= 0.0) & (ends_xy <= (crop.shape[1] - 1, crop.shape[0] - 1))
+        in_image = inside.all(axis=(1, 2))
         dark = profiles[:, :ends].mean(axis=1)
         white = profiles[:, n_off - ends :].mean(axis=1)
         contrast = white - dark
@@ -202,22 +249,18 @@ def refine_corners_edges(
         e = step_px * (g[:, 1:] + g[:, :-1]).sum(axis=1) / 2.0 - h
         ok &= np.abs(e) < h - 0.5 * step_px
         edge_pts = intrinsics.undistort_points(pts + e[:, None] * normal)
-        edge_of = np.repeat(np.arange(4), n_per_edge)
-        lines = []
-        for i in range(4):
-            sel = ok & (edge_of == i)
-            line = _fit_line_robust(edge_pts[sel]) if np.count_nonzero(sel) >= 3 else None
-            if line is None:
-                return None
-            lines.append(line)
-        new = []
-        for i in range(4):
-            c = _intersect(lines[(i - 1) % 4], lines[i])
-            if c is None:
-                return None
-            new.append(c)
-        new_ideal = np.array(new)
-        moved = float(np.max(np.linalg.norm(new_ideal - ideal_corners, axis=1)))
+        normals, line_c, fitted = _fit_lines_robust(
+            edge_pts.reshape(4, n_per_edge, 2), ok.reshape(4, n_per_edge)
+        )
+        if not np.all(fitted):
+            return None
+        # Corner i is where the line of edge i - 1 meets that of edge i.
+        prev = [3, 0, 1, 2]
+        new_ideal, crossed = _intersect(normals[prev], line_c[prev], normals, line_c)
+        if not np.all(crossed):
+            return None
+        shift = new_ideal - ideal_corners
+        moved = float(np.max(np.hypot(shift[:, 0], shift[:, 1])))
         if not np.isfinite(moved) or moved > max(3.0, 0.5 * cell_px):
             return None
         ideal_corners = new_ideal

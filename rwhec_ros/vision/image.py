@@ -12,7 +12,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-__all__ = ["SUPPORTED_ENCODINGS", "image_to_gray"]
+__all__ = ["SUPPORTED_ENCODINGS", "image_to_gray", "mono16_to_mono8"]
 
 #: ROS encoding -> (channels, bytes per channel, cv2 colour conversion or None).
 SUPPORTED_ENCODINGS: dict[str, tuple[int, int, int | None]] = {
@@ -41,6 +41,33 @@ def _positive_int(name: str, value: Any) -> int:
     if isinstance(value, bool) or int(value) != value or int(value) <= 0:
         raise ValueError(f"{name} must be a positive integer, got {value!r}")
     return int(value)
+
+
+def mono16_to_mono8(mono: np.ndarray, shift: int | None = None) -> np.ndarray:
+    """Reduce a 16-bit image to 8 bits by a right shift (values above 255 saturate).
+
+    Parameters
+    ----------
+    mono : ndarray, shape (H, W), uint16
+    shift : int, optional
+        ``None`` picks the smallest shift that fits the image's maximum into 8 bits (so 10/12-bit
+        sensors packed into 16 bit keep their contrast; full-range 16 bit gets 8); else an
+        integer in ``0..8``.
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8
+
+    Raises
+    ------
+    ValueError
+        If ``shift`` is not None or an integer in ``0..8``.
+    """
+    if shift is None:
+        shift = max(0, int(mono.max()).bit_length() - 8)
+    elif isinstance(shift, bool) or int(shift) != shift or not (0 <= int(shift) <= 8):
+        raise ValueError(f"mono16_shift must be an integer in 0..8, got {shift!r}")
+    return np.minimum(mono >> int(shift), 255).astype(np.uint8)
 
 
 def image_to_gray(
@@ -105,18 +132,7 @@ def image_to_gray(
     if depth == 2:
         dtype = np.dtype(">u2") if is_bigendian else np.dtype("<u2")
         mono = np.ascontiguousarray(rows).view(dtype).reshape(height, width).astype(np.uint16)
-        if mono16_shift is None:
-            peak = int(mono.max())
-            shift = max(0, peak.bit_length() - 8)
-        else:
-            if (
-                isinstance(mono16_shift, bool)
-                or int(mono16_shift) != mono16_shift
-                or not (0 <= int(mono16_shift) <= 8)
-            ):
-                raise ValueError(f"mono16_shift must be an integer in 0..8, got {mono16_shift!r}")
-            shift = int(mono16_shift)
-        return np.minimum(mono >> shift, 255).astype(np.uint8)
+        return mono16_to_mono8(mono, mono16_shift)
 
     pixels = rows.reshape(height, width, channels) if channels > 1 else rows
     if conversion is None:

@@ -82,7 +82,8 @@ class CameraIntrinsics:
             raise ValueError(f"K must be finite, got {K.tolist()}")
         if not (K[0, 0] > 0 and K[1, 1] > 0):
             raise ValueError(
-                f"K focal lengths must be positive, got fx={K[0, 0]!r}, fy={K[1, 1]!r}"
+                f"K focal lengths must be positive, got fx={float(K[0, 0])!r}, "
+                f"fy={float(K[1, 1])!r}"
             )
         if K[1, 0] != 0 or not np.allclose(K[2], [0.0, 0.0, 1.0]):
             raise ValueError(

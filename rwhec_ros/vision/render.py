@@ -1,4 +1,4 @@
-"""Synthetic images of AprilTags seen by a calibrated camera (for tests, benchmarks and the demo).
+"""Synthetic images of AprilTags and boards seen by a calibrated camera (tests, benchmarks, demo).
 
 Tag frame (the one :mod:`rwhec_ros.vision.detection` estimates, OpenCV's ``SOLVEPNP_IPPE_SQUARE``
 / ``cv2.aruco`` convention): origin at the centre of the black square, ``x`` to the right and ``y``
@@ -10,6 +10,10 @@ its ray, intersected with the tag plane and given the colour of the cell it hits
 of the ideal piecewise-constant scene); ``supersample**2`` samples per pixel on a rank-1 lattice
 (:func:`sample_offsets`) are averaged (box filter), which anti-aliases the edges. The lookup is
 restricted to the bounding box of the tag's projected outline.
+
+Boards (:class:`RenderedBoard`: an AprilGrid or a ChArUco board of :mod:`rwhec_ros.vision.boards`)
+are drawn the same way in their board frame (centre of the pattern, ``x`` right, ``y`` up, ``z`` out
+of the face), with the board's own :meth:`texture` and a white margin around the pattern.
 """
 
 from __future__ import annotations
@@ -20,10 +24,18 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .boards import AprilGridSpec, CharucoSpec
 from .families import marker_bitmap, marker_cells
 from .intrinsics import CameraIntrinsics
 
-__all__ = ["RenderedTag", "render_tags", "look_at", "tag_outline", "sample_offsets"]
+__all__ = [
+    "RenderedTag",
+    "RenderedBoard",
+    "render_tags",
+    "look_at",
+    "tag_outline",
+    "sample_offsets",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +66,47 @@ class RenderedTag:
             raise ValueError(f"size of tag {self.tag_id} must be positive, got {self.size!r}")
         T.setflags(write=False)
         object.__setattr__(self, "T_cam_tag", T)
+
+
+@dataclass(frozen=True, eq=False)
+class RenderedBoard:
+    """A board to render.
+
+    Attributes
+    ----------
+    board : AprilGridSpec or CharucoSpec
+        Layout (:mod:`rwhec_ros.vision.boards`).
+    T_cam_board : ndarray, shape (4, 4)
+        Pose of the board frame in the camera frame.
+    margin : float or None
+        White margin around the pattern [m] (beyond Kalibr's corner squares for a grid); None:
+        one gap of the grid (at least one tag cell), half a square of a ChArUco board.
+    """
+
+    board: AprilGridSpec | CharucoSpec
+    T_cam_board: np.ndarray
+    margin: float | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.board, (AprilGridSpec, CharucoSpec)):
+            raise ValueError(f"board must be an AprilGridSpec or a CharucoSpec, got "
+                             f"{type(self.board).__name__}")
+        T = np.array(self.T_cam_board, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError(f"T_cam_board must be a finite (4, 4) array, got shape {T.shape}")
+        T.setflags(write=False)
+        object.__setattr__(self, "T_cam_board", T)
+        if self.margin is not None and not (np.isfinite(self.margin) and self.margin >= 0):
+            raise ValueError(f"margin must be >= 0 or None, got {self.margin!r}")
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(x_min, x_max, y_min, y_max)`` of the printed board (pattern and margin) [m]."""
+        margin = self.margin
+        if margin is None:
+            b = self.board
+            margin = (max(b.gap, b.tag_size / b.cells) if isinstance(b, AprilGridSpec)
+                      else 0.5 * b.square_size)
+        return self.board.outline(float(margin))
 
 
 def look_at(
@@ -164,7 +217,7 @@ def _rays(
 
 def render_tags(
     intrinsics: CameraIntrinsics,
-    tags: Sequence[RenderedTag],
+    tags: Sequence[RenderedTag | RenderedBoard],
     family: str = "tag36h11",
     *,
     image: np.ndarray | float | None = None,
@@ -176,20 +229,20 @@ def render_tags(
     white_level: float = 225.0,
     quiet_zone_cells: int = 1,
 ) -> np.ndarray:
-    """Render AprilTags into a grayscale image of the camera ``intrinsics``.
+    """Render AprilTags and boards into a grayscale image of the camera ``intrinsics``.
 
     Parameters
     ----------
     intrinsics : CameraIntrinsics
         Camera (any supported distortion model).
-    tags : sequence of RenderedTag
-        Tags with their poses ``T_cam_tag``; drawn far to near (painter's order: occlusion is
-        exact per sample, except that a nearer tag's boundary pixels mix with the farther
-        content already averaged over the pixel). Tags whose centre is behind the camera, or
-        whose face points away from it, are skipped; the part of a tag behind the camera is
+    tags : sequence of RenderedTag or RenderedBoard
+        Tags and boards with their poses; drawn far to near (painter's order: occlusion is
+        exact per sample, except that a nearer item's boundary pixels mix with the farther
+        content already averaged over the pixel). Items whose centre is behind the camera, or
+        whose face points away from it, are skipped; the part of an item behind the camera is
         not drawn.
     family : str
-        AprilTag family of all tags.
+        AprilTag family of all single tags (boards carry their own dictionary).
     image : ndarray (H, W) or float, optional
         Background: an image of the camera's size (any real dtype, 0..255) or a uniform level;
         default uniform 128.
@@ -203,9 +256,9 @@ def render_tags(
     supersample : int
         Samples per pixel along each axis (>= 1); ``supersample**2`` point samples are averaged.
     black_level, white_level : float
-        Grey levels of the black and white tag cells.
+        Grey levels of the black and white tag cells (and board areas).
     quiet_zone_cells : int
-        Width of the white border around the black square, in cells.
+        Width of the white border around the black square of a single tag, in cells.
 
     Returns
     -------
@@ -232,41 +285,98 @@ def render_tags(
 
     cells = marker_cells(family)
     extent = cells + 2 * int(quiet_zone_cells)
-    order = sorted(tags, key=lambda tag: -float(np.linalg.norm(tag.T_cam_tag[:3, 3])))
-    for tag in order:
-        T = tag.T_cam_tag
+    for item in sorted(tags, key=lambda it: -float(np.linalg.norm(_pose(it)[:3, 3]))):
+        T = _pose(item)
         t = T[:3, 3]
-        normal = T[:3, 2]
-        if t[2] <= 0 or float(normal @ t) >= 0:
+        if t[2] <= 0 or float(T[:3, 2] @ t) >= 0:
             continue  # centre behind the camera, or back face toward the camera
-        bitmap = marker_bitmap(family, tag.tag_id, quiet_zone_cells)
-        levels = np.where(bitmap > 127, white_level, black_level)
-        box = _bounding_box(intrinsics, T, tag_outline(tag.size, extent, cells))
-        if box is None:
-            continue
-        u0, v0, u1, v1 = box
-        xy = _rays(intrinsics, box, offsets)
-        # Ray (x, y, 1) meets the plane {R [a, b, 0] + t}: [a, b, 1] ~ H^-1 [x, y, 1],
-        # H = [r1 r2 t]; the third component is positive in front of the camera.
-        Hinv = np.linalg.inv(np.c_[T[:3, 0], T[:3, 1], t])
-        rays = np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1)
-        abw = rays @ Hinv.T
-        w = abw[..., 2]
-        front = w > 0
-        w_safe = np.where(front, w, 1.0)
-        cell = tag.size / cells
-        half = 0.5 * extent * cell
-        col = np.floor((abw[..., 0] / w_safe + half) / cell)
-        row = np.floor((half - abw[..., 1] / w_safe) / cell)
-        inside = front & (col >= 0) & (col < extent) & (row >= 0) & (row < extent)
-        inside &= np.all(np.isfinite(xy), axis=-1)
-        ci = np.where(inside, col, 0).astype(np.intp)
-        ri = np.where(inside, row, 0).astype(np.intp)
-        samples = np.where(inside, levels[ri, ci], canvas[v0:v1, u0:u1, None])
-        canvas[v0:v1, u0:u1] = samples.mean(axis=-1)
+        if isinstance(item, RenderedBoard):
+            x0, x1, y0, y1 = item.extent()
+            outline = _rectangle_outline(x0, x1, y0, y1)
+            lookup = _board_lookup(item, black_level, white_level)
+        else:
+            outline = tag_outline(item.size, extent, cells)
+            lookup = _tag_lookup(item, family, quiet_zone_cells, black_level, white_level)
+        _draw_plane(canvas, intrinsics, T, outline, offsets, lookup)
 
     if blur_sigma > 0:
         canvas = cv2.GaussianBlur(canvas, (0, 0), sigmaX=float(blur_sigma))
     if noise_std > 0:
         canvas = canvas + rng.normal(0.0, float(noise_std), size=canvas.shape)
     return np.clip(np.rint(canvas), 0, 255).astype(np.uint8)
+
+
+def _pose(item: RenderedTag | RenderedBoard) -> np.ndarray:
+    return item.T_cam_board if isinstance(item, RenderedBoard) else item.T_cam_tag
+
+
+def _rectangle_outline(
+    x0: float, x1: float, y0: float, y1: float, per_edge: int = 16
+) -> np.ndarray:
+    """Points (4 per_edge, 3) along the rectangle ``[x0, x1] x [y0, y1]`` of a plane ``z = 0``."""
+    sx = np.linspace(x0, x1, per_edge + 1)
+    sy = np.linspace(y0, y1, per_edge + 1)
+    xy = np.concatenate([
+        np.c_[sx, np.full_like(sx, y0)],
+        np.c_[sx, np.full_like(sx, y1)],
+        np.c_[np.full_like(sy, x0), sy],
+        np.c_[np.full_like(sy, x1), sy],
+    ])
+    return np.c_[xy, np.zeros(len(xy))]
+
+
+def _tag_lookup(tag: RenderedTag, family: str, quiet_zone_cells: int, black: float,
+                white: float):
+    """``(a, b) -> (levels, inside)`` of one tag with its quiet zone (tag frame, metres)."""
+    levels = np.where(marker_bitmap(family, tag.tag_id, quiet_zone_cells) > 127, white, black)
+    extent = levels.shape[0]
+    cell = tag.size / (extent - 2 * int(quiet_zone_cells))
+    half = 0.5 * extent * cell
+
+    def lookup(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        col = np.floor((a + half) / cell)
+        row = np.floor((half - b) / cell)
+        inside = (col >= 0) & (col < extent) & (row >= 0) & (row < extent)
+        ci = np.where(inside, col, 0).astype(np.intp)
+        ri = np.where(inside, row, 0).astype(np.intp)
+        return levels[ri, ci], inside
+
+    return lookup
+
+
+def _board_lookup(item: RenderedBoard, black: float, white: float):
+    """``(a, b) -> (levels, inside)`` of a board with its white margin (board frame, metres)."""
+    x0, x1, y0, y1 = item.extent()
+
+    def lookup(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        inside = (a >= x0) & (a < x1) & (b >= y0) & (b < y1)
+        values = np.full(a.shape, white)
+        if np.any(inside):
+            values[inside] = np.where(item.board.texture(a[inside], b[inside]) > 0, white, black)
+        return values, inside
+
+    return lookup
+
+
+def _draw_plane(canvas: np.ndarray, intrinsics: CameraIntrinsics, T: np.ndarray,
+                outline: np.ndarray, offsets: np.ndarray, lookup) -> None:
+    """Paint a planar item (pose ``T`` = T_cam_item, texture ``lookup``) into ``canvas``."""
+    box = _bounding_box(intrinsics, T, outline)
+    if box is None:
+        return
+    u0, v0, u1, v1 = box
+    xy = _rays(intrinsics, box, offsets)
+    # Ray (x, y, 1) meets the plane {R [a, b, 0] + t}: [a, b, 1] ~ H^-1 [x, y, 1],
+    # H = [r1 r2 t]; the third component is positive in front of the camera.
+    Hinv = np.linalg.inv(np.c_[T[:3, 0], T[:3, 1], T[:3, 3]])
+    rays = np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1)
+    abw = rays @ Hinv.T
+    w = abw[..., 2]
+    front = (w > 0) & np.all(np.isfinite(xy), axis=-1)
+    w_safe = np.where(front, w, 1.0)
+    a = np.where(front, abw[..., 0] / w_safe, np.inf)
+    b = np.where(front, abw[..., 1] / w_safe, np.inf)
+    levels, inside = lookup(a, b)
+    inside &= front
+    samples = np.where(inside, levels, canvas[v0:v1, u0:u1, None])
+    canvas[v0:v1, u0:u1] = samples.mean(axis=-1)

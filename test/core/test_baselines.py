@@ -9,7 +9,6 @@ import pytest
 
 from rwhec_ros.core.baselines import (
     BASELINES,
-    _dornaika_residuals,
     baseline_names,
     dornaika1998,
     dornaika_cost,
@@ -17,6 +16,7 @@ from rwhec_ros.core.baselines import (
     run_baseline,
     wang2022,
 )
+from rwhec_ros.core.baselines.dornaika import _dornaika_residuals
 from rwhec_ros.core.lie import invert_transform, rotation_distance
 from rwhec_ros.core.synthetic import random_instance, random_transforms
 

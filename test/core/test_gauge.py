@@ -13,28 +13,17 @@ from rwhec_ros.core.lie import invert_transform, make_transform
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import perturb_measurements, random_instance, random_transforms
+from rwhec_ros.core.synthetic import (
+    planar_instance,
+    random_instance,
+    random_transforms,
+)
 
 
 def _planar_rig(rng, M=2, P=2, n=20, sigma=0.01, kappa=125.0, jitter=0.0):
-    """A ground robot: the rig (camera carrier) yaws about the world z axis (+ ``jitter`` rad of
-    tilt) and drives in the xy plane; tags fixed in the world. A = T_rig_world."""
-    X = random_transforms(rng, M)
-    Y = random_transforms(rng, P)
-    edges = []
-    for j in range(M):
-        for k in range(P):
-            yaw = rng.uniform(-np.pi, np.pi, n)
-            tilt = jitter * rng.standard_normal((n, 2))
-            rotvec = np.column_stack([tilt, yaw])
-            T_world_rig = make_transform(Rotation.from_rotvec(rotvec).as_matrix(),
-                                         np.column_stack([rng.uniform(-2, 2, (n, 2)),
-                                                          np.zeros(n)]))
-            A = invert_transform(T_world_rig)
-            B = perturb_measurements(rng, invert_transform(Y[k]) @ A @ X[j], sigma, kappa)
-            edges.append(Edge.build(f"tag_{j}", f"cam{k}", A, B, sigma=sigma, kappa=kappa))
-    problem = Problem([f"tag_{j}" for j in range(M)], [f"cam{k}" for k in range(P)], edges)
-    return problem, X, Y
+    """A ground robot (:func:`planar_instance`): the rig yaws (+ ``jitter`` rad of tilt)."""
+    problem, truth = planar_instance(rng, M, P, n, sigma, kappa, tilt=jitter)
+    return problem, truth.X, truth.Y
 
 
 def _independent_min(problem, rng, starts=20, penalty=None):

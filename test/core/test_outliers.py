@@ -415,6 +415,7 @@ def test_bad_input_raises_naming_the_field():
         robust_solve(single, rng=np.random.default_rng(0))
 
 
+@pytest.mark.slow
 def test_paper_real_world_data_is_kept_and_certified():
     """The paper's published (already RANSAC-cleaned) data: nothing gross left to reject."""
     directory = SHARED / "data" / "paper_real_world"

@@ -185,6 +185,7 @@ def test_fast_certificate_strengthened_on_single_sphere():
     assert fast.certificate.primal_cost == pytest.approx(sdp.certificate.primal_cost, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_real_data_sdp_and_fast_agree():
     """Issue check: on the paper's real data both paths certify and give the same optimum.
     The SDP (arrow form) takes ~7 s on one core."""

@@ -83,6 +83,7 @@ def test_arrow_decomposition_of_a_psd_matrix():
 CHAIN_3X5 = (3, 5, [(0, 0), (0, 1), (1, 1), (1, 2), (2, 2), (2, 3), (0, 4), (2, 4)])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("graph", "unknown_scale"),
                          [(DENSE_4X3, False), (DENSE_4X3, True), (CHAIN_3X5, False)])
 def test_forms_agree(graph, unknown_scale):

@@ -6,6 +6,8 @@ demo simulation's messages on the configured topics and calls the services.
 
 from __future__ import annotations
 
+import contextlib
+import re
 import threading
 import time
 from pathlib import Path
@@ -23,14 +25,15 @@ from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import CameraInfo, Image  # noqa: E402
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image  # noqa: E402
 from std_msgs.msg import Float64, String  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from rwhec_ros.config import read_parameter_file  # noqa: E402
-from rwhec_ros.ros.conversions import (  # noqa: E402
+from rwhec_ros.messages import (  # noqa: E402
     fill_message,
+    gray_to_compressed_image_fields,
     gray_to_image_fields,
     intrinsics_to_camera_info_fields,
     transform_to_pose_stamped_fields,
@@ -59,10 +62,11 @@ def context():
         rclpy.try_shutdown(context=ctx)
 
 
-@pytest.fixture
-def running(context, tmp_path):
-    """(calibrator node, helper node, executor) with the executor spinning in a thread."""
-    node = CalibratorNode(context=context, parameter_overrides=overrides(tmp_path))
+@contextlib.contextmanager
+def spinning(context, params):
+    """(calibrator node with ``params``, helper node, executor), the executor spinning in a
+    thread."""
+    node = CalibratorNode(context=context, parameter_overrides=params)
     helper = Node("rwhec_test_helper", context=context)
     executor = MultiThreadedExecutor(context=context)
     executor.add_node(node)
@@ -76,6 +80,13 @@ def running(context, tmp_path):
         node.destroy_node()
         helper.destroy_node()
         thread.join(5.0)
+
+
+@pytest.fixture
+def running(context, tmp_path):
+    """(calibrator node, helper node, executor) with the executor spinning in a thread."""
+    with spinning(context, overrides(tmp_path)) as started:
+        yield started
 
 
 def call(helper: Node, name: str, timeout: float = 60.0):
@@ -122,6 +133,82 @@ def test_parameters_declared_with_typed_defaults(context, tmp_path):
 def test_invalid_configuration_names_the_parameter(context, tmp_path, changes, name):
     with pytest.raises(ValueError, match=name):
         CalibratorNode(context=context, parameter_overrides=overrides(tmp_path, **changes))
+
+
+def test_parameter_declarations_are_not_read_only(context, tmp_path):
+    # refusals come from the node's callback, with the reason, not from rclpy's read-only check
+    node = CalibratorNode(context=context, parameter_overrides=overrides(tmp_path))
+    try:
+        d = node.describe_parameter("sync.pose_buffer_size")
+        assert not d.read_only and d.description.endswith("[restart the node to change]")
+        assert node.describe_parameter("noise.from_reprojection").read_only is False
+    finally:
+        node.destroy_node()
+
+
+def test_parameter_callback_refuses_restart_only_and_applies_live(context, tmp_path,
+                                                                   monkeypatch):
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "ros_home"))
+    node = CalibratorNode(context=context, parameter_overrides=overrides(tmp_path))
+    try:
+        [res] = node.set_parameters([Parameter("cameras.names", value=["cam0"])])
+        assert not res.successful
+        assert res.reason.startswith("restart the node to change cameras.names: ")
+        assert list(node.get_parameter("cameras.names").value) == ["cam0", "cam1", "cam2"]
+        [res] = node.set_parameters([Parameter("sync.pose_buffer_size", value=10)])
+        assert not res.successful and "restart the node" in res.reason
+        assert node.get_parameter("sync.pose_buffer_size").value == 4000
+        [res] = node.set_parameters([Parameter("solver.min_pairs", value=0)])
+        assert not res.successful and "solver.min_pairs: must be >= 1" in res.reason
+        assert node.get_parameter("solver.min_pairs").value == 3
+
+        [res] = node.set_parameters([Parameter("solver.min_pairs", value=1000)])
+        assert res.successful, res.reason
+        assert node.get_parameter("solver.min_pairs").value == 1000
+        assert node.config.solver.min_pairs == 1000
+        assert node.session.config.solver.min_pairs == 1000  # used by the next calibrate
+        assert "solver.min_pairs=1000" in node.session.calibrate().message
+
+        [res] = node.set_parameters([Parameter("output.directory", value="rig1")])
+        assert res.successful, res.reason
+        assert node.output_root == tmp_path / "ros_home" / "rwhec_ros" / "rig1"
+        assert node.session.output_root == node.output_root
+        [res] = node.set_parameters([Parameter("use_sim_time", value=True)])
+        assert res.successful  # ROS's own parameters are not ours to refuse
+    finally:
+        node.destroy_node()
+
+
+def test_default_output_root_is_under_ros_home(context, tmp_path, monkeypatch):
+    monkeypatch.setenv("ROS_HOME", str(tmp_path / "ros_home"))
+    node = CalibratorNode(context=context,
+                          parameter_overrides=overrides(tmp_path, **{"output.directory": ""}))
+    try:
+        assert node.output_root == tmp_path / "ros_home" / "rwhec_ros"
+    finally:
+        node.destroy_node()
+
+
+def test_shipped_file_applies_under_a_namespace(context, tmp_path):
+    # the node /rig1/calibrator gets the '/**' section of config/demo.yaml (issue 17, item 1)
+    node = CalibratorNode(context=context, namespace="rig1", cli_args=[
+        "--ros-args", "--params-file", str(DEMO_YAML), "-p", f"output.directory:={tmp_path}"])
+    try:
+        assert node.get_fully_qualified_name() == "/rig1/calibrator"
+        assert node.config.camera_names == ("cam0", "cam1", "cam2")
+        assert node.output_root == tmp_path
+    finally:
+        node.destroy_node()
+
+
+def test_main_with_unreadable_params_file_is_one_line(capsys):
+    from rwhec_ros.ros.node import main
+
+    code = main(["calibrator", "--ros-args", "--params-file", "no/such/params.yaml"])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "cannot start ROS" in err and "parameter file 'no/such/params.yaml' not found" in err
 
 
 def test_calibrate_without_data_answers_false(running):
@@ -177,6 +264,8 @@ def test_feed_topics_and_calibrate(running, tmp_path):
     response = call(helper, "/calibrate")
     assert response.success, response.message
     assert "CERTIFIED" in response.message
+    # the answer names the absolute output directory
+    assert re.search(rf"; files in {re.escape(str(tmp_path))}/calibration_\S+$", response.message)
     assert wait_for(lambda: received["bound"] and received["result"] and received["tf"])
     assert received["bound"][-1].data < 1e-4  # certified: relative suboptimality below tol
     children = {t.child_frame_id for m in received["tf"] for t in m.transforms}
@@ -184,5 +273,51 @@ def test_feed_topics_and_calibrate(running, tmp_path):
     assert wait_for(lambda: received["diag"])
     status = received["diag"][-1].status[0]
     assert isinstance(status.level, bytes) and len(status.level) == 1
-    assert call(helper, "/calibrator/save_dataset").success
+    saved = call(helper, "/calibrator/save_dataset")
+    assert saved.success and saved.message.startswith(f"data set written: {tmp_path}/dataset_")
     assert any(Path(node.config.output.directory).rglob("result.yaml"))
+
+
+def test_compressed_camera_fair_queue_and_camera_rows(context, tmp_path):
+    """cam1 on compressed transport: the node subscribes <image_topic>/compressed, decodes,
+    counts per camera, and publishes one /diagnostics row per camera."""
+    params = overrides(tmp_path, **{"cameras.cam1.image_transport": "compressed",
+                                    "sync.detection_threads": 2})
+    with spinning(context, params) as (node, helper, _):
+        assert len(node._workers) == 2
+        rig = demo_rig()
+        reliable = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+        pose_pub = helper.create_publisher(PoseStamped, DEMO_POSE_TOPIC, reliable)
+        topic, info_topic = demo_camera_topics("cam1")
+        image_pub = helper.create_publisher(CompressedImage, topic + "/compressed", reliable)
+        info_pub = helper.create_publisher(CameraInfo, info_topic, reliable)
+        diag = []
+        helper.create_subscription(DiagnosticArray, "/diagnostics", diag.append, 10)
+        assert wait_for(lambda: image_pub.get_subscription_count() > 0
+                        and pose_pub.get_subscription_count() > 0)
+        t0 = 1000 * NS
+        for i in range(10):
+            t = 0.2 * i
+            for k in range(20):
+                tp = t + 0.01 * k
+                pose_pub.publish(fill_message(PoseStamped(), transform_to_pose_stamped_fields(
+                    rig.pose_measurement(tp), "world", t0 + int(round(tp * NS)))))
+            stamp = t0 + int(round((t + 0.05) * NS))
+            info_pub.publish(fill_message(CameraInfo(), intrinsics_to_camera_info_fields(
+                rig.intrinsics["cam1"], stamp, "cam1_optical")))
+            gray = rig.render("cam1", rig.T_world_rig(t + 0.05), supersample=1)
+            fields = gray_to_compressed_image_fields(gray, stamp, "cam1_optical")
+            if i == 9:
+                fields["data"] = fields["data"][:1000]  # truncated: counted, not raised
+            image_pub.publish(fill_message(CompressedImage(), fields))
+            time.sleep(0.05)
+        assert wait_for(lambda: node.session.camera_counters()["cam1"]["images"] >= 8,
+                        timeout=30.0)
+        assert wait_for(lambda: node.session.counters().get("bad_image_message", 0) == 1,
+                        timeout=30.0)
+        assert wait_for(lambda: any(s.name == "calibrator: camera cam1"
+                                    for m in diag for s in m.status), timeout=10.0)
+        row = next(s for m in reversed(diag) for s in m.status
+                   if s.name == "calibrator: camera cam1")
+        values = {kv.key: kv.value for kv in row.values}
+        assert int(values["received"]) >= 8 and "skipped_no_motion" in values

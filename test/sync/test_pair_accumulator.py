@@ -118,6 +118,37 @@ def test_full_edge_replaces_most_redundant_and_counts():
     np.testing.assert_array_equal(e.B, B[idx])
 
 
+def test_would_keep_predicts_every_offer_without_changing_anything():
+    """``would_keep`` (stamp and A only) answers exactly what ``offer`` then does, through every
+    rule: first pair, no motion, duplicate stamp, full edge (replace or drop), max_edges."""
+    rng = np.random.default_rng(12)
+    n, cap = 400, 12
+    # A slow random walk: about half the steps move less than the keyframe thresholds.
+    steps = [random_transforms(rng, 1)[0]]
+    for _ in range(n - 1):
+        d = make_transform(so3_exp(rng.normal(0.0, 1.5 * DEG, 3)), rng.normal(0.0, 0.006, 3))
+        steps.append(steps[-1] @ d)
+    A = np.stack(steps)
+    B = pairs_for(rng, A)
+    acc = PairAccumulator(max_pairs_per_edge=cap, max_edges=2)
+    edges = [("t0", "c"), ("t1", "c"), ("t2", "c")]  # the third is beyond max_edges
+    outcomes = set()
+    for i in range(n):
+        x, y = edges[i % 3]
+        stamp = i - 3 * (i % 7 == 6)  # every 7th: the stamp of the same edge's previous offer
+        before = (acc.counters(), acc.counts())
+        predicted = acc.would_keep(x, y, stamp, A[i])
+        assert (acc.counters(), acc.counts()) == before  # nothing changed
+        kept = acc.offer(x, y, stamp, A[i], B[i], 0.01, 100.0)
+        assert predicted == kept, i
+        outcomes.add(next(k for k, v in acc.counters().items() if v != before[0][k]
+                          and k != "offered"))
+    # every rule was exercised
+    assert outcomes >= {"kept", "skipped_no_motion", "dropped_full", "dropped_max_edges",
+                        "duplicate_stamp"}
+    assert acc.counters()["replaced_redundant"] > 0
+
+
 def test_memory_bound_respected():
     rng = np.random.default_rng(3)
     max_pairs, max_edges, n_offer = 130, 3, 160
@@ -241,3 +272,25 @@ def test_edges_are_dataset_records_with_the_accumulator_tolerance():
     np.testing.assert_array_equal(ds.edges[0].A, A)
     with pytest.raises(ValueError, match=r"edge \(tag_0, cam_0\) A\[0\]: rotation block"):
         DatasetEdge("tag_0", "cam_0", e.stamps_ns, e.A, e.B, e.sigma, e.kappa)
+
+
+def test_set_precisions_rewrites_every_kept_pair_only():
+    rng = np.random.default_rng(5)
+    A = random_transforms(rng, 12)  # random poses: every one is a keyframe
+    B = pairs_for(rng, A)
+    acc = PairAccumulator()
+    for i in range(6):
+        acc.offer("tag_0", "cam_0", i * MS, A[i], B[i], 0.005, 400.0)
+        acc.offer("tag_1", "cam_0", i * MS, A[i + 6], B[i + 6], 0.005, 400.0)
+    assert acc.set_precisions(0.02, 50.0) == 12
+    for e in acc.edges().values():
+        assert np.all(e.sigma == 0.02) and np.all(e.kappa == 50.0)
+    acc.offer("tag_0", "cam_0", 10 * MS, A[0] @ make_transform(so3_exp([0.3, 0, 0]),
+                                                                np.zeros(3)), B[0], 0.007, 90.0)
+    e = acc.edges()[("tag_0", "cam_0")]
+    assert e.sigma[-1] == 0.007 and e.kappa[-1] == 90.0  # later pairs keep their own values
+    problem, _ = acc.to_problem(min_pairs=1)
+    assert sorted(set(np.concatenate([x.sigma for x in problem.edges]))) == [0.007, 0.02]
+    for bad, name in [((0.0, 1.0), "sigma"), ((0.01, np.inf), "kappa")]:
+        with pytest.raises(ValueError, match=name):
+            acc.set_precisions(*bad)

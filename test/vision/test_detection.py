@@ -116,7 +116,9 @@ def test_oblique_tag_is_rejected_with_reason():
 
 
 def test_tiny_tag_is_rejected_with_reason():
-    detector = TagDetector(DetectorConfig(default_tag_size=SIZE))
+    # Full-resolution search: a decimated one does not see an 18 px tag at all
+    # (test_candidates.py).
+    detector = TagDetector(DetectorConfig(default_tag_size=SIZE, decimate=1))
     T = np.diag([1.0, -1.0, -1.0, 1.0])
     T[:3, 3] = [0.0, 0.0, 9.0]  # 160 mm at 9 m: about 18 px
     result = detector.detect(render(CAM, [T]), CAM)
@@ -147,6 +149,28 @@ def test_unconfigured_id_and_per_id_sizes():
     np.testing.assert_allclose(
         obs.T_cam_tag[:3, 3], 2.0 * result.by_id()[4].T_cam_tag[:3, 3], atol=1e-6
     )
+
+
+def test_only_ids_examines_those_tags_exactly_as_a_full_detect():
+    base = viewed_from(20.0, 0.0)
+    poses = []
+    for shift in (0.0, 0.3, -0.3):
+        T = base.copy()
+        T[:3, 3] += base[:3, :3] @ [shift, 0.0, 0.0]
+        poses.append(T)
+    img = render(CAM, poses, ids=[4, 9, 11])
+    detector = TagDetector(DetectorConfig(tag_sizes={4: SIZE, 9: SIZE}))
+    full = detector.detect(img, CAM)
+    part = detector.detect(img, CAM, only_ids=[9, 30])
+    assert [o.tag_id for o in part.observations] == [9]
+    assert part.skipped == [4]  # configured, found, not asked for
+    # an unconfigured id is still rejected by name (cheap, and counted by the session)
+    assert [(r.tag_id, r.reason) for r in part.rejections] == [(11, "not_in_configuration")]
+    assert full.skipped == []
+    # The same numbers as the full detection: each tag is refined and solved on its own.
+    np.testing.assert_array_equal(part.by_id()[9].T_cam_tag, full.by_id()[9].T_cam_tag)
+    np.testing.assert_array_equal(part.by_id()[9].corners, full.by_id()[9].corners)
+    assert detector.detect(img, CAM, only_ids=()).observations == []
 
 
 def test_duplicate_ids_are_rejected():
@@ -263,6 +287,8 @@ def test_bad_input_raises_value_error():
         (dict(max_reprojection_rms_px=-1.0), "max_reprojection_rms_px"),
         (dict(min_side_px=-1.0), "min_side_px"),
         (dict(detector_parameters={"noSuchParameter": 1}), "noSuchParameter"),
+        (dict(decimate=0), "decimate"),
+        (dict(decimate="half"), "decimate"),
     ],
 )
 def test_config_validation(kwargs, field):

@@ -88,6 +88,13 @@ def test_validation_names_the_field(overrides, field):
         CameraIntrinsics.from_camera_info(camera_info(**overrides))
 
 
+def test_focal_length_error_prints_plain_numbers():
+    # numpy 2 reprs a scalar as np.float64(0.0); the message must read the same on numpy 1 and 2
+    with pytest.raises(ValueError) as info:
+        CameraIntrinsics.from_camera_info(camera_info(k=[0.0, 0, 639.5, 0, -5, 511.5, 0, 0, 1]))
+    assert "fx=0.0, fy=-5.0" in str(info.value) and "np." not in str(info.value)
+
+
 def test_arrays_are_read_only_and_equality_compares_values():
     cam = CameraIntrinsics.from_camera_info(camera_info())
     with pytest.raises(ValueError):

@@ -4,9 +4,16 @@ import numpy as np
 import pytest
 
 from rwhec_ros.core.lie import invert_transform
+from rwhec_ros.vision.boards import AprilGridSpec, CharucoSpec
 from rwhec_ros.vision.families import APRILTAG_FAMILIES, marker_bitmap, marker_cells
 from rwhec_ros.vision.intrinsics import CameraIntrinsics
-from rwhec_ros.vision.render import RenderedTag, look_at, render_tags, sample_offsets
+from rwhec_ros.vision.render import (
+    RenderedBoard,
+    RenderedTag,
+    look_at,
+    render_tags,
+    sample_offsets,
+)
 
 BLACK, WHITE, BACKGROUND = 30.0, 225.0, 128.0
 
@@ -158,3 +165,32 @@ def test_every_family_has_bitmaps_with_a_quiet_zone(family):
     assert np.all(bitmap[2, 2:-2] == 0)  # the black border row
     with pytest.raises(ValueError, match="tag_id"):
         marker_bitmap(family, 100000)
+
+
+def test_face_on_charuco_board_equals_opencvs_drawing():
+    """f = 1000 px, board at 1 m, principal point at a pixel corner: 1 px per mm, so a ChArUco
+    board of 40 mm squares and 24 mm markers (4 px cells) renders exactly as OpenCV draws it,
+    inside a white margin of half a square."""
+    c = CharucoSpec(5, 4, square_size=0.04, marker_size=0.024, dictionary="DICT_4X4_50")
+    cam = CameraIntrinsics.pinhole(300, 240, 1000.0, cx=149.5, cy=119.5)
+    img = render_tags(cam, [RenderedBoard(c, face_on())], supersample=2)
+    drawn = c.cv2_board().generateImage((200, 160), marginSize=0)
+    expected = np.where(drawn > 127, WHITE, BLACK).astype(np.uint8)
+    np.testing.assert_array_equal(img[40:200, 50:250], expected)
+    assert np.all(img[20:40, 30:270] == WHITE) and np.all(img[200:220, 30:270] == WHITE)
+    assert np.all(img[:20] == BACKGROUND) and np.all(img[:, :30] == BACKGROUND)
+
+
+def test_rendered_board_validation():
+    g = AprilGridSpec(2, 2, 0.1)
+    with pytest.raises(ValueError, match="board"):
+        RenderedBoard("grid", face_on())
+    with pytest.raises(ValueError, match="T_cam_board"):
+        RenderedBoard(g, np.eye(3))
+    with pytest.raises(ValueError, match="margin"):
+        RenderedBoard(g, face_on(), margin=-0.1)
+    # Default margin: one gap (0.03 m) beyond the corner squares (another gap).
+    x0, x1, y0, y1 = RenderedBoard(g, face_on()).extent()
+    # 1e-12: sums of exact decimals.
+    assert x1 == pytest.approx(0.5 * g.width + 2 * g.gap, abs=1e-12) and x0 == -x1
+    assert y1 == pytest.approx(0.5 * g.height + 2 * g.gap, abs=1e-12) and y0 == -y1

@@ -1,0 +1,49 @@
+"""``rwhec-calibrate``: offline calibration from files, rosbag2 recordings and a simulation.
+
+No ROS is needed. Every solving subcommand prints the summary of the node's ``calibrate`` service
+(certified?, ``rho_hat``, each frame's estimate ``parent->child``, edges excluded and why) and
+writes the session's output files into one directory: ``result.yaml`` (``certified``,
+``suboptimality_bound``, ``scale``, ``frames``, ``timing_s``, ``identifiability``, ``config``,
+...), ``static_transforms.launch.py`` (``static_transform_publisher`` nodes), ``dataset.yaml`` and,
+with ``--report``, ``report.png``/``report.html`` (:mod:`rwhec_ros.report`). ``-o DIR`` names that
+directory (existing files refused unless ``--force``); without it a new
+``calibration_<UTC stamp>`` directory under the configuration's ``output.directory`` (else
+``rwhec_output``). Every written file is printed as ``<what>: <path>``.
+
+Subcommands (shared options: ``-o DIR``, ``--force``, ``--config FILE``, ``--node-name NAME``,
+``--mode fast|sdp|local``, ``--min-pairs N``, ``--robust``, ``--report``, ``-q``)::
+
+    rwhec-calibrate csv DIR [shared] [--sigma S] [--kappa K] [--unknown-scale]
+                            [--camera-carrier FRAME] [--tag-carrier FRAME]
+    rwhec-calibrate bag BAG --config FILE [shared]
+    rwhec-calibrate dataset FILE [shared] [--camera-carrier FRAME] [--tag-carrier FRAME]
+    rwhec-calibrate demo [shared] [--cameras N] [--tags N] [--seconds S] [--rate HZ] [--seed S]
+    rwhec-calibrate report RESULT.yaml [--dataset FILE] [-o DIR] [--force]
+
+``csv`` reads the paper's layout (:func:`rwhec_ros.data.paper_csv.read_paper_csv`; tags
+``tag_<j>`` are X, cameras ``cam_<k>`` are Y; defaults sigma 0.1 m, kappa 125, 3 pairs per edge
+as the authors). ``bag`` feeds a rosbag2 recording (sqlite3 or mcap) message by message, in log
+time order, into a :class:`~rwhec_ros.session.CalibrationSession` through the node's
+:class:`~rwhec_ros.session.handlers.MessageHandlers`, with the same configuration file as the node
+(PoseStamped topic, or ``/tf`` + ``/tf_static`` looked up at each image stamp). Unlike the node,
+images are processed synchronously (none is dropped) and the tf lookup sees the whole recording
+(the node waits ``sync.tf_timeout_s``). ``dataset`` solves a saved data set
+(:mod:`rwhec_ros.data.dataset`). ``demo`` runs the simulated rig of :mod:`rwhec_ros.simulation`
+through rendering, detection, synchronisation and the solver, and compares with the truth.
+
+Exit codes: 0 certified solution; 1 solution found but not certified (files are written);
+2 bad input (the message names the file and line or the parameter); 3 no solution (not enough
+data, solver failure).
+
+Modules: :mod:`.parser` (options and help), :mod:`.common` (output rule, settings, solving),
+:mod:`.files` (``csv``, ``dataset``, ``report``), :mod:`.replay` (``bag``, ``demo``),
+:mod:`.main` (dispatch).
+"""
+
+from .common import EXIT_BAD_INPUT, EXIT_CERTIFIED, EXIT_NO_SOLUTION, EXIT_NOT_CERTIFIED
+from .main import main
+from .parser import build_parser
+from .replay import demo_parameters
+
+__all__ = ["main", "build_parser", "demo_parameters", "EXIT_CERTIFIED", "EXIT_NOT_CERTIFIED",
+           "EXIT_BAD_INPUT", "EXIT_NO_SOLUTION"]

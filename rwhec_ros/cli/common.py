@@ -1,0 +1,373 @@
+"""What every subcommand shares: exit codes, printing, options, the output directory, the solve.
+
+One rule for outputs: ``-o DIR`` receives ``result.yaml``, ``static_transforms.launch.py``,
+``dataset.yaml`` (+ ``dataset.npz``) and, with ``--report``, ``report.png``/``report.html``;
+existing files are refused before any work unless ``--force``. Without ``-o`` the files go into a
+new ``calibration_<UTC stamp>`` directory under the configuration's ``output.directory`` (else
+:data:`DEFAULT_OUTPUT`), as the node writes them. Every written path is printed as
+``<what>: <path>``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+import yaml
+
+__all__ = [
+    "EXIT_CERTIFIED",
+    "EXIT_NOT_CERTIFIED",
+    "EXIT_BAD_INPUT",
+    "EXIT_NO_SOLUTION",
+    "PROG",
+    "MODES",
+    "DEFAULT_OUTPUT",
+    "BadInput",
+    "NoSolution",
+    "Printer",
+    "Progress",
+    "SolveSettings",
+    "check_positive",
+    "solver_overrides",
+    "prior_overrides",
+    "config_from_parameters",
+    "read_config",
+    "output_paths",
+    "refuse_existing",
+    "solve_and_write",
+    "calibrate_session",
+    "write_report",
+]
+
+EXIT_CERTIFIED = 0
+EXIT_NOT_CERTIFIED = 1
+EXIT_BAD_INPUT = 2
+EXIT_NO_SOLUTION = 3
+
+PROG = "rwhec-calibrate"
+MODES = ("fast", "sdp", "local")
+#: Output root when no configuration names one (its ``output.directory``): ``./rwhec_output``,
+#: :data:`rwhec_ros.session.paths.DEFAULT_OUTPUT` (a literal here: the session package is slow
+#: to import and ``--help`` should not wait for it).
+DEFAULT_OUTPUT = "rwhec_output"
+
+
+class BadInput(Exception):
+    """Bad input for the CLI: printed without a traceback, exit code 2."""
+
+
+class NoSolution(Exception):
+    """No solution (e.g. not enough data): the message is printed on stdout, exit code 3."""
+
+
+class Printer:
+    """Where the CLI talks: ``out`` for results, ``err`` for progress (unless quiet) and errors."""
+
+    def __init__(self, out: TextIO, err: TextIO, *, quiet: bool = False) -> None:
+        self.out, self.err, self.quiet = out, err, quiet
+
+    def __call__(self, text: str = "") -> None:
+        print(text, file=self.out)
+
+    def summary(self, message: str) -> None:
+        """The session's one-line summary, one ``;``-separated part per line."""
+        for part in message.split("; "):
+            print(part, file=self.out)
+
+    def files(self, files: Mapping[str, str | Path]) -> None:
+        """Every written file as ``<what>: <path>``."""
+        for key, path in files.items():
+            print(f"{key}: {path}", file=self.out)
+
+    def progress(self, text: str) -> None:
+        """A progress line on stderr (not with ``-q``)."""
+        if not self.quiet:
+            print(text, file=self.err)
+
+    def warning(self, command: str, text: str) -> None:
+        print(f"{PROG} {command}: warning: {text}", file=self.err)
+
+
+class Progress:
+    """Progress bar on stderr (a terminal only; elsewhere one line at the end)."""
+
+    def __init__(self, err: TextIO, label: str, *, enabled: bool = True) -> None:
+        self.err, self.label = err, label
+        self.tty = enabled and hasattr(err, "isatty") and err.isatty()
+        self.enabled = enabled
+        self.t0 = time.monotonic()
+        self.last = -1.0
+        self.done = self.total = 0
+
+    def __call__(self, done: int, total: int) -> None:
+        self.done, self.total = done, total
+        now = time.monotonic()
+        if not self.tty or (now - self.last < 0.2 and done < total):
+            return
+        self.last = now
+        frac = done / total if total else 1.0
+        bar = "#" * int(30 * frac)
+        self.err.write(f"\r{self.label} [{bar:<30}] {100 * frac:5.1f}% {done}/{total} messages, "
+                       f"{now - self.t0:.1f} s")
+        self.err.flush()
+
+    def close(self) -> None:
+        if not self.enabled:
+            return
+        if self.tty:
+            self.err.write("\n")
+        self.err.write(f"{self.label}: {self.done} messages in {time.monotonic() - self.t0:.1f} s"
+                       "\n")
+        self.err.flush()
+
+
+def check_positive(name: str, value: float) -> None:
+    if not (np.isfinite(value) and value > 0):
+        raise BadInput(f"{name}: must be finite and > 0, got {value!r}")
+
+
+# ------------------------------------------------------------------------------------------------
+# settings: command line over configuration over defaults
+
+
+def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The flat parameters that ``--mode``, ``--min-pairs`` and ``--robust`` set (those given)."""
+    if args.min_pairs is not None and args.min_pairs < 1:
+        raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
+    out: dict[str, Any] = {}
+    if args.mode is not None:
+        out["solver.mode"] = args.mode
+    if args.min_pairs is not None:
+        out["solver.min_pairs"] = int(args.min_pairs)
+    if args.robust:
+        out["solver.reject_outliers"] = True
+    return out
+
+
+def prior_overrides(args: argparse.Namespace, base: Mapping[str, Any]) -> dict[str, Any]:
+    """``priors.*`` parameters: those of ``base`` with every ``--prior FRAME.AXIS=VALUE`` added
+    or replacing the same frame and axis ({} without ``--prior``)."""
+    given = getattr(args, "prior", None)
+    if not given:
+        return {}
+    entries = dict(((f, a), float(x)) for f, a, x in zip(
+        base.get("priors.frames", ()), base.get("priors.axes", ()),
+        base.get("priors.values_m", ()), strict=False))
+    for text in given:
+        left, sep, value = str(text).partition("=")
+        frame, dot, axis = left.strip().rpartition(".")
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not sep or not dot or not frame or axis not in ("x", "y", "z") or \
+                not math.isfinite(number):
+            raise BadInput(f"--prior: expected FRAME.AXIS=VALUE with AXIS x, y or z and a "
+                           f"number in metres (e.g. cam0.z=0.45), got {text!r}")
+        entries[(frame, axis)] = number
+    return {"priors.frames": [f for f, _ in entries], "priors.axes": [a for _, a in entries],
+            "priors.values_m": list(entries.values())}
+
+
+@dataclass(frozen=True)
+class SolveSettings:
+    """Solver settings and output root of one run: the command line, else the (possibly partial)
+    flat ``parameters`` of a configuration, else the schema's defaults."""
+
+    mode: str
+    min_pairs: int
+    robust: bool
+    output_root: str
+    priors: tuple[tuple[str, str, float], ...] = ()
+    unobservable_std_m: float = 1.0
+    min_scale: float = 0.01
+
+    @staticmethod
+    def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
+        from ..session.paths import plain_output_root
+
+        p = {**dict(parameters), **solver_overrides(args)}
+        p.update(prior_overrides(args, p))
+        priors = tuple(zip(p.get("priors.frames", ()), p.get("priors.axes", ()),
+                           (float(x) for x in p.get("priors.values_m", ())), strict=False))
+        return SolveSettings(mode=str(p.get("solver.mode", "fast")),
+                             min_pairs=int(p.get("solver.min_pairs", 3)),
+                             robust=bool(p.get("solver.reject_outliers", False)),
+                             output_root=str(plain_output_root(p.get("output.directory", ""))),
+                             priors=priors,
+                             unobservable_std_m=float(p.get("solver.unobservable_std_m", 1.0)),
+                             min_scale=float(p.get("solver.min_scale", 0.01)))
+
+    def parameters(self) -> dict[str, Any]:
+        """The ``solver.*`` and ``priors.*`` parameters of these settings."""
+        return {"solver.mode": self.mode, "solver.min_pairs": self.min_pairs,
+                "solver.reject_outliers": self.robust,
+                "solver.unobservable_std_m": self.unobservable_std_m,
+                "solver.min_scale": self.min_scale,
+                "priors.frames": [f for f, _, _ in self.priors],
+                "priors.axes": [a for _, a, _ in self.priors],
+                "priors.values_m": [x for _, _, x in self.priors]}
+
+
+def config_from_parameters(flat: Mapping[str, Any], where: str):
+    """A validated :class:`~rwhec_ros.config.CalibratorConfig`; errors name ``where``."""
+    from ..config import CalibratorConfig
+
+    try:
+        return CalibratorConfig.from_parameters(flat)
+    except ValueError as exc:
+        raise BadInput(f"{where}: {exc}") from None
+
+
+def read_config(args: argparse.Namespace, overrides: Mapping[str, Any] | None = None):
+    """``--config FILE`` (section ``--node-name``) with ``overrides``, validated; None without
+    ``--config``."""
+    from ..config import read_parameter_file
+
+    if args.config is None:
+        return None
+    flat = read_parameter_file(args.config, args.node_name)
+    flat.update(overrides or {})
+    flat.update(prior_overrides(args, flat))
+    return config_from_parameters(flat, f"config file {str(args.config)!r}")
+
+
+# ------------------------------------------------------------------------------------------------
+# outputs
+
+
+def refuse_existing(targets: Iterable[Path], force: bool) -> None:
+    """``BadInput`` naming the existing ``targets`` unless ``force`` (the message of
+    :func:`rwhec_ros.data.results.write_outputs`)."""
+    existing = [str(p) for p in targets if p.exists()]
+    if existing and not force:
+        raise BadInput(f"refusing to overwrite existing file(s) {existing} "
+                       "(use --force to overwrite)")
+
+
+def output_dir(args: argparse.Namespace) -> Path | None:
+    """``-o DIR`` checked to be usable as a directory, or None."""
+    if args.output is None:
+        return None
+    d = Path(args.output)
+    if d.exists() and not d.is_dir():
+        raise BadInput(f"-o/--output: {str(d)!r} exists and is not a directory")
+    if not d.exists() and d.suffix.lower() in (".yaml", ".yml"):
+        raise BadInput(f"-o/--output: expects a directory (it receives result.yaml, the launch "
+                       f"file, the data set and the report), got {str(d)!r}")
+    return d
+
+
+def output_paths(args: argparse.Namespace, *, report: bool):
+    """The files of ``-o DIR`` (None without ``-o``), checked before any work: existing ones are
+    refused unless ``--force``."""
+    from ..data.results import session_output_paths
+
+    d = output_dir(args)
+    if d is None:
+        return None
+    paths = session_output_paths(d)
+    targets = [paths.result, paths.launch, paths.dataset, paths.dataset.with_suffix(".npz")]
+    if report:
+        targets += [paths.report_png, paths.report_html]
+    refuse_existing(targets, args.force)
+    return paths
+
+
+def write_report(say: Printer, doc: dict, problem, png: Path, html: Path, ident=None) -> None:
+    """The report PNG and HTML page (:mod:`rwhec_ros.report`), printed like the other files."""
+    from ..report import write_report as _write
+
+    png.parent.mkdir(parents=True, exist_ok=True)
+    files = _write(doc, problem, png, html, identifiability=ident)
+    say.files({"report": files.png, "report page": files.html})
+
+
+# ------------------------------------------------------------------------------------------------
+# solving
+
+
+def solve_and_write(
+    say: Printer,
+    problem,
+    dataset,
+    naming,
+    paths,
+    settings: SolveSettings,
+    *,
+    excluded: dict[str, str],
+    config: dict[str, Any],
+    source: dict[str, Any],
+    force: bool,
+    report: bool,
+) -> int:
+    """Solve ``problem`` and write the outputs as the session does (``csv`` and ``dataset``);
+    ``paths`` None: a new directory under ``settings.output_root``."""
+    from ..data.results import new_output_dir, result_document, session_output_paths, write_outputs
+    from ..session import solve_problem, static_transforms_launch, summary
+    from ..session.solving import analyze_at_solution
+
+    frames = list(dataset.y_names) + list(dataset.x_names)
+    for f, a, x in settings.priors:
+        if f not in frames:
+            raise BadInput(f"prior {f}.{a}={x:g}: no frame {f!r} in the data; frames: {frames}")
+    say.progress(f"solving: {problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
+                 f"{settings.mode}" + (", outlier rejection" if settings.robust else ""))
+    try:
+        result, dropped, _ = solve_problem(problem, mode=settings.mode,
+                                           reject_outliers=settings.robust,
+                                           priors=settings.priors,
+                                           unobservable_std_m=settings.unobservable_std_m,
+                                           min_scale=settings.min_scale)
+    except Exception as exc:  # noqa: BLE001 - reported, exit code 3
+        say(f"solver failed: {type(exc).__name__}: {exc}")
+        return EXIT_NO_SOLUTION
+    excluded.update(dropped)
+    ident = analyze_at_solution(problem, result)
+    doc = result_document(result, naming, excluded=excluded,
+                          identifiability=None if ident is None else ident.to_dict(),
+                          config=config, source=source)
+    c = result.certificate
+    launch = static_transforms_launch(naming.transforms(result), header=(
+        f"certified: {result.certified}, suboptimality bound {c.suboptimality_bound:.3g}, "
+        f"from {source.get('type', '?')} {source.get('path', '')}"))
+    if paths is None:
+        paths = session_output_paths(new_output_dir(settings.output_root))
+    files = write_outputs(paths, result_yaml=yaml.safe_dump(doc, sort_keys=False),
+                          launch_text=launch, dataset=dataset, force=force)
+    say.summary(summary(result, problem, excluded, naming))
+    say.files(files)
+    if report:
+        write_report(say, doc, problem, paths.report_png, paths.report_html, ident)
+    return EXIT_CERTIFIED if result.certified else EXIT_NOT_CERTIFIED
+
+
+def calibrate_session(say: Printer, session, paths, *, force: bool,
+                      report: bool) -> tuple[int, Any]:
+    """``session.calibrate()`` into ``paths`` (None: the session's new directory), printed; the
+    report from the written data set (``bag`` and ``demo``)."""
+    from ..data.dataset import Dataset
+    from ..data.results import session_output_paths
+
+    solver = session.config.solver
+    say.progress(f"solving: {session.counters().get('pairs_kept', 0)} pairs kept, mode "
+                 f"{solver.mode}" + (", outlier rejection" if solver.reject_outliers else ""))
+    outcome = session.calibrate(None if paths is None else paths.result.parent, force=force)
+    say.summary(outcome.message)
+    if not outcome.success:
+        return EXIT_NO_SOLUTION, outcome
+    say.files(outcome.files)
+    if report and "dataset" in outcome.files and "result" in outcome.files:
+        problem = Dataset.load(outcome.files["dataset"]).to_problem(min_pairs=solver.min_pairs)
+        written = session_output_paths(Path(outcome.files["result"]).parent)
+        write_report(say, yaml.safe_load(outcome.result_yaml), problem, written.report_png,
+                     written.report_html)
+    code = EXIT_CERTIFIED if outcome.result.certified else EXIT_NOT_CERTIFIED
+    return code, outcome

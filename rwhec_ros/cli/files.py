@@ -1,0 +1,136 @@
+"""Subcommands that solve data read from files: ``csv`` (the paper's layout), ``dataset`` (a saved
+data set) and ``report`` (the report of a written result)."""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from .common import (
+    EXIT_CERTIFIED,
+    BadInput,
+    NoSolution,
+    Printer,
+    SolveSettings,
+    check_positive,
+    config_from_parameters,
+    output_dir,
+    output_paths,
+    read_config,
+    refuse_existing,
+    solve_and_write,
+    write_report,
+)
+
+__all__ = ["cmd_csv", "cmd_dataset", "cmd_report"]
+
+
+def _with_carriers(naming, args: argparse.Namespace):
+    """``naming`` with the parents of ``--camera-carrier`` / ``--tag-carrier`` where given."""
+    frames = dict(naming.frames)
+    for names, carrier in ((naming.y_names, args.camera_carrier),
+                           (naming.x_names, args.tag_carrier)):
+        if carrier is not None:
+            frames.update({n: (carrier, frames[n][1]) for n in names})
+    return replace(naming, frames=frames)
+
+
+def _problem(data, min_pairs: int):
+    """The data set's problem and the edges below ``min_pairs`` left out (``excluded``);
+    :class:`~.common.NoSolution` when no edge is left."""
+    excluded = {f"({e.x}, {e.y})": f"{e.n} pairs < min_pairs={min_pairs}"
+                for e in data.edges if e.n < min_pairs}
+    try:
+        return data.to_problem(min_pairs=min_pairs), excluded
+    except ValueError as exc:
+        raise NoSolution(f"not enough data: {exc}") from None
+
+
+def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
+    from ..data.dataset import Dataset
+    from ..data.paper_csv import read_paper_csv
+    from ..data.results import FrameNaming
+
+    config = read_config(args)
+    params: dict[str, Any] = {} if config is None else config.to_parameters()
+    settings = SolveSettings.resolve(args, params)
+    sigma = args.sigma if args.sigma is not None else (config.noise.sigma if config else 0.1)
+    kappa = args.kappa if args.kappa is not None else (config.noise.kappa if config else 125.0)
+    check_positive("--sigma", sigma)
+    check_positive("--kappa", kappa)
+    unknown_scale = bool(args.unknown_scale or (config and config.tags.unknown_scale))
+    camera_carrier = args.camera_carrier or (config.camera_carrier.frame if config else "rig")
+    tag_carrier = args.tag_carrier or (config.tag_carrier.frame if config else "world")
+    paths = output_paths(args, report=args.report)  # refuse early, before any work
+    # all edges first (min_pairs=1), so that the edges left out can be reported
+    everything = read_paper_csv(args.directory, sigma=sigma, kappa=kappa, min_pairs=1,
+                                unknown_scale=unknown_scale)
+    naming = FrameNaming.from_carriers(
+        everything.x_names, everything.y_names, camera_carrier=camera_carrier,
+        tag_carrier=tag_carrier, suffix=config.output.frame_suffix if config else "_calibrated")
+    source = {"type": "paper_csv", "path": str(args.directory)}
+    carriers = {n: p for n, (p, _) in naming.frames.items()}
+    dataset = Dataset.from_problem(everything, metadata={"source": source}, carriers=carriers)
+    problem, excluded = _problem(dataset, settings.min_pairs)
+    used = {
+        "camera_carrier.frame": camera_carrier,
+        "tag_carrier.frame": tag_carrier,
+        "tags.unknown_scale": unknown_scale,
+        "noise.sigma": float(sigma),
+        "noise.kappa": float(kappa),
+        **settings.parameters(),
+    }
+    return solve_and_write(say, problem, dataset, naming, paths, settings, excluded=excluded,
+                           config=used, source=source, force=args.force, report=args.report)
+
+
+def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
+    from ..data.dataset import Dataset
+    from ..data.results import FrameNaming
+
+    config = read_config(args)
+    paths = output_paths(args, report=args.report)  # refuse early, before any work
+    data = Dataset.load(args.file)
+    if config is None:
+        params = dict(data.metadata.get("config") or {})
+        if params:
+            config = config_from_parameters(params, f"{args.file}: metadata.config")
+    else:
+        params = config.to_parameters()
+    settings = SolveSettings.resolve(args, params)
+    if config is not None:
+        naming = _with_carriers(FrameNaming.from_config(config), args)
+    else:
+        naming = _with_carriers(FrameNaming.from_carriers(
+            data.x_names, data.y_names, camera_carrier="rig", tag_carrier="world",
+            carriers=data.carriers), args)
+        params = {"camera_carrier.frame": args.camera_carrier or "rig",
+                  "tag_carrier.frame": args.tag_carrier or "world",
+                  "tags.unknown_scale": data.unknown_scale}
+    params.update(settings.parameters())
+    problem, excluded = _problem(data, settings.min_pairs)
+    return solve_and_write(say, problem, data, naming, paths, settings, excluded=excluded,
+                           config=params, source={"type": "dataset", "path": str(args.file)},
+                           force=args.force, report=args.report)
+
+
+def cmd_report(args: argparse.Namespace, say: Printer) -> int:
+    from ..data.dataset import Dataset
+    from ..data.results import load_result, output_paths, session_output_paths
+
+    doc = load_result(args.result)
+    # beside the result: the session layout (.../result.yaml) or an explicit OUT.yaml layout
+    beside = (session_output_paths(args.result.parent) if args.result.name == "result.yaml"
+              else output_paths(args.result))
+    data_path = args.dataset or beside.dataset
+    if not data_path.exists():
+        raise BadInput(f"{data_path}: no data set (give it with --dataset)")
+    out = output_dir(args)
+    target = beside if out is None else session_output_paths(out)
+    refuse_existing([target.report_png, target.report_html], args.force)
+    min_pairs = int((doc.get("config") or {}).get("solver.min_pairs", 1))
+    problem = Dataset.load(data_path).to_problem(min_pairs=min_pairs)
+    write_report(say, doc, problem, Path(target.report_png), Path(target.report_html))
+    return EXIT_CERTIFIED

@@ -1,0 +1,143 @@
+"""The argument parser of ``rwhec-calibrate``: one set of shared options, one help style.
+
+Every solving subcommand (``csv``, ``bag``, ``dataset``, ``demo``) takes the same options with the
+same meaning: ``-o/--output DIR``, ``--force``, ``--config FILE`` (``--node-name``), ``--mode``,
+``--min-pairs``, ``--robust``, ``--report`` and ``-q/--quiet``; ``report`` takes ``-o`` and
+``--force``. Help texts end with ``(default: ...)``; a default that comes from the configuration
+reads "the configuration's <parameter>, else <value>".
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .. import __version__
+from .common import DEFAULT_OUTPUT, MODES, PROG
+
+__all__ = ["build_parser"]
+
+_OUTPUT_HELP = (
+    "directory that receives result.yaml, static_transforms.launch.py, dataset.yaml and (with "
+    "--report) report.png/.html; existing files are refused unless --force (default: a new "
+    "calibration_<UTC stamp> directory under the configuration's output.directory, else "
+    f"{DEFAULT_OUTPUT}/)"
+)
+
+
+def _add_output(p: argparse.ArgumentParser, help_text: str = _OUTPUT_HELP) -> None:
+    p.add_argument("-o", "--output", metavar="DIR", type=Path, default=None, help=help_text)
+    p.add_argument("--force", action="store_true",
+                   help="overwrite existing files in the output directory (default: refuse)")
+
+
+def _add_config(p: argparse.ArgumentParser, help_text: str, *, required: bool = False) -> None:
+    p.add_argument("--config", type=Path, metavar="FILE", required=required, default=None,
+                   help=help_text)
+    p.add_argument("--node-name", metavar="NAME", default=None,
+                   help="the node whose sections of the configuration file apply, by ROS's rule "
+                        "('/**', '/**/NAME', '/NAME'); a fully qualified /NS/NAME gives the "
+                        "namespace (default: the file's only section, else calibrator)")
+
+
+def _add_solver(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--mode", choices=MODES, default=None,
+                   help="solver mode (default: the configuration's solver.mode, else fast)")
+    p.add_argument("--min-pairs", type=int, default=None, metavar="N",
+                   help="leave out edges with fewer pairs (default: the configuration's "
+                        "solver.min_pairs, else 3)")
+    p.add_argument("--robust", action="store_true",
+                   help="reject outliers first: per-edge RANSAC on eq. (70), then GNC-TLS "
+                        "(default: the configuration's solver.reject_outliers, else off)")
+    p.add_argument("--prior", action="append", default=None, metavar="FRAME.AXIS=VALUE",
+                   help="a known translation component [m] of a frame in its carrier, e.g. "
+                        "cam0.z=0.45 (repeatable); fixes a translation the data do not "
+                        "determine, such as heights on a ground robot (default: the "
+                        "configuration's priors.*, else none)")
+    p.add_argument("--report", action="store_true",
+                   help="also write report.png and report.html (default: off)")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress output on stderr (default: off)")
+
+
+def _add_carriers(p: argparse.ArgumentParser, *, stored: bool = False) -> None:
+    also = ", else the data set's carrier of each frame" if stored else ""
+    p.add_argument("--camera-carrier", default=None, metavar="FRAME",
+                   help="frame the cameras (Y) are published in (default: the configuration's "
+                        f"camera_carrier.frame{also}, else rig)")
+    p.add_argument("--tag-carrier", default=None, metavar="FRAME",
+                   help="frame the tags (X) are published in (default: the configuration's "
+                        f"tag_carrier.frame{also}, else world)")
+
+
+def _add_solving(sub, name: str, help_text: str, positional: tuple[str, str, str] | None,
+                 config_help: str, *, config_required: bool = False) -> argparse.ArgumentParser:
+    """A solving subcommand: its positional argument ``(dest, metavar, help)`` and the shared
+    options."""
+    p = sub.add_parser(name, help=help_text)
+    if positional is not None:
+        dest, metavar, text = positional
+        p.add_argument(dest, metavar=metavar, type=Path, help=text)
+    _add_output(p)
+    _add_config(p, config_help, required=config_required)
+    _add_solver(p)
+    return p
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``rwhec-calibrate`` (subcommands csv, bag, dataset, demo, report)."""
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="Certifiably globally optimal robot-world/hand-eye calibration "
+                    "(A_i X_j = Y_k B_i) without ROS.",
+        epilog="Exit codes: 0 certified, 1 not certified, 2 bad input, 3 no solution.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = _add_solving(sub, "csv", "the paper's CSV layout (tag_<j>_cam_<k>_A.csv / _B.csv)",
+                     ("directory", "DIR", "directory of tag_<j>_cam_<k>_A.csv / _B.csv files"),
+                     "take the noise, carriers, scale, solver and output settings from a node "
+                     "parameter file (default: none)")
+    p.add_argument("--sigma", type=float, default=None,
+                   help="translation std of B [m] (default: the configuration's noise.sigma, "
+                        "else 0.1 as the authors)")
+    p.add_argument("--kappa", type=float, default=None,
+                   help="Langevin concentration of the B rotations (default: the "
+                        "configuration's noise.kappa, else 125.0)")
+    p.add_argument("--unknown-scale", action="store_true",
+                   help="estimate a common scale of the B translations, paper Problem 3 "
+                        "(default: the configuration's tags.unknown_scale, else off)")
+    _add_carriers(p)
+
+    _add_solving(sub, "bag", "a rosbag2 recording (sqlite3 or mcap) with the node's config",
+                 ("bag", "BAG", "rosbag2 directory (sqlite3 or mcap)"),
+                 "the node's parameter file, e.g. config/demo.yaml (required)",
+                 config_required=True)
+
+    p = _add_solving(sub, "dataset", "a data set saved by the session or the CLI",
+                     ("file", "FILE", "dataset.yaml written by the node or the CLI"),
+                     "a node parameter file to use instead of the configuration stored in the "
+                     "data set (default: the stored one, if any)")
+    _add_carriers(p, stored=True)
+
+    p = _add_solving(sub, "demo", "simulated mobile rig: render, detect, sync, solve, compare",
+                     None, "calibrator settings (noise, sync, keyframe, detection, solver, "
+                     "output) from a node parameter file; the rig's frames, topics and tags stay "
+                     "the simulation's (default: the values of config/demo.yaml)")
+    p.add_argument("--cameras", type=int, default=3,
+                   help="cameras on the rig (default: %(default)s)")
+    p.add_argument("--tags", type=int, default=6, help="tags in the room (default: %(default)s)")
+    p.add_argument("--seconds", type=float, default=24.0,
+                   help="simulated duration [s] (default: %(default)s, one full yaw turn)")
+    p.add_argument("--rate", type=float, default=5.0, help="image rate [Hz] (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+
+    p = sub.add_parser("report", help="report PNG + HTML of a written result")
+    p.add_argument("result", metavar="RESULT.yaml", type=Path,
+                   help="result.yaml written by the node or the CLI")
+    p.add_argument("--dataset", type=Path, default=None, metavar="FILE",
+                   help="the data set that was solved (default: the one beside the result)")
+    _add_output(p, "directory that receives report.png and report.html; existing files are "
+                   "refused unless --force (default: the result's directory)")
+    return parser

@@ -1,0 +1,218 @@
+"""Subcommands that feed the live session: ``bag`` (a rosbag2 recording, message by message through
+the node's message handlers) and ``demo`` (the simulated rig)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+import numpy as np
+
+from .common import (
+    BadInput,
+    Printer,
+    Progress,
+    calibrate_session,
+    check_positive,
+    config_from_parameters,
+    output_paths,
+    prior_overrides,
+    read_config,
+    solver_overrides,
+)
+
+__all__ = ["cmd_bag", "cmd_demo", "demo_parameters"]
+
+#: Prefixes of the parameters that describe the simulated rig itself (kept by ``demo --config``).
+RIG_PARAMETER_PREFIXES = ("camera_carrier.", "tag_carrier.", "pose_source.", "cameras.", "tags.")
+
+
+def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
+    from ..data.rosbag import (
+        CAMERA_INFO,
+        COMPRESSED_IMAGE,
+        IMAGE,
+        POSE_STAMPED,
+        TF_MESSAGE,
+        TfTree,
+        bag_topics,
+        read_messages,
+    )
+    from ..messages import stamp_to_ns
+    from ..session import CalibrationSession, MessageHandlers
+    from ..session.replay import ReplayFeeder
+
+    config = read_config(args, solver_overrides(args))
+    paths = output_paths(args, report=args.report)  # refuse early, before any work
+    topics = bag_topics(args.bag)
+    ps = config.pose_source
+
+    routes: dict[str, tuple[str, str | None, str]] = {}
+    for cam in config.cameras:
+        compressed = cam.image_transport == "compressed"
+        routes[cam.subscribed_topic] = ("compressed" if compressed else "image", cam.name,
+                                        COMPRESSED_IMAGE if compressed else IMAGE)
+        routes[cam.camera_info_topic] = ("info", cam.name, CAMERA_INFO)
+    if ps.type == "topic":
+        routes[ps.topic] = ("pose", None, POSE_STAMPED)
+        if ps.topic not in topics:
+            raise BadInput(f"bag {str(args.bag)!r}: no pose topic {ps.topic} "
+                           f"(pose_source.topic); topics: {sorted(topics)}")
+    elif "/tf" not in topics and "/tf_static" not in topics:
+        raise BadInput(f"bag {str(args.bag)!r}: pose_source.type is 'tf' but the bag has no "
+                       f"/tf or /tf_static; topics: {sorted(topics)}")
+    for topic, (_, _, msgtype) in routes.items():
+        if topic in topics and topics[topic][0] != msgtype:
+            raise BadInput(f"bag {str(args.bag)!r}: topic {topic} has type {topics[topic][0]}, "
+                           f"expected {msgtype}")
+    for tf_topic in ("/tf", "/tf_static"):
+        if ps.type == "tf" and tf_topic in topics and topics[tf_topic][0] != TF_MESSAGE:
+            raise BadInput(f"bag {str(args.bag)!r}: {tf_topic} has type "
+                           f"{topics[tf_topic][0]}, expected {TF_MESSAGE}")
+    for cam in config.cameras:
+        for topic in (cam.subscribed_topic, cam.camera_info_topic):
+            if topic not in topics:
+                say.warning("bag", f"camera {cam.name}: topic {topic} is not in the bag"
+                            + _transport_hint(cam, topics))
+
+    session = CalibrationSession(config)
+    handlers = MessageHandlers(session)
+    feeder = ReplayFeeder(handlers, threads=config.detection_thread_count(),
+                          queue_size=config.sync.image_queue_size)
+    tf = None
+    if ps.type == "tf":  # the whole recording's tf first: lookups never wait for later data
+        tf = TfTree(max_gap_ns=int(round(config.sync.max_gap_s * 1e9)),
+                    tolerance_ns=int(round(config.sync.extrapolation_tolerance_s * 1e9)))
+        progress = Progress(say.err, "reading /tf", enabled=not args.quiet)
+        for m in read_messages(args.bag, ["/tf", "/tf_static"], on_progress=progress):
+            tf.add_message(m.msg, static=m.topic == "/tf_static")
+        progress.close()
+
+    progress = Progress(say.err, "reading bag", enabled=not args.quiet)
+    for m in read_messages(args.bag, list(routes), on_progress=progress):
+        kind, cam, _ = routes[m.topic]
+        if kind == "pose":
+            feeder.pose(m.msg)
+        elif kind == "info":
+            handlers.on_camera_info(cam, m.msg)
+        else:
+            T = None
+            if tf is not None:
+                try:
+                    T = tf.lookup(ps.parent, ps.child, stamp_to_ns(m.msg.header.stamp))
+                except LookupError:
+                    session.record("no_tf_at_stamp")
+                    continue
+                except (ValueError, TypeError, AttributeError):
+                    pass  # a bad stamp: on_image rejects and counts it
+            feeder.image(cam, m.msg, compressed=kind == "compressed", T_parent_child=T)
+    feeder.close()
+    progress.close()
+    for exc in feeder.errors[:3]:
+        say.warning("bag", f"detection thread error: {type(exc).__name__}: {exc}")
+    counters = session.counters()
+    say("input: " + ", ".join(f"{k}={v}" for k, v in sorted(counters.items()) if v))
+    code, _ = calibrate_session(say, session, paths, force=args.force, report=args.report)
+    return code
+
+
+def _transport_hint(cam, topics) -> str:
+    """A hint when the bag holds the camera's images on the other transport's topic."""
+    raw, compressed = cam.image_topic, cam.image_topic + "/compressed"
+    if cam.image_transport == "raw" and compressed in topics:
+        return (f"; the bag has {compressed}: set cameras.{cam.name}.image_transport: "
+                "compressed")
+    if cam.image_transport == "compressed" and raw in topics:
+        return f"; the bag has {raw}: set cameras.{cam.name}.image_transport: raw"
+    return ""
+
+
+def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> dict[str, Any]:
+    """Flat calibrator parameters for a simulated rig (the values of ``config/demo.yaml``, with
+    the rig's cameras and tags): motion-capture ``PoseStamped`` ``world -> rig``, cameras on
+    ``rig``, tags in ``world``; ``output_directory`` as ``output.directory`` (``""``: the
+    default of :mod:`rwhec_ros.session.paths`)."""
+    from ..simulation import DEMO_POSE_TOPIC, DEMO_RIG_FRAME, DEMO_WORLD_FRAME, demo_camera_topics
+
+    flat: dict[str, Any] = {
+        "camera_carrier.frame": DEMO_RIG_FRAME, "camera_carrier.moving": True,
+        "tag_carrier.frame": DEMO_WORLD_FRAME, "tag_carrier.moving": False,
+        "pose_source.type": "topic", "pose_source.topic": DEMO_POSE_TOPIC,
+        "pose_source.parent": DEMO_WORLD_FRAME, "pose_source.child": DEMO_RIG_FRAME,
+        "cameras.names": list(rig.cameras),
+        "tags.family": rig.family, "tags.ids": list(rig.tag_ids),
+        "tags.default_size": float(rig.tag_size),
+        "noise.sigma": 0.005, "noise.kappa": 400.0, "noise.from_reprojection": False,
+        "sync.max_gap_s": 0.1, "sync.extrapolation_tolerance_s": 0.01,
+        "sync.image_queue_size": 6,
+        "keyframe.min_rotation_rad": 0.05, "keyframe.min_translation_m": 0.02,
+        "keyframe.max_pairs_per_edge": 200,
+        "solver.mode": mode, "solver.min_pairs": 3, "solver.reject_outliers": False,
+        "output.directory": output_directory,
+    }
+    for cam in rig.cameras:
+        image_topic, info_topic = demo_camera_topics(cam)
+        flat[f"cameras.{cam}.image_topic"] = image_topic
+        flat[f"cameras.{cam}.camera_info_topic"] = info_topic
+        flat[f"cameras.{cam}.frame"] = f"{cam}_optical"
+    return flat
+
+
+def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
+    from ..session import CalibrationSession
+    from ..simulation import demo_rig, simulated_stream
+
+    if args.cameras < 1 or args.tags < 1:
+        raise BadInput(f"--cameras/--tags: must be >= 1, got {args.cameras}/{args.tags}")
+    check_positive("--seconds", args.seconds)
+    check_positive("--rate", args.rate)
+    overrides = solver_overrides(args)
+    settings = read_config(args)
+    paths = output_paths(args, report=args.report)  # refuse early, before any work
+    t0 = time.perf_counter()
+    try:
+        rig = demo_rig(args.cameras, args.tags)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    flat = demo_parameters(rig)
+    if settings is not None:
+        flat.update({k: v for k, v in settings.to_parameters().items()
+                     if not k.startswith(RIG_PARAMETER_PREFIXES)})
+    flat.update(overrides)
+    flat.update(prior_overrides(args, flat))
+    config = config_from_parameters(flat, "demo")
+    session = CalibrationSession(config)
+    for cam in rig.cameras:
+        session.set_camera_info(cam, rig.intrinsics[cam])
+    say.progress(f"simulating: {len(rig.cameras)} cameras, {len(rig.tag_ids)} tags, "
+                 f"{args.seconds:g} s at {args.rate:g} Hz")
+    rng = np.random.default_rng(args.seed)
+    n_images = 0
+    for stamp, cam, data in simulated_stream(rig, rng, seconds=args.seconds,
+                                             image_rate_hz=args.rate):
+        if cam is None:
+            session.add_pose(stamp, data, source=config.pose_source.parent)
+        else:
+            session.add_image(cam, stamp, data)
+            n_images += 1
+    counters = session.counters()
+    say(f"demo: {len(rig.cameras)} cameras, {len(rig.tag_ids)} tags, {args.seconds:g} s, "
+        f"{n_images} images rendered and searched, {counters.get('pairs_kept', 0)} pairs kept "
+        f"({time.perf_counter() - t0:.1f} s)")
+    code, outcome = calibrate_session(say, session, paths, force=args.force, report=args.report)
+    if outcome.result is None:
+        return code
+    result = outcome.result
+    X_true = np.array([rig.T_world_tag[int(n[len("tag_"):])] for n in result.x_names])
+    Y_true = np.array([rig.T_rig_cam[n] for n in result.y_names])
+    err = result.errors_to(X_true, Y_true)
+    say("errors against the simulation's ground truth:")
+    for names, t_key, r_key in ((result.y_names, "t_y", "r_y"), (result.x_names, "t_x", "r_x")):
+        for i, name in enumerate(names):
+            say(f"  {name}: {1e3 * err[t_key][i]:.2f} mm, {np.degrees(err[r_key][i]):.3f} deg")
+    t_max = 1e3 * max(err["t_x"].max(), err["t_y"].max())
+    r_max = np.degrees(max(err["r_x"].max(), err["r_y"].max()))
+    say(f"  max: {t_max:.2f} mm, {r_max:.3f} deg over {len(result.x_names) + len(result.y_names)}"
+        f" frames ({time.perf_counter() - t0:.1f} s in total)")
+    return code

@@ -1,0 +1,363 @@
+"""The validated calibrator configuration, :class:`CalibratorConfig` (node and CLI alike), and how
+its typed sections are built from checked parameter values (:func:`build_sections`)."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import yaml
+
+from .sections import (
+    CameraConfig,
+    CarrierConfig,
+    DetectionConfig,
+    KeyframeConfig,
+    NoiseConfig,
+    OutputConfig,
+    PoseSourceConfig,
+    PriorsConfig,
+    RosConfig,
+    SolverConfig,
+    SyncConfig,
+    TagsConfig,
+)
+from .specs import IMAGE_QOS, IMAGE_TRANSPORTS, POSE_SOURCE_TYPES, SOLVER_MODES
+from .validation import (
+    check_choice,
+    check_frame,
+    check_int_or_auto,
+    check_positive,
+    check_positive_int,
+    check_topic,
+    typed_parameters,
+)
+
+__all__ = ["CalibratorConfig", "build_sections"]
+
+
+@dataclass(frozen=True)
+class CalibratorConfig:
+    """The validated calibrator configuration (file format: :mod:`rwhec_ros.config`).
+
+    Build it with :meth:`from_parameters` (flat dotted names -> values) or :func:`load_config`.
+    """
+
+    camera_carrier: CarrierConfig
+    tag_carrier: CarrierConfig
+    pose_source: PoseSourceConfig
+    cameras: tuple[CameraConfig, ...]
+    tags: TagsConfig
+    noise: NoiseConfig
+    sync: SyncConfig
+    keyframe: KeyframeConfig
+    detection: DetectionConfig
+    solver: SolverConfig
+    output: OutputConfig
+    ros: RosConfig
+    parameters: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    priors: PriorsConfig = field(default_factory=PriorsConfig)
+
+    # --- names ------------------------------------------------------------------------------
+    @property
+    def camera_names(self) -> tuple[str, ...]:
+        return tuple(c.name for c in self.cameras)
+
+    def camera(self, name: str) -> CameraConfig:
+        for c in self.cameras:
+            if c.name == name:
+                return c
+        raise KeyError(f"no camera named {name!r}; have {list(self.camera_names)}")
+
+    @property
+    def x_names(self) -> tuple[str, ...]:
+        """X-variable names (tags) in configuration order."""
+        return tuple(self.tags.frame_name(i) for i in self.tags.ids)
+
+    @property
+    def y_names(self) -> tuple[str, ...]:
+        """Y-variable names (cameras) in configuration order."""
+        return self.camera_names
+
+    def published_frames(self) -> dict[str, tuple[str, str]]:
+        """Variable name -> (parent frame, child frame) under which its estimate is published.
+
+        Cameras: ``(camera carrier, calibrated_frame)``; tags: ``(tag carrier,
+        <tag frame><output.frame_suffix>)``.
+        """
+        out = {c.name: (self.camera_carrier.frame, c.calibrated_frame) for c in self.cameras}
+        for name in self.x_names:
+            out[name] = (self.tag_carrier.frame, name + self.output.frame_suffix)
+        return out
+
+    def detection_thread_count(self, available_cores: int | None = None) -> int:
+        """Threads for tag detection: ``sync.detection_threads``, or for ``"auto"`` the cores
+        available to this process (``os.sched_getaffinity``; ``available_cores`` overrides it)
+        but at most one per camera: the images of one camera are examined in order, one at a
+        time (the motion gate needs the previous image's pairs), so more threads than cameras
+        would idle."""
+        n = self.sync.detection_threads
+        if n != "auto":
+            return int(n)
+        if available_cores is None:
+            try:
+                available_cores = len(os.sched_getaffinity(0))
+            except (AttributeError, OSError):  # not on every platform
+                available_cores = os.cpu_count() or 1
+        return max(1, min(int(available_cores), len(self.cameras)))
+
+    # --- construction ---------------------------------------------------------------------
+    @staticmethod
+    def from_parameters(flat: Mapping[str, Any]) -> CalibratorConfig:
+        """Validate flat parameters (dotted name -> value) and build the configuration.
+
+        Used by :func:`load_config` (after flattening the YAML) and by the node (with the values
+        of its declared parameters). ``None`` values count as absent (a ROS parameter declared
+        by type only). Parameters managed by ROS itself (``use_sim_time``, ``qos_overrides.*``,
+        ``start_type_description_service``) are ignored.
+
+        Raises
+        ------
+        ValueError
+            Naming the dotted parameter and its value: unknown name (with the closest known
+            names), missing required parameter, wrong type, or invalid value (negative size,
+            unknown mode, carriers that do not match the pose source, ...).
+        """
+        return CalibratorConfig(**build_sections(*typed_parameters(flat)))
+
+    def to_parameters(self) -> dict[str, Any]:
+        """Flat dotted parameters (plain Python values) that rebuild this configuration."""
+        return dict(self.parameters)
+
+    def to_yaml(self, node_name: str = "/**") -> str:
+        """The configuration as a ROS 2 parameter file (nested mappings) under the section key
+        ``node_name`` (default ``/**``: any node in any namespace)."""
+        nested: dict[str, Any] = {}
+        for key, value in self.to_parameters().items():
+            node = nested
+            parts = key.split(".")
+            for p in parts[:-1]:
+                node = node.setdefault(p, {})
+            node[parts[-1]] = value
+        return yaml.safe_dump({node_name: {"ros__parameters": nested}}, sort_keys=False)
+
+
+def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
+    """Semantic validation of typed values ``v`` (every schema name present): the keyword
+    arguments of :class:`CalibratorConfig`."""
+    cam_carrier = CarrierConfig(check_frame(v, "camera_carrier.frame"), v["camera_carrier.moving"])
+    tag_carrier = CarrierConfig(check_frame(v, "tag_carrier.frame"), v["tag_carrier.moving"])
+    if cam_carrier.frame == tag_carrier.frame:
+        raise ValueError(
+            f"tag_carrier.frame: {tag_carrier.frame!r} equals camera_carrier.frame; cameras and "
+            "tags must be carried by two different frames that move relative to each other"
+        )
+    if not cam_carrier.moving and not tag_carrier.moving:
+        raise ValueError(
+            f"camera_carrier.moving: both carriers are fixed (camera_carrier.moving = False, "
+            f"tag_carrier.moving = False): without relative motion between "
+            f"{cam_carrier.frame!r} and {tag_carrier.frame!r} nothing can be calibrated"
+        )
+
+    ptype = check_choice(v, "pose_source.type", POSE_SOURCE_TYPES)
+    parent = check_frame(v, "pose_source.parent")
+    child = check_frame(v, "pose_source.child")
+    carriers = {cam_carrier.frame, tag_carrier.frame}
+    if {parent, child} != carriers:
+        bad = "pose_source.parent" if parent not in carriers else "pose_source.child"
+        raise ValueError(
+            f"{bad}: the pose source must relate the two carriers directly, got "
+            f"(parent {parent!r}, child {child!r}) but the carriers are camera_carrier.frame "
+            f"{cam_carrier.frame!r} and tag_carrier.frame {tag_carrier.frame!r}; with no "
+            "relative pose source between them A = T_<camera carrier>_<tag carrier> is unknown"
+        )
+    topic = check_topic(v, "pose_source.topic") if ptype == "topic" else v["pose_source.topic"]
+    pose = PoseSourceConfig(ptype, topic, parent, child, invert=(parent == tag_carrier.frame))
+
+    cameras = []
+    for n in names:
+        p = f"cameras.{n}."
+        frame = check_frame(v, p + "frame", allow_empty=True) or n
+        cal = check_frame(v, p + "calibrated_frame", allow_empty=True)
+        cameras.append(
+            CameraConfig(
+                name=n,
+                image_topic=check_topic(v, p + "image_topic"),
+                camera_info_topic=check_topic(v, p + "camera_info_topic"),
+                frame=frame,
+                calibrated_frame=cal or frame + v["output.frame_suffix"],
+                image_transport=check_choice(v, p + "image_transport", IMAGE_TRANSPORTS),
+            )
+        )
+
+    tags = _build_tags(v)
+    # X names (tags), Y names (cameras) and published frames must not collide.
+    var_names = [tags.frame_name(i) for i in tags.ids] + list(names)
+    dup = sorted({n for n in var_names if var_names.count(n) > 1})
+    if dup:
+        raise ValueError(
+            f"tags.frame_prefix: tag frame names {dup} collide with camera names {list(names)}"
+        )
+    published = [c.calibrated_frame for c in cameras] + [
+        tags.frame_name(i) + v["output.frame_suffix"] for i in tags.ids
+    ]
+    dup = sorted({n for n in published if published.count(n) > 1})
+    if dup:
+        raise ValueError(f"output.frame_suffix: published frame names collide: {dup}")
+    if set(published) & carriers:
+        raise ValueError(
+            f"output.frame_suffix: a published frame equals a carrier frame: "
+            f"{sorted(set(published) & carriers)}"
+        )
+
+    noise = NoiseConfig(
+        sigma=check_positive(v, "noise.sigma"),
+        kappa=check_positive(v, "noise.kappa"),
+        from_reprojection=v["noise.from_reprojection"],
+    )
+    sync = SyncConfig(
+        max_gap_s=check_positive(v, "sync.max_gap_s"),
+        extrapolation_tolerance_s=check_positive(v, "sync.extrapolation_tolerance_s",
+                                                 allow_zero=True),
+        pose_buffer_size=check_positive_int(v, "sync.pose_buffer_size", 2),
+        image_queue_size=check_positive_int(v, "sync.image_queue_size", 1),
+        detection_threads=check_int_or_auto(v, "sync.detection_threads", 1),
+        max_pending_images=check_positive_int(v, "sync.max_pending_images", 0),
+        tf_timeout_s=check_positive(v, "sync.tf_timeout_s", allow_zero=True),
+    )
+    keyframe = KeyframeConfig(
+        min_rotation_rad=check_positive(v, "keyframe.min_rotation_rad"),
+        min_translation_m=check_positive(v, "keyframe.min_translation_m"),
+        max_pairs_per_edge=check_positive_int(v, "keyframe.max_pairs_per_edge", 2),
+    )
+    detection = DetectionConfig(
+        corner_refinement=check_choice(
+            v, "detection.corner_refinement", ("edge", "subpix", "apriltag", "contour", "none")
+        ),
+        max_reprojection_rms_px=check_positive(v, "detection.max_reprojection_rms_px"),
+        min_side_px=check_positive(v, "detection.min_side_px", allow_zero=True),
+        max_obliquity_deg=check_positive(v, "detection.max_obliquity_deg"),
+        decimate=check_int_or_auto(v, "detection.decimate", 1),
+        motion_gate=v["detection.motion_gate"],
+    )
+    if detection.max_obliquity_deg > 90.0:
+        raise ValueError(
+            f"detection.max_obliquity_deg: must be in (0, 90], got {detection.max_obliquity_deg!r}"
+        )
+    solver = SolverConfig(
+        mode=check_choice(v, "solver.mode", SOLVER_MODES),
+        min_pairs=check_positive_int(v, "solver.min_pairs", 1),
+        reject_outliers=v["solver.reject_outliers"],
+        unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
+        min_scale=check_positive(v, "solver.min_scale"),
+    )
+    priors = _build_priors(v, names, tags)
+    output = OutputConfig(
+        directory=v["output.directory"],
+        frame_suffix=v["output.frame_suffix"],
+        publish_tf=v["output.publish_tf"],
+        publish_uncertified=v["output.publish_uncertified"],
+    )
+    ros = RosConfig(
+        image_qos=check_choice(v, "ros.image_qos", IMAGE_QOS),
+        diagnostics_period_s=check_positive(v, "ros.diagnostics_period_s"),
+        image_queue_depth=check_positive_int(v, "ros.image_queue_depth", 1),
+    )
+    plain = {k: (list(x) if isinstance(x, tuple) else x) for k, x in v.items() if x is not None}
+    return dict(
+        camera_carrier=cam_carrier,
+        tag_carrier=tag_carrier,
+        pose_source=pose,
+        cameras=tuple(cameras),
+        tags=tags,
+        noise=noise,
+        sync=sync,
+        keyframe=keyframe,
+        detection=detection,
+        solver=solver,
+        output=output,
+        ros=ros,
+        parameters=plain,
+        priors=priors,
+    )
+
+
+def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], tags: TagsConfig
+                  ) -> PriorsConfig:
+    """``priors.frames/axes/values_m``: parallel arrays of the same length, axes x/y/z, frames
+    among the cameras and the tag frames, finite values."""
+    frames, axes, values = v["priors.frames"], v["priors.axes"], v["priors.values_m"]
+    if not (len(frames) == len(axes) == len(values)):
+        raise ValueError(
+            f"priors.axes: priors.frames, priors.axes and priors.values_m must have the same "
+            f"length, got {len(frames)}, {len(axes)} and {len(values)}")
+    known = list(camera_names) + [tags.frame_name(t) for t in tags.ids]
+    entries = []
+    for i, (f, a, x) in enumerate(zip(frames, axes, values, strict=True)):
+        if f not in known:
+            raise ValueError(f"priors.frames[{i}]: {f!r} is neither a camera nor a tag frame; "
+                             f"known: {known}")
+        if a not in ("x", "y", "z"):
+            raise ValueError(f"priors.axes[{i}]: expected 'x', 'y' or 'z', got {a!r}")
+        if not math.isfinite(x):
+            raise ValueError(f"priors.values_m[{i}]: must be finite, got {x!r}")
+        if (f, a) in {(e[0], e[1]) for e in entries}:
+            raise ValueError(f"priors.frames[{i}]: {f}.{a} given twice")
+        entries.append((f, a, float(x)))
+    return PriorsConfig(tuple(entries))
+
+
+def _build_tags(v: dict[str, Any]) -> TagsConfig:
+    ids = v["tags.ids"]
+    if len(ids) == 0:
+        raise ValueError("tags.ids: at least one tag id is required, got []")
+    for i, t in enumerate(ids):
+        if t < 0:
+            raise ValueError(f"tags.ids[{i}]: tag ids are >= 0, got {t}")
+    if len(set(ids)) != len(ids):
+        dup = sorted({t for t in ids if ids.count(t) > 1})
+        raise ValueError(f"tags.ids: duplicated ids {dup}")
+    if not v["tags.family"]:
+        raise ValueError("tags.family: must not be empty")
+    size_ids, size_values = v["tags.sizes.ids"], v["tags.sizes.values"]
+    if len(size_ids) != len(size_values):
+        raise ValueError(
+            f"tags.sizes.values: {len(size_values)} values for {len(size_ids)} ids in "
+            f"tags.sizes.ids {list(size_ids)}"
+        )
+    sizes: dict[int, float] = {}
+    for i, (t, s) in enumerate(zip(size_ids, size_values, strict=True)):
+        if t not in ids:
+            raise ValueError(f"tags.sizes.ids[{i}]: id {t} is not in tags.ids {list(ids)}")
+        if t in sizes:
+            raise ValueError(f"tags.sizes.ids[{i}]: id {t} given twice")
+        if not (math.isfinite(s) and s > 0):
+            raise ValueError(f"tags.sizes.values[{i}]: size of tag {t} must be > 0, got {s!r}")
+        sizes[t] = s
+    default = v["tags.default_size"]
+    if default is not None:
+        default = check_positive(v, "tags.default_size")
+    unknown_scale = v["tags.unknown_scale"]
+    for t in ids:
+        if t not in sizes:
+            if default is not None:
+                sizes[t] = default
+            elif unknown_scale:
+                sizes[t] = 1.0  # nominal: the common scale is estimated (Problem 3)
+            else:
+                raise ValueError(
+                    f"tags.default_size: tag {t} has no size (not in tags.sizes.ids and no "
+                    "tags.default_size); give one or set tags.unknown_scale: true"
+                )
+    return TagsConfig(
+        family=v["tags.family"],
+        ids=tuple(ids),
+        sizes=sizes,
+        default_size=default,
+        frame_prefix=v["tags.frame_prefix"],
+        unknown_scale=unknown_scale,
+    )
+

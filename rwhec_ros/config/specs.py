@@ -1,0 +1,217 @@
+"""The parameter schema: one :class:`ParamSpec` per parameter, shared by the node and the CLI.
+
+Per-camera parameters (:data:`CAMERA_SPECS`) are expanded to ``cameras.<name>.<key>`` by
+:func:`parameter_specs`. Units: metres, seconds, radians (suffixes ``_m``, ``_s``, ``_rad``).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = [
+    "ParamSpec",
+    "GLOBAL_SPECS",
+    "CAMERA_SPECS",
+    "parameter_specs",
+    "global_spec",
+    "is_valid_name",
+    "DEFAULT_NODE_NAME",
+    "ROS_MANAGED_PARAMETERS",
+    "ROS_MANAGED_PREFIXES",
+    "KINDS",
+    "SOLVER_MODES",
+    "POSE_SOURCE_TYPES",
+    "IMAGE_QOS",
+    "IMAGE_TRANSPORTS",
+]
+
+#: Node name used by the console script, the launch files and the example configurations.
+DEFAULT_NODE_NAME = "calibrator"
+
+#: Parameters that ROS itself declares on every node; accepted in a file and ignored here.
+ROS_MANAGED_PARAMETERS = ("use_sim_time", "start_type_description_service")
+#: Prefixes of parameters managed by ROS (QoS overrides); accepted and ignored.
+ROS_MANAGED_PREFIXES = ("qos_overrides.",)
+
+#: Parameter kinds, named after ``rclpy.Parameter.Type`` (see ``rwhec_ros.ros.params``), plus
+#: ``int_or_auto``: an integer or the string ``"auto"`` (declared as a string by default).
+KINDS = ("bool", "int", "double", "string", "int_array", "double_array", "string_array",
+         "int_or_auto")
+
+_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+
+SOLVER_MODES = ("fast", "sdp", "local")
+POSE_SOURCE_TYPES = ("topic", "tf")
+IMAGE_QOS = ("sensor_data", "reliable")
+IMAGE_TRANSPORTS = ("raw", "compressed")
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter of the schema.
+
+    Attributes
+    ----------
+    name : str
+        Dotted parameter name (per-camera specs: the part after ``cameras.<name>.``).
+    kind : str
+        One of :data:`KINDS`.
+    default : object
+        Value when absent; ``None`` with ``required=False`` means "unset" (optional).
+    required : bool
+        Absent -> ``ValueError``.
+    doc : str
+        One-line description (also used as the ROS parameter description).
+    """
+
+    name: str
+    kind: str
+    default: Any = None
+    required: bool = False
+    doc: str = ""
+
+
+GLOBAL_SPECS: tuple[ParamSpec, ...] = (
+    ParamSpec("camera_carrier.frame", "string", required=True,
+              doc="frame the cameras are rigidly attached to (Y_k = T_<this>_cam_k)"),
+    ParamSpec("camera_carrier.moving", "bool", required=True,
+              doc="true if the camera carrier moves relative to the tag carrier"),
+    ParamSpec("tag_carrier.frame", "string", required=True,
+              doc="frame the tags are rigidly attached to (X_j = T_<this>_tag_j)"),
+    ParamSpec("tag_carrier.moving", "bool", required=True,
+              doc="true if the tag carrier moves relative to the camera carrier"),
+    ParamSpec("pose_source.type", "string", "topic",
+              doc="'topic' (geometry_msgs/PoseStamped) or 'tf' (lookup at each image stamp)"),
+    ParamSpec("pose_source.topic", "string", "",
+              doc="PoseStamped topic (type 'topic'); header.frame_id must be pose_source.parent"),
+    ParamSpec("pose_source.parent", "string", required=True,
+              doc="parent frame of the pose stream T_parent_child (one of the carriers)"),
+    ParamSpec("pose_source.child", "string", required=True,
+              doc="child frame of the pose stream T_parent_child (the other carrier)"),
+    ParamSpec("cameras.names", "string_array", required=True,
+              doc="camera names; each needs cameras.<name>.* parameters"),
+    ParamSpec("tags.family", "string", "tag36h11", doc="AprilTag family"),
+    ParamSpec("tags.ids", "int_array", required=True,
+              doc="ids of the tags to calibrate; any other id is ignored (and counted)"),
+    ParamSpec("tags.default_size", "double", None,
+              doc="edge length [m] (black square) of every tag not in tags.sizes.ids"),
+    ParamSpec("tags.sizes.ids", "int_array", (), doc="ids with an individual size"),
+    ParamSpec("tags.sizes.values", "double_array", (),
+              doc="sizes [m] of tags.sizes.ids, same order and length"),
+    ParamSpec("tags.frame_prefix", "string", "tag_", doc="tag frame names are <prefix><id>"),
+    ParamSpec("tags.unknown_scale", "bool", False,
+              doc="estimate a common scale (monocular, paper Problem 3): sizes may be nominal"),
+    ParamSpec("noise.sigma", "double", 0.01,
+              doc="translation standard deviation of B [m] (paper sigma, eq. (14))"),
+    ParamSpec("noise.kappa", "double", 125.0,
+              doc="Langevin concentration of the rotation of B (paper kappa, eq. (16))"),
+    ParamSpec("noise.from_reprojection", "bool", False,
+              doc="use per-detection sigma/kappa from the PnP reprojection error instead"),
+    ParamSpec("sync.max_gap_s", "double", 0.1,
+              doc="largest pose gap [s] bridged by interpolation at an image stamp"),
+    ParamSpec("sync.extrapolation_tolerance_s", "double", 0.01,
+              doc="how far [s] an image stamp may lie outside the pose buffer"),
+    ParamSpec("sync.pose_buffer_size", "int", 4000, doc="poses kept for lookups"),
+    ParamSpec("sync.image_queue_size", "int", 4,
+              doc="images waiting for detection per camera; the oldest is dropped (and counted)"),
+    ParamSpec("sync.detection_threads", "int_or_auto", "auto",
+              doc="threads running tag detection (node and bag replay): 'auto' = the cores "
+                  "available to the process, at most one per camera; or an integer >= 1"),
+    ParamSpec("sync.max_pending_images", "int", 32,
+              doc="images waiting for a later pose to bracket their stamp"),
+    ParamSpec("sync.tf_timeout_s", "double", 0.2,
+              doc="wait [s] for tf at an image stamp (pose_source.type 'tf')"),
+    ParamSpec("keyframe.min_rotation_rad", "double", 0.05,
+              doc="a new pair needs this rotation [rad] from the last kept one (same edge)"),
+    ParamSpec("keyframe.min_translation_m", "double", 0.02,
+              doc="... or this translation [m]"),
+    ParamSpec("keyframe.max_pairs_per_edge", "int", 300, doc="cap on kept pairs per edge"),
+    ParamSpec("detection.corner_refinement", "string", "edge",
+              doc="corner refinement: 'edge' (sub-pixel edge-line fit, the most accurate "
+                  "measured, see benchmarks/perception.md), or cv2.aruco's 'subpix', "
+                  "'apriltag', 'contour', 'none'"),
+    ParamSpec("detection.max_reprojection_rms_px", "double", 1.0,
+              doc="reject a tag whose RMS corner reprojection error exceeds this [px]"),
+    ParamSpec("detection.min_side_px", "double", 20.0,
+              doc="reject a tag whose shortest side is below this [px]"),
+    ParamSpec("detection.max_obliquity_deg", "double", 70.0,
+              doc="reject a tag seen more obliquely than this [deg] (0 = face-on)"),
+    ParamSpec("detection.decimate", "int_or_auto", "auto",
+              doc="candidate search on the image shrunk by this factor, corners refined at "
+                  "full resolution: 'auto' = max(W, H) // 600 (2 at 1280x1024: tags below "
+                  "about 37 px are not found), or an integer >= 1 (1 = full image)"),
+    ParamSpec("detection.motion_gate", "bool", True,
+              doc="examine only the tags whose pair the keyframe test could keep at the "
+                  "image's pose, and skip images where it could keep none (same pairs)"),
+    ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),
+    ParamSpec("solver.min_pairs", "int", 3, doc="edges with fewer pairs are left out"),
+    ParamSpec("solver.reject_outliers", "bool", False,
+              doc="outlier rejection: per-edge RANSAC on eq. (70) (paper Sec. 9.1), then a "
+                  "GNC-TLS robust solve, re-certified on the inlier set"),
+    ParamSpec("solver.unobservable_std_m", "double", 1.0,
+              doc="a translation direction whose predicted std [m] exceeds this is not "
+                  "determined by the data (e.g. motion about one axis): it is fixed by "
+                  "priors.* or the default and the result says so"),
+    ParamSpec("solver.min_scale", "double", 0.01,
+              doc="unknown scale: an estimate at or below this floor is never certified"),
+    ParamSpec("priors.frames", "string_array", (),
+              doc="frames (camera names or tag frames) with a known translation component, "
+                  "parallel to priors.axes and priors.values_m"),
+    ParamSpec("priors.axes", "string_array", (),
+              doc="'x', 'y' or 'z': the axis of the frame's carrier for each priors.frames entry"),
+    ParamSpec("priors.values_m", "double_array", (),
+              doc="the known translation components [m] (fix unobservable directions only)"),
+    ParamSpec("output.directory", "string", "",
+              doc="root of the output directories (one new per calibrate/save_dataset, never "
+                  "overwritten); '' = $ROS_HOME/rwhec_ros (~/.ros/rwhec_ros) for the node, "
+                  "./rwhec_output for the CLI; relative: under that directory for the node, "
+                  "under the current directory for the CLI"),
+    ParamSpec("output.frame_suffix", "string", "_calibrated",
+              doc="published child frame = <frame><suffix> unless set per camera"),
+    ParamSpec("output.publish_tf", "bool", True, doc="publish results on /tf_static"),
+    ParamSpec("output.publish_uncertified", "bool", False,
+              doc="also publish results the certificate does not prove optimal"),
+    ParamSpec("ros.image_qos", "string", "sensor_data",
+              doc="image/camera_info QoS: 'sensor_data' (best effort) or 'reliable'"),
+    ParamSpec("ros.diagnostics_period_s", "double", 1.0, doc="period of /diagnostics [s]"),
+    ParamSpec("ros.image_queue_depth", "int", 5,
+              doc="history depth of each image/camera_info subscription: a burst of more "
+                  "images than this between two executor turns is dropped by the middleware, "
+                  "uncounted"),
+)
+
+CAMERA_SPECS: tuple[ParamSpec, ...] = (
+    ParamSpec("image_topic", "string", required=True, doc="sensor_msgs/Image topic"),
+    ParamSpec("camera_info_topic", "string", required=True, doc="sensor_msgs/CameraInfo topic"),
+    ParamSpec("image_transport", "string", "raw",
+              doc="'raw' (sensor_msgs/Image on image_topic) or 'compressed' "
+                  "(sensor_msgs/CompressedImage on <image_topic>/compressed, JPEG or PNG)"),
+    ParamSpec("frame", "string", "", doc="optical frame name (default: the camera name)"),
+    ParamSpec("calibrated_frame", "string", "",
+              doc="published child frame (default: <frame><output.frame_suffix>)"),
+)
+
+
+def is_valid_name(name: str) -> bool:
+    """True for a camera name usable in parameter names (letter, then letters, digits, ``_``)."""
+    return bool(_NAME_RE.match(str(name)))
+
+
+def parameter_specs(camera_names: tuple[str, ...] | list[str] = ()) -> list[ParamSpec]:
+    """The full schema with per-camera specs expanded to ``cameras.<name>.<key>``."""
+    out = list(GLOBAL_SPECS)
+    for name in camera_names:
+        for s in CAMERA_SPECS:
+            out.append(ParamSpec(f"cameras.{name}.{s.name}", s.kind, s.default, s.required, s.doc))
+    return out
+
+
+
+def global_spec(name: str) -> ParamSpec:
+    """The spec of the global parameter ``name`` (``KeyError`` if there is none)."""
+    for s in GLOBAL_SPECS:
+        if s.name == name:
+            return s
+    raise KeyError(name)

@@ -1,0 +1,314 @@
+"""The image path of the live session: pose first, then the motion gate, then decoding and tags.
+
+:class:`ImageInput` is the part of :class:`~rwhec_ros.session.CalibrationSession` that takes one
+camera image (:meth:`ImageInput.add_image`); it works on the session's state (lock, pose buffer,
+pair accumulator, counters) and is kept in its own module only for size.
+
+Order of the work for one image of camera ``c`` at stamp ``s``:
+
+1. cheap checks (known camera, intrinsics, stamp; for an array its type and size);
+2. ``A`` at ``s``: the given pose (tf), or the pose buffer. An image newer than the newest pose
+   waits, *undecoded*, for a pose after its stamp (``sync.max_pending_images``; the pose that
+   brackets it processes it);
+3. **motion gate** (``detection.motion_gate``): the keyframe test of
+   :class:`~rwhec_ros.sync.accumulator.PairAccumulator` depends on the stamp and ``A`` only, so
+   before any pixel is read the session asks every edge ``(tag, c)`` whether it would keep a pair
+   at ``(s, A)`` (:meth:`~rwhec_ros.sync.accumulator.PairAccumulator.would_keep`; an edge not
+   seen yet always would). No such tag: the image is skipped, neither decoded nor searched
+   (counted ``images_skipped_no_motion`` and per camera). Otherwise
+4. the image is decoded (``image`` may be a callable, e.g. a JPEG decoder, called only now), the
+   candidate search runs on the whole image, and only the tags that could give a pair are refined
+   and solved (:meth:`TagDetector.detect(..., only_ids=...)
+   <rwhec_ros.vision.detection.TagDetector.detect>`; the others are counted
+   ``tags_skipped_no_motion``);
+5. the pairs are offered to the accumulator (which applies the same keyframe test again).
+
+The gate changes no pair: a tag left out would have been refused by its edge (its edge's state,
+the stamp and ``A`` decide, not ``B``), and each tag is refined and solved on its own, so the kept
+pairs are those of examining every tag of every image, provided the images of one camera are
+added one at a time in stamp order (what the node's per-camera queue and the ``bag`` replay do):
+an edge's decision depends on the pairs kept before it. What the gate changes are the counters of
+refused pairs (``pairs:skipped_no_motion`` counts only examined tags) and that a skipped image is
+never decoded, so bad data in it goes unnoticed.
+"""
+
+from __future__ import annotations
+
+import collections
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..sync.buffer import LookupStatus
+from ..vision.detection import RejectReason, TagDetector
+from .outcomes import ImageOutcome
+
+__all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS"]
+
+#: An image as the session takes it: a (H, W) uint8 array, or a callable returning one (decoded
+#: only when the motion gate lets the image through; ``ValueError``/``TypeError`` from it counts
+#: as ``bad_image_message``).
+ImageSource = np.ndarray | Callable[[], np.ndarray]
+
+#: Per-camera counters of :meth:`ImageInput.camera_counters` (all present from the start).
+CAMERA_COUNTERS = ("images", "skipped_no_motion", "detected", "used", "rejected", "pairs_kept")
+
+
+def safe_int(value: Any) -> int | None:
+    """``value`` as an int when it is an integral number (not a bool), else None."""
+    try:
+        if isinstance(value, bool):
+            return None
+        out = int(value)
+        return out if out == value else None
+    except (TypeError, ValueError, OverflowError):
+        return None
+
+
+class ImageInput:
+    """Mixin of :class:`~rwhec_ros.session.CalibrationSession`: the image path (see the module
+    docstring). It uses the session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
+    ``_pending``, ``_counters``, ``_camera_counts``, ``_intrinsics``, ``_tag_names``, ``_local``,
+    ``_detector_config``, ``config`` and ``_pose_to_A``."""
+
+    # --- public --------------------------------------------------------------------------------
+    def add_image(
+        self,
+        camera: str,
+        stamp_ns: int,
+        image: ImageSource,
+        T_parent_child: np.ndarray | None = None,
+    ) -> ImageOutcome:
+        """Take one image: pose, motion gate, tags, pairs (module docstring).
+
+        Parameters
+        ----------
+        camera : str
+            Camera name of the configuration.
+        stamp_ns : int
+            Image stamp [ns].
+        image : ndarray (H, W) uint8, or callable returning one
+            Grayscale image of the camera's intrinsics size; a callable is called only when the
+            image is examined (a skipped image is never decoded).
+        T_parent_child : ndarray (4, 4), optional
+            The pose at exactly this stamp (e.g. a tf lookup); otherwise it is looked up in the
+            pose buffer, and the image waits (bounded, ``sync.max_pending_images``) when the
+            buffer has no pose after the stamp yet.
+
+        Returns
+        -------
+        ImageOutcome
+            Never raises for bad data; each rejection is counted by reason.
+        """
+        with self._lock:
+            self._count("images")
+            intrinsics = self._intrinsics.get(camera)
+            known = camera in self.config.camera_names
+            if known:
+                self._camera_count(camera, "images")
+        if not known:
+            return self._reject(camera, safe_int(stamp_ns), "image_unknown_camera")
+        if intrinsics is None:
+            return self._reject(camera, safe_int(stamp_ns), "image_missing_camera_info")
+        stamp = safe_int(stamp_ns)
+        if stamp is None or stamp < 0:
+            return self._reject(camera, stamp, "image_bad_stamp")
+        if not callable(image):
+            reason = self._gray_problem(image, intrinsics)
+            if reason:
+                return self._reject(camera, stamp, reason)
+        if T_parent_child is not None:
+            A = self._pose_to_A(T_parent_child)
+            if A is None:
+                return self._reject(camera, stamp, "image_bad_pose")
+            return self._examine(camera, stamp, image, intrinsics, A)
+        overflow = None
+        with self._lock:
+            state, A, reason = self._pose_at(stamp, final=self.config.sync.max_pending_images == 0)
+            if state == "wait":
+                if len(self._pending) >= self.config.sync.max_pending_images:
+                    overflow = self._pending.popleft()
+                self._pending.append((camera, stamp, image, intrinsics))
+                self._count("images_pending")
+        if state == "wait":
+            if overflow is not None:  # the oldest waiting image gets what the buffer has now
+                self._finish_pending(overflow, final=True)
+            return ImageOutcome(camera, stamp, "pending")
+        if A is None:
+            return self._reject(camera, stamp, reason)
+        return self._examine(camera, stamp, image, intrinsics, A)
+
+    def pose_ready(self, stamp_ns: int) -> bool:
+        """True when an image stamped ``stamp_ns`` would not wait for a pose now: a pose after
+        its stamp is in the buffer, or the lookup can never succeed (an invalid stamp too, so
+        that it is rejected at once). The node's image queue holds images back until then, so
+        that they are gated (and examined) in order without waiting in the session."""
+        stamp = safe_int(stamp_ns)
+        if stamp is None or stamp < 0:
+            return True
+        with self._lock:
+            return not self._waits(stamp)
+
+    def camera_counters(self) -> dict[str, dict[str, int]]:
+        """Per camera (configuration order): ``images`` taken, ``skipped_no_motion`` (motion
+        gate: not decoded, not searched), ``detected`` (searched for tags), ``used`` (at least
+        one pair kept), ``rejected`` (any reason) and ``pairs_kept``."""
+        with self._lock:
+            return {c: dict(self._camera_counts[c]) for c in self.config.camera_names}
+
+    # --- pose ----------------------------------------------------------------------------------
+    def _waits(self, stamp: int) -> bool:
+        """The image should wait for a later pose (lock held): newer than the newest pose and
+        a later pose could still serve it, so that ``A`` is interpolated, not held."""
+        newest = self._buffer.newest_ns
+        status = self._buffer.lookup_status(stamp)
+        bracketed = newest is not None and stamp <= newest
+        return not bracketed and (status.retry or status is LookupStatus.OK)
+
+    def _pose_at(self, stamp: int, *, final: bool) -> tuple[str, np.ndarray | None, str]:
+        """``("wait", None, "")``, ``("ok", A, "")`` or ``("rejected", None, reason)`` for an
+        image at ``stamp`` (lock held); ``final``: never wait."""
+        if not final and self._waits(stamp):
+            return "wait", None, ""
+        A = self._buffer.lookup(stamp)
+        if A is not None:
+            return "ok", A, ""
+        return "rejected", None, f"no_pose_at_stamp:{self._buffer.lookup_status(stamp).value}"
+
+    def _take_ready_pending(self) -> list[tuple]:
+        """Remove the waiting images that a pose now serves (lock held), oldest first, as
+        ``(camera, stamp, image, intrinsics, A, reason)``."""
+        ready, still = [], collections.deque()
+        for item in self._pending:
+            state, A, reason = self._pose_at(item[1], final=False)
+            if state == "wait":
+                still.append(item)
+            else:
+                ready.append((*item, A, reason))
+        self._pending = still
+        return ready
+
+    def _finish_pending(self, item: tuple, *, final: bool = False) -> ImageOutcome:
+        """Examine (or reject) one image that waited for its pose (lock NOT held)."""
+        if final:
+            camera, stamp, image, intrinsics = item
+            with self._lock:
+                _, A, reason = self._pose_at(stamp, final=True)
+        else:
+            camera, stamp, image, intrinsics, A, reason = item
+        if A is None:
+            return self._reject(camera, stamp, reason)
+        return self._examine(camera, stamp, image, intrinsics, A)
+
+    # --- gate, decode, detect, offer -------------------------------------------------------------
+    def _keepable_tags(self, camera: str, stamp: int, A: np.ndarray) -> list[int]:
+        """Configured tag ids whose edge with ``camera`` would keep a pair at ``(stamp, A)``
+        (lock held)."""
+        return [t for t, x in self._tag_names.items()
+                if self._acc.would_keep(x, camera, stamp, A)]
+
+    def _examine(self, camera: str, stamp: int, image: ImageSource, intrinsics,
+                 A: np.ndarray) -> ImageOutcome:
+        """Steps 3-5 of the module docstring for an image whose ``A`` is known (lock NOT held)."""
+        gate = self.config.detection.motion_gate
+        with self._lock:
+            wanted = self._keepable_tags(camera, stamp, A) if gate else None
+            if gate and not wanted:
+                self._count("images_skipped_no_motion")
+                self._camera_count(camera, "skipped_no_motion")
+                return ImageOutcome(camera, stamp, "skipped")
+        if callable(image):
+            try:
+                gray = image()
+            except (ValueError, TypeError, AttributeError) as exc:
+                return self._reject(camera, stamp, "bad_image_message", str(exc))
+            reason = self._gray_problem(gray, intrinsics)
+            if reason:
+                return self._reject(camera, stamp, reason)
+        else:
+            gray = image
+        try:  # outside the lock: detection is the expensive part
+            detection = self._detector().detect(gray, intrinsics, only_ids=wanted)
+        except Exception as exc:  # noqa: BLE001 - the live path never raises
+            return self._reject(camera, stamp, f"image_detector_error:{type(exc).__name__}",
+                                str(exc))
+        return self._offer_detection(camera, stamp, A, detection)
+
+    def _offer_detection(self, camera: str, stamp: int, A: np.ndarray, detection) -> ImageOutcome:
+        reasons: list[str] = []
+        with self._lock:
+            self._camera_count(camera, "detected")
+            for r in detection.rejections:
+                key = (
+                    "tag_not_in_config"
+                    if r.reason == RejectReason.NOT_IN_CONFIGURATION.value
+                    else f"tag_rejected:{r.reason}"
+                )
+                self._count(key)
+                reasons.append(key)
+            if detection.skipped:
+                self._count("tags_skipped_no_motion", len(detection.skipped))
+            obs = [o for o in detection.observations if o.tag_id in self._tag_names]
+            self._count("tags_detected", len(obs))
+            if not obs and not detection.skipped:
+                self._count("images_without_tags")
+                return ImageOutcome(camera, stamp, "no_tags", reasons=reasons)
+            kept = self._offer(camera, stamp, A, obs)
+            self._count("images_used" if kept else "images_no_new_pairs")
+            if kept:
+                self._camera_count(camera, "used")
+                self._camera_count(camera, "pairs_kept", kept)
+            return ImageOutcome(camera, stamp, "used" if kept else "no_new_pairs", len(obs),
+                                kept, reasons)
+
+    def _offer(self, camera: str, stamp: int, A: np.ndarray, observations: list) -> int:
+        """Offer the pairs of one image (lock held); returns the number kept."""
+        noise = self.config.noise
+        kept = 0
+        for o in observations:
+            if noise.from_reprojection and o.sigma is not None and o.kappa is not None:
+                sigma, kappa = float(o.sigma), float(o.kappa)
+            else:
+                sigma, kappa = noise.sigma, noise.kappa
+            x = self._tag_names[o.tag_id]
+            ok = self._acc.offer(x, camera, stamp, A, o.T_cam_tag, sigma, kappa)
+            self._count("pairs_offered")
+            if ok:
+                kept += 1
+                if self._tracker is not None:
+                    try:
+                        self._tracker.add_pair(x, camera, A, o.T_cam_tag, sigma, kappa)
+                    except ValueError:
+                        self._count("identifiability_rejected_pair")
+        self._count("pairs_kept", kept)
+        return kept
+
+    # --- helpers -------------------------------------------------------------------------------
+    @staticmethod
+    def _gray_problem(gray: Any, intrinsics) -> str:
+        """The counter key of what is wrong with a decoded image, or ``""``."""
+        if not isinstance(gray, np.ndarray) or gray.ndim != 2 or gray.dtype != np.uint8:
+            return "image_not_gray_uint8"
+        if gray.shape != (intrinsics.height, intrinsics.width):
+            return "image_size_mismatch"
+        return ""
+
+    def _camera_count(self, camera: str, key: str, n: int = 1) -> None:
+        """Count per camera (lock held; unknown cameras are not counted)."""
+        counts = self._camera_counts.get(camera)
+        if counts is not None:
+            counts[key] += n
+
+    def _reject(self, camera: str, stamp: int | None, reason: str,
+                detail: str = "") -> ImageOutcome:
+        with self._lock:
+            self._count(reason)
+            self._camera_count(camera, "rejected")
+        return ImageOutcome(camera, stamp, "rejected", reasons=[reason], detail=detail)
+
+    def _detector(self) -> TagDetector:
+        det = getattr(self._local, "detector", None)
+        if det is None:  # one detector per thread: cv2 detector objects are not shared
+            det = self._local.detector = TagDetector(self._detector_config)
+        return det

@@ -1,0 +1,398 @@
+"""The live session, :class:`CalibrationSession`: poses and images in, certified extrinsics out.
+
+See :mod:`rwhec_ros.session` for the pipeline, the live-path promise and the threading model.
+"""
+
+from __future__ import annotations
+
+import collections
+import datetime as _dt
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ..config import CalibratorConfig
+from ..config.live_parameters import restart_only_differences
+from ..core.lie import invert_transform
+from ..core.result import CalibrationResult
+from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
+from ..sync.accumulator import PairAccumulator
+from ..sync.buffer import PoseBuffer
+from ..vision.detection import DetectorConfig
+from ..vision.intrinsics import CameraIntrinsics
+from .image_input import CAMERA_COUNTERS, ImageInput
+from .outcomes import SolveOutcome, edge_rows
+from .outputs import session_dataset, summary, write_session_outputs
+from .paths import plain_output_root
+from .solving import full_report, make_tracker, report_dict, solve_problem
+
+__all__ = ["CalibrationSession"]
+
+_NS_PER_S = 1_000_000_000
+
+
+class CalibrationSession(ImageInput):
+    """Accumulate synchronised measurement pairs live and calibrate on request.
+
+    Images go in through :meth:`add_image` (:class:`~rwhec_ros.session.image_input.ImageInput`:
+    pose, motion gate, tags, pairs), poses through :meth:`add_pose`.
+
+    Parameters
+    ----------
+    config : CalibratorConfig
+        Validated configuration (:func:`rwhec_ros.config.load_config` or
+        :meth:`CalibratorConfig.from_parameters`).
+    now : callable returning datetime, optional
+        Clock for the timestamped output names (default: current UTC time); injectable for tests.
+    output_root : str or Path, optional
+        Directory under which :meth:`calibrate` and :meth:`save_dataset` create their output
+        directories (the node passes :func:`~rwhec_ros.session.paths.node_output_root`);
+        default :func:`~rwhec_ros.session.paths.plain_output_root` of ``output.directory``.
+
+    Notes
+    -----
+    Frame names: Y variables are the camera names of the configuration, X variables the tag frame
+    names ``<tags.frame_prefix><id>``; results are published as ``(parent, child)`` from
+    :meth:`CalibratorConfig.published_frames`.
+    """
+
+    def __init__(
+        self,
+        config: CalibratorConfig,
+        *,
+        now: Callable[[], _dt.datetime] | None = None,
+        output_root: str | Path | None = None,
+    ) -> None:
+        self.config = config
+        self.output_root = (Path(output_root) if output_root is not None
+                            else plain_output_root(config.output.directory))
+        self._now = now if now is not None else (lambda: _dt.datetime.now(_dt.timezone.utc))
+        self._lock = threading.Lock()
+        self._solve_lock = threading.Lock()
+        self._local = threading.local()
+        self._detector_config = DetectorConfig(
+            family=config.tags.family,
+            tag_sizes=dict(config.tags.sizes),
+            default_tag_size=None,
+            unknown_scale=config.tags.unknown_scale,
+            corner_refinement=config.detection.corner_refinement,
+            max_reprojection_rms_px=config.detection.max_reprojection_rms_px,
+            min_side_px=config.detection.min_side_px,
+            max_obliquity_deg=config.detection.max_obliquity_deg,
+            estimate_precision=True,
+            decimate=config.detection.decimate,
+        )
+        self._tag_names = {t: config.tags.frame_name(t) for t in config.tags.ids}
+        self._intrinsics: dict[str, CameraIntrinsics] = {}
+        self._last_outcome: SolveOutcome | None = None
+        self._init_data()
+
+    # --- state -------------------------------------------------------------------------------
+    def _init_data(self) -> None:
+        """(Re)create the data-holding parts; call with the lock held (or from __init__)."""
+        c = self.config
+        self._buffer = PoseBuffer(
+            capacity=c.sync.pose_buffer_size,
+            max_gap_ns=max(1, int(round(c.sync.max_gap_s * _NS_PER_S))),
+            extrapolation_tol_ns=int(round(c.sync.extrapolation_tolerance_s * _NS_PER_S)),
+        )
+        self._acc = PairAccumulator(
+            keyframe_rotation_rad=c.keyframe.min_rotation_rad,
+            keyframe_translation_m=c.keyframe.min_translation_m,
+            max_pairs_per_edge=c.keyframe.max_pairs_per_edge,
+            max_edges=max(1, len(c.cameras) * len(c.tags.ids)),
+        )
+        self._tracker = make_tracker(c.tags.unknown_scale)
+        self._pending: collections.deque = collections.deque()
+        self._counters: collections.Counter = collections.Counter()
+        self._camera_counts = {name: collections.Counter(dict.fromkeys(CAMERA_COUNTERS, 0))
+                               for name in c.camera_names}
+
+    def update_config(self, config: CalibratorConfig, *,
+                      output_root: str | Path | None = None) -> None:
+        """Use ``config`` from now on; it may differ from the current one in live parameters only
+        (:mod:`rwhec_ros.config.live_parameters`), else ``ValueError`` naming them.
+
+        ``solver.*`` and ``output.*`` are read at the next :meth:`calibrate`; new ``noise.sigma``
+        and ``noise.kappa`` go at once to every kept pair (unless ``noise.from_reprojection``)
+        and the identifiability tracker is rebuilt with them; new keyframe thresholds apply to
+        the pairs offered from now on. ``output_root`` replaces the output root (default: the
+        plain-Python root of the new ``output.directory`` if it changed).
+        """
+        fixed = restart_only_differences(self.config, config)
+        if fixed:
+            raise ValueError(f"{fixed[0]}: cannot change in a running session "
+                             f"(restart-only parameters changed: {fixed})")
+        with self._lock:
+            old, self.config = self.config, config
+            if output_root is not None:
+                self.output_root = Path(output_root)
+            elif old.output.directory != config.output.directory:
+                self.output_root = plain_output_root(config.output.directory)
+            self._acc.keyframe_rotation_rad = config.keyframe.min_rotation_rad
+            self._acc.keyframe_translation_m = config.keyframe.min_translation_m
+            noise = config.noise
+            if not noise.from_reprojection and (noise.sigma, noise.kappa) != (
+                    old.noise.sigma, old.noise.kappa):
+                self._acc.set_precisions(noise.sigma, noise.kappa)
+                self._tracker = make_tracker(config.tags.unknown_scale)
+                for e in self._acc.edges().values():
+                    try:
+                        self._tracker.add_pairs(e.x, e.y, e.A, e.B, e.sigma, e.kappa)
+                    except ValueError:
+                        self._count("identifiability_rejected_pair", e.n)
+
+    def _count(self, key: str, n: int = 1) -> None:
+        self._counters[key] += n
+
+    def record(self, reason: str, n: int = 1) -> None:
+        """Count an event seen outside the session (e.g. a message the node could not convert,
+        ``"bad_image_message"``). Thread-safe; never raises."""
+        with self._lock:
+            self._count(str(reason), int(n))
+
+    # --- inputs ------------------------------------------------------------------------------
+    def set_camera_info(self, camera: str, intrinsics: CameraIntrinsics) -> bool:
+        """Set (or replace) the intrinsics of ``camera``; False (counted) for an unknown camera."""
+        with self._lock:
+            if camera not in self.config.camera_names:
+                self._count("camera_info_unknown_camera")
+                return False
+            if not isinstance(intrinsics, CameraIntrinsics):
+                self._count("camera_info_invalid")
+                return False
+            if self._intrinsics.get(camera) != intrinsics:
+                self._count("camera_info_updates")
+            self._intrinsics[camera] = intrinsics
+            return True
+
+    def has_camera_info(self, camera: str) -> bool:
+        with self._lock:
+            return camera in self._intrinsics
+
+    def _pose_to_A(self, T_parent_child: Any) -> np.ndarray | None:
+        try:
+            T = np.asarray(T_parent_child, dtype=float)
+        except (TypeError, ValueError):
+            return None
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            return None
+        return invert_transform(T) if self.config.pose_source.invert else T.copy()
+
+    def add_pose(
+        self, stamp_ns: int, T_parent_child: np.ndarray, source: str | None = None
+    ) -> bool:
+        """Add one sample ``T_parent_child`` of the pose stream at ``stamp_ns`` [ns].
+
+        ``source`` is the message's parent frame (``header.frame_id``); a non-empty value that is
+        not ``pose_source.parent`` is rejected (counted ``pose_rejected_frame_id``). The sample is
+        stored as ``A = T_<camera carrier>_<tag carrier>``. Images waiting for this pose are
+        processed (gated, decoded and searched here, outside the lock). Returns True when the
+        sample was stored. Never raises for bad data.
+        """
+        ok = self._store_pose(stamp_ns, T_parent_child, source)
+        if self._pending:
+            with self._lock:
+                ready = self._take_ready_pending()
+            for item in ready:
+                self._finish_pending(item)
+        return ok
+
+    def _store_pose(self, stamp_ns: int, T_parent_child: Any, source: str | None) -> bool:
+        with self._lock:
+            self._count("poses")
+            if source and source != self.config.pose_source.parent:
+                self._count("pose_rejected_frame_id")
+                return False
+            A = self._pose_to_A(T_parent_child)
+            if A is None:
+                self._count("pose_rejected_invalid")
+                return False
+            try:
+                ok = self._buffer.add(stamp_ns, A)
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                self._count("pose_rejected_buffer")
+            return bool(ok)
+
+    # --- monitoring --------------------------------------------------------------------------
+    def counters(self) -> dict[str, int]:
+        """Event counts by reason (session, pose buffer ``buffer:*`` and accumulator
+        ``pairs:*``)."""
+        with self._lock:
+            out = dict(self._counters)
+            out.update({f"buffer:{k}": v for k, v in self._buffer.counters().items() if v})
+            out.update({f"pairs:{k}": v for k, v in self._acc.counters().items() if v})
+            out["pending_images"] = len(self._pending)
+            return out
+
+    def report(self):
+        """The incremental identifiability report (``IdentifiabilityReport``) of the kept pairs
+        (per edge, per component; cf. paper Section 6), or None before the first pair."""
+        with self._lock:
+            return self._tracker_report()
+
+    def _tracker_report(self):
+        if self._tracker is None:
+            return None
+        try:
+            return self._tracker.report()
+        except ValueError:  # no pairs yet
+            return None
+
+    def diagnostics(self) -> list[dict[str, Any]]:
+        """One dict per observed edge: ``x``, ``y``, ``pairs``, ``status``, ``identifiable``
+        (bool, or None when unknown) and ``reasons`` (list of str)."""
+        with self._lock:
+            counts = self._acc.counts()
+            report = self._tracker_report()
+        return edge_rows(counts, report, self.config.solver.min_pairs)
+
+    @property
+    def last_outcome(self) -> SolveOutcome | None:
+        """The outcome of the latest :meth:`calibrate`."""
+        with self._lock:
+            return self._last_outcome
+
+    # --- solve -------------------------------------------------------------------------------
+    def calibrate(self, output_dir: str | Path | None = None, *,
+                  force: bool = False) -> SolveOutcome:
+        """Solve with the data so far and write the outputs; never discards data.
+
+        Parameters
+        ----------
+        output_dir : str or Path, optional
+            Write the files exactly into this directory (created if needed; existing files are
+            refused unless ``force``). Default: a new timestamped directory under
+            ``output.directory``, never reused.
+        force : bool
+            Overwrite existing files in ``output_dir``.
+
+        Returns
+        -------
+        SolveOutcome
+            ``success=False`` with the reason when there are not enough pairs or the solver
+            raised; otherwise the result, a short summary and the written files.
+        """
+        with self._solve_lock:
+            outcome = self._calibrate(output_dir, force)
+        with self._lock:
+            self._last_outcome = outcome
+        return outcome
+
+    def _snapshot(self):
+        """Problem, excluded edges, identifiability and data set, copied under the lock."""
+        c = self.config
+        with self._lock:
+            report = self._tracker_report()
+            try:
+                problem, excluded = self._acc.to_problem(
+                    x_names=c.x_names, y_names=c.y_names, unknown_scale=c.tags.unknown_scale,
+                    min_pairs=c.solver.min_pairs,
+                )
+                err = None
+            except ValueError as exc:
+                problem, excluded, err = None, {}, str(exc)
+            dataset = self._dataset_locked()
+            counts = self._acc.counts()
+        return problem, excluded, err, report, dataset, counts
+
+    def _calibrate(self, output_dir: str | Path | None, force: bool) -> SolveOutcome:
+        c = self.config
+        problem, excluded, err, report, dataset, counts = self._snapshot()
+        ident = report_dict(report)
+        excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
+        if problem is None:
+            n = sum(counts.values())
+            return SolveOutcome(
+                False,
+                f"not enough data: {n} pairs on {len(counts)} edges, no edge has "
+                f"solver.min_pairs={c.solver.min_pairs} pairs ({err}); all data kept",
+                excluded=excl,
+                identifiability=ident,
+            )
+        try:
+            result, dropped, notes = solve_problem(
+                problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
+                priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
+                min_scale=c.solver.min_scale)
+            excl.update(dropped)
+        except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
+            return SolveOutcome(
+                False, f"solver failed: {type(exc).__name__}: {exc}; all data kept",
+                excluded=excl, identifiability=ident,
+            )
+        ident = full_report(problem, result) or ident
+        text = yaml.safe_dump(self.result_document(result, excl, ident), sort_keys=False)
+        try:
+            files = self._write_outputs(result, text, dataset, output_dir, force)
+            write_error = ""
+        except OSError as exc:
+            files, write_error = {}, f"; WRITING OUTPUTS FAILED: {exc}"
+        message = summary(result, problem, excl, self.config) + write_error
+        return SolveOutcome(True, message, result, excl, files, ident, text)
+
+    # --- outputs -----------------------------------------------------------------------------
+    def published_transforms(self, result: CalibrationResult) -> list[tuple[str, str, np.ndarray]]:
+        """``(parent, child, T_parent_child)`` for every estimated frame of ``result``."""
+        return FrameNaming.from_config(self.config).transforms(result)
+
+    def result_document(
+        self,
+        result: CalibrationResult,
+        excluded: dict[str, str] | None = None,
+        identifiability: dict | None = None,
+    ) -> dict[str, Any]:
+        """The result YAML as a mapping (:func:`rwhec_ros.data.results.result_document`:
+        ``certified``, ``suboptimality_bound``, ``scale``, ``frames`` with published
+        ``parent``/``child``, ``timing_s``, ``identifiability``, ``excluded_edges``, ``config``)
+        plus this session's ``counters``."""
+        doc = result_document(result, FrameNaming.from_config(self.config), excluded=excluded,
+                              identifiability=identifiability,
+                              config=self.config.to_parameters(), source={"type": "session"})
+        doc["counters"] = plain(self.counters())
+        return doc
+
+    def _output_dir(self, kind: str) -> Path:
+        """A new directory ``<output root>/<kind>_<UTC stamp>[_n]`` (never reused)."""
+        return new_output_dir(self.output_root, kind, now=self._now())
+
+    def _write_outputs(self, result: CalibrationResult, text: str, dataset,
+                       output_dir: str | Path | None = None,
+                       force: bool = False) -> dict[str, str]:
+        if output_dir is None:
+            out = self._output_dir("calibration")
+            created = out.name.split("_", 1)[1]
+        else:
+            out, created = Path(output_dir), utc_stamp(self._now())
+        return write_session_outputs(out, self.published_transforms(result), result, text,
+                                     dataset, created=created, force=force)
+
+    def _dataset_locked(self):
+        """A data-set object of the kept pairs (lock held), or None if unavailable."""
+        return session_dataset(self._acc, self.config)
+
+    def save_dataset(self, path: str | Path | None = None) -> str:
+        """Save the kept pairs (format of :mod:`rwhec_ros.data.dataset`) and return the path.
+
+        Default path: a new timestamped directory under :attr:`output_root`. Raises
+        ``ValueError`` when there is nothing to save or the data-set module is unavailable.
+        """
+        with self._lock:
+            dataset = self._dataset_locked()
+            n = sum(self._acc.counts().values())
+        if dataset is None or n == 0:
+            raise ValueError(f"save_dataset: nothing to save ({n} pairs)")
+        target = Path(path) if path is not None else self._output_dir("dataset") / "dataset.yaml"
+        saved = dataset.save(target)
+        return str(saved if saved is not None else target)
+
+    def reset(self) -> None:
+        """Forget poses, pairs, pending images and counters (intrinsics are kept)."""
+        with self._lock:
+            self._init_data()

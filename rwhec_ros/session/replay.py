@@ -1,0 +1,121 @@
+"""Feeding recorded messages (a bag, in log-time order) into a session on several threads.
+
+:class:`ReplayFeeder` is what ``rwhec-calibrate bag`` uses: poses are added on the caller's
+thread as they are read; images are examined by ``threads`` workers through a blocking
+:class:`~rwhec_ros.session.FairImageQueue`, so nothing is dropped, and the images of one camera
+are examined one at a time in log order, each only once the pose after its stamp has been read
+(the reader holds it until then). With these two rules the kept pairs are those of the plain
+synchronous replay (one thread, images waiting in the session for their pose), whatever the
+number of threads: each edge ``(tag, camera)`` sees the same offers in the same order and the
+accumulator's decisions per edge depend on nothing else
+(:mod:`rwhec_ros.sync.accumulator`). Only the interleaving of different cameras varies, which
+changes the order in which the identifiability tracker receives pairs, not the pairs.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+from typing import Any
+
+import numpy as np
+
+from ..messages import stamp_to_ns
+from .handlers import MessageHandlers
+from .image_queue import FairImageQueue, QueueWorker
+
+__all__ = ["ReplayFeeder"]
+
+
+class ReplayFeeder:
+    """Poses on the caller's thread, images on ``threads`` workers (module docstring).
+
+    Parameters
+    ----------
+    handlers : MessageHandlers
+        Of the session to feed.
+    threads : int
+        Detection threads; 1 feeds everything synchronously on the caller's thread.
+    queue_size : int
+        Images queued per camera before :meth:`image` waits (``sync.image_queue_size``).
+    """
+
+    def __init__(self, handlers: MessageHandlers, *, threads: int, queue_size: int) -> None:
+        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+            raise ValueError(f"threads: expected an integer >= 1, got {threads!r}")
+        self.handlers = handlers
+        self.session = handlers.session
+        self.threads = threads
+        self.errors: list[BaseException] = []
+        self._lock = threading.Lock()
+        cameras = self.session.config.camera_names
+        self._held = {c: collections.deque() for c in cameras}
+        self._queue = None
+        self._workers: list[QueueWorker] = []
+        if threads > 1:
+            self._queue = FairImageQueue(cameras, queue_size, block=True)
+            self._workers = [QueueWorker(self._queue, self._examine, name=f"rwhec-replay-{i}",
+                                         on_error=self._error).start()
+                             for i in range(threads)]
+
+    def pose(self, msg: Any) -> bool:
+        """A ``geometry_msgs/PoseStamped`` of the pose source; images it serves go to work."""
+        ok = self.handlers.on_pose_stamped(msg)
+        if self._queue is not None:
+            self._release(final=False)
+        return ok
+
+    def image(self, camera: str, msg: Any, *, compressed: bool,
+              T_parent_child: np.ndarray | None = None) -> None:
+        """An image of ``camera`` (``sensor_msgs/Image``, or ``CompressedImage`` when
+        ``compressed``), with the pose at its stamp when it is known (tf)."""
+        item = (msg, compressed, T_parent_child)
+        if self._queue is None:
+            self._handle(camera, item)
+            return
+        if camera not in self._held:
+            self._handle(camera, item)  # unknown camera: rejected and counted at once
+            return
+        self._held[camera].append(item)
+        self._release(final=False)
+
+    def close(self, timeout: float | None = None) -> None:
+        """Hand over every held image, wait until all are examined, stop the workers."""
+        if self._queue is None:
+            return
+        self._release(final=True)
+        self._queue.join(timeout)
+        for w in self._workers:
+            w.stop()
+
+    # --- internals -----------------------------------------------------------------------------
+    def _ready(self, item: tuple) -> bool:
+        msg, _, T = item
+        if T is not None:
+            return True
+        try:
+            stamp = stamp_to_ns(msg.header.stamp)
+        except (ValueError, TypeError, AttributeError):
+            return True  # rejected and counted by the handlers
+        return self.session.pose_ready(stamp)
+
+    def _release(self, *, final: bool) -> None:
+        """Queue each camera's held images, oldest first, while their pose is there."""
+        for camera, held in self._held.items():
+            while held and (final or self._ready(held[0])):
+                self._queue.put(camera, held.popleft())
+
+    def _examine(self, entry: tuple) -> None:
+        camera, item = entry
+        self._handle(camera, item)
+
+    def _handle(self, camera: str, item: tuple) -> None:
+        msg, compressed, T = item
+        if compressed:
+            self.handlers.on_compressed_image(camera, msg, T)
+        else:
+            self.handlers.on_image(camera, msg, T)
+
+    def _error(self, exc: BaseException) -> None:
+        with self._lock:
+            self.errors.append(exc)

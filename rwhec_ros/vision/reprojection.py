@@ -1,0 +1,158 @@
+"""Reprojection error of the detected tag corners through the calibrated chain, per camera.
+
+For a pair ``(A_i, B_i)`` of edge (tag ``x``, camera ``y``) the calibration predicts the tag pose
+in the camera frame without using ``B_i``::
+
+    T_cam_tag = Y^-1 A_i X        (camera <- carrier <- pose stream <- tag carrier <- tag)
+
+(``A = T_<camera carrier>_<tag carrier>``, ``X = T_<tag carrier>_tag``, ``Y = T_<camera
+carrier>_cam``). Projecting the tag's corners with the camera's intrinsics (distortion included)
+and comparing them with the corners the detector found gives an error in pixels that a user can
+judge against the detector's own noise (a few tenths of a pixel for sharp tags): it is the
+residual of the whole calibration, not of the tag pose fit.
+
+Corners are the *detected, distorted* pixel coordinates, as
+:attr:`rwhec_ros.vision.detection.TagObservation.corners` reports them, in the corner order of
+:data:`~rwhec_ros.vision.detection.TAG_CORNERS_UNIT`; the prediction is projected through the
+distortion model (:meth:`CameraIntrinsics.project_points`), so no undistortion is needed. For an
+unknown scale (monocular), ``tag_size_m`` is the nominal size: the true size is ``size /
+alpha`` and the estimate's translations are metric, so the corners are placed at that size.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.lie import invert_transform
+from .detection import tag_object_points
+from .intrinsics import CameraIntrinsics
+
+__all__ = ["CornerObservation", "CameraReprojection", "reprojection_errors"]
+
+
+@dataclass(frozen=True)
+class CornerObservation:
+    """What one pair needs for the reprojection check.
+
+    Attributes
+    ----------
+    x : str
+        The tag (X) frame.
+    y : str
+        The camera (Y) frame.
+    A : ndarray, shape (4, 4)
+        The pair's pose-stream transform ``T_<camera carrier>_<tag carrier>``.
+    corners_px : ndarray, shape (4, 2)
+        The detected corners in distorted pixels, order of ``TAG_CORNERS_UNIT``.
+    tag_size_m : float
+        Edge length of the tag's black square (nominal for unknown scale).
+    """
+
+    x: str
+    y: str
+    A: np.ndarray
+    corners_px: np.ndarray
+    tag_size_m: float
+
+    def __post_init__(self) -> None:
+        A = np.asarray(self.A, float)
+        if A.shape != (4, 4) or not np.all(np.isfinite(A)):
+            raise ValueError(f"A of ({self.x}, {self.y}): expected a finite (4, 4) transform, "
+                             f"got shape {A.shape}")
+        c = np.asarray(self.corners_px, float)
+        if c.shape != (4, 2) or not np.all(np.isfinite(c)):
+            raise ValueError(f"corners_px of ({self.x}, {self.y}): expected finite (4, 2) "
+                             f"pixels, got shape {c.shape}")
+        if not (np.isfinite(self.tag_size_m) and self.tag_size_m > 0):
+            raise ValueError(f"tag_size_m of ({self.x}, {self.y}): must be finite and > 0, got "
+                             f"{self.tag_size_m!r}")
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "corners_px", c)
+        object.__setattr__(self, "tag_size_m", float(self.tag_size_m))
+
+
+@dataclass
+class CameraReprojection:
+    """Reprojection errors of one camera's corners (pixels; 2D distance per corner).
+
+    ``n_behind`` pairs whose predicted tag lies at or behind the camera are left out of the
+    statistics (the estimate cannot be right for them)."""
+
+    camera: str
+    n_pairs: int
+    rms_px: float
+    median_px: float
+    max_px: float
+    n_behind: int = 0
+
+    def to_dict(self) -> dict:
+        return {"camera": self.camera, "n_pairs": int(self.n_pairs), "rms_px": float(self.rms_px),
+                "median_px": float(self.median_px), "max_px": float(self.max_px),
+                "n_behind": int(self.n_behind)}
+
+
+def reprojection_errors(
+    observations: Sequence[CornerObservation],
+    intrinsics: Mapping[str, CameraIntrinsics],
+    result,
+) -> dict[str, CameraReprojection]:
+    """Per camera, the RMS (and median, max) reprojection error of the detected corners through
+    the calibrated chain (module docstring).
+
+    Parameters
+    ----------
+    observations : sequence of CornerObservation
+    intrinsics : mapping of camera name to CameraIntrinsics
+    result : CalibrationResult
+        ``X``, ``Y`` (metric) and ``scale`` with frame names ``x_names``, ``y_names``.
+
+    Returns
+    -------
+    dict of str to CameraReprojection
+        One entry per camera that has observations, in first-seen order.
+
+    Raises
+    ------
+    ValueError
+        For an observation whose frames the result does not have, or a camera without
+        intrinsics.
+    """
+    alpha = float(result.scale) if np.isfinite(result.scale) and result.scale > 0 else 1.0
+    groups: dict[str, list[int]] = {}
+    for i, ob in enumerate(observations):
+        if ob.x not in result.x_names:
+            raise ValueError(f"observations[{i}]: tag frame {ob.x!r} not in the result "
+                             f"{list(result.x_names)}")
+        if ob.y not in result.y_names:
+            raise ValueError(f"observations[{i}]: camera frame {ob.y!r} not in the result "
+                             f"{list(result.y_names)}")
+        if ob.y not in intrinsics:
+            raise ValueError(f"observations[{i}]: no intrinsics for camera {ob.y!r}; have "
+                             f"{sorted(intrinsics)}")
+        groups.setdefault(ob.y, []).append(i)
+    out = {}
+    for cam, idx in groups.items():
+        Y_inv = invert_transform(result.transform(cam))
+        pts, seen = [], []
+        for i in idx:
+            ob = observations[i]
+            T = Y_inv @ ob.A @ result.transform(ob.x)  # T_cam_tag predicted
+            P = tag_object_points(ob.tag_size_m / alpha) @ T[:3, :3].T + T[:3, 3]
+            pts.append(P)
+            seen.append(ob.corners_px)
+        P = np.concatenate(pts)
+        front = (P[:, 2] > 0).reshape(-1, 4).all(axis=1)
+        n_behind = int((~front).sum())
+        if not front.any():
+            nan = float("nan")
+            out[cam] = CameraReprojection(cam, len(idx), nan, nan, nan, n_behind)
+            continue
+        keep = np.repeat(front, 4)
+        uv = intrinsics[cam].project_points(P[keep])
+        err = np.linalg.norm(uv - np.concatenate(seen)[keep], axis=1)
+        out[cam] = CameraReprojection(cam, len(idx), float(np.sqrt(np.mean(err**2))),
+                                      float(np.median(err)), float(err.max()), n_behind)
+    return out

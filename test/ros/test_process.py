@@ -1,0 +1,194 @@
+"""Start-up errors and Ctrl-C of the node programs, with fake rclpy calls (no ROS needed).
+
+The subprocess test delivers SIGINT twice, the way ``ros2 launch`` does (process group plus
+launch's forward), the second one while the clean-up runs.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from rwhec_ros.ros.process import (
+    EXIT_BAD_CONFIG,
+    EXIT_OK,
+    EXIT_START_FAILED,
+    NodeProgram,
+    params_file_arguments,
+    run_node_program,
+    start_failure_message,
+)
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+class Recorder:
+    """Fake rclpy calls that record what the program did."""
+
+    def __init__(self):
+        self.calls: list[str] = []
+        self.fatal: list[str] = []
+
+    def program(self, **kw) -> NodeProgram:
+        base = dict(
+            name="calibrator",
+            init=lambda: self.calls.append("init"),
+            build=lambda: self.calls.append("build") or "node",
+            spin=lambda built: self.calls.append("spin"),
+            stop_steps=lambda built: [lambda: self.calls.append("stop"),
+                                      lambda: self.calls.append("destroy")],
+            shutdown=lambda: self.calls.append("shutdown"),
+            fatal=self.fatal.append,
+            argv=["calibrator"],
+        )
+        base.update(kw)
+        return NodeProgram(**base)
+
+
+def test_params_file_arguments():
+    argv = ["calibrator", "--ros-args", "--params-file", "a.yaml", "-p", "x:=1",
+            "--params-file=/abs/b.yaml", "--params-file"]
+    assert params_file_arguments(argv) == ["a.yaml", "/abs/b.yaml"]
+
+
+def test_start_failure_message_is_one_line_naming_the_missing_file(tmp_path):
+    exc = RuntimeError("failed to initialize rcl: Couldn't parse params file: 'Error opening "
+                       "YAML file, at ./src/parser.c:271'\n, at ./src/rcl/arguments.c:406")
+    (tmp_path / "there.yaml").write_text("/**: {ros__parameters: {}}\n")
+    argv = ["--ros-args", "--params-file", "config/mobile_rig_mocap.yaml",
+            "--params-file", "there.yaml", "--params-file", "/nowhere/x.yaml"]
+    msg = start_failure_message(exc, argv, cwd=str(tmp_path))
+    assert "\n" not in msg
+    assert msg.startswith("cannot start ROS: failed to initialize rcl: Couldn't parse params file")
+    assert (f"parameter file 'config/mobile_rig_mocap.yaml' not found (relative paths are taken "
+            f"from the current directory {tmp_path};") in msg
+    assert "$(ros2 pkg prefix --share rwhec_ros)/config/" in msg
+    assert "there.yaml" not in msg  # readable: not blamed
+    assert "parameter file '/nowhere/x.yaml' not found" in msg
+    assert "/nowhere/x.yaml' not found (" not in msg  # absolute: no hint about the cwd
+
+
+def test_init_failure_is_one_line_and_exit_1(capsys):
+    rec = Recorder()
+
+    def init():
+        raise RuntimeError("failed to initialize rcl: Couldn't parse params file\n at x.c:1")
+
+    code = run_node_program(rec.program(
+        init=init, argv=["calibrator", "--ros-args", "--params-file", "missing.yaml"]))
+    assert code == EXIT_START_FAILED and rec.calls == []
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("[FATAL] [calibrator]: cannot start ROS: failed to initialize rcl")
+    assert "parameter file 'missing.yaml' not found" in err
+
+
+def test_invalid_configuration_exit_2_and_shutdown():
+    rec = Recorder()
+
+    def build():
+        raise ValueError("noise.sigma: must be > 0, got -1.0")
+
+    assert run_node_program(rec.program(build=build)) == EXIT_BAD_CONFIG
+    assert rec.fatal == ["invalid configuration: noise.sigma: must be > 0, got -1.0"]
+    assert rec.calls == ["init", "shutdown"]  # no node to stop, but ROS is shut down
+
+
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, ConnectionAbortedError])
+def test_stop_by_interrupt_or_external_shutdown_cleans_up_in_order(stop):
+    rec = Recorder()
+
+    def spin(built):
+        rec.calls.append("spin")
+        raise stop()
+
+    code = run_node_program(rec.program(spin=spin, quiet_exceptions=(ConnectionAbortedError,)))
+    assert code == EXIT_OK
+    assert rec.calls == ["init", "build", "spin", "stop", "destroy", "shutdown"]
+
+
+def test_failing_clean_up_step_is_reported_and_the_rest_still_runs():
+    rec = Recorder()
+
+    def broken():
+        raise RuntimeError("publisher's context is invalid")
+
+    code = run_node_program(rec.program(
+        stop_steps=lambda built: [broken, lambda: rec.calls.append("destroy")]))
+    assert code == EXIT_OK
+    assert rec.calls == ["init", "build", "spin", "destroy", "shutdown"]
+    assert rec.fatal == ["during shutdown: RuntimeError: publisher's context is invalid"]
+
+
+def test_two_sigints_in_process_give_one_quiet_stop():
+    """Real signals to this process: the first stops the spin, the second (during the clean-up)
+    is ignored; afterwards the previous SIGINT handler is back."""
+    rec = Recorder()
+    previous = signal.getsignal(signal.SIGINT)
+
+    def spin(built):
+        rec.calls.append("spin")
+        os.kill(os.getpid(), signal.SIGINT)
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:  # the handler raises KeyboardInterrupt in here
+            time.sleep(0.01)
+        rec.calls.append("spin was not interrupted")
+
+    def slow_destroy():
+        os.kill(os.getpid(), signal.SIGINT)  # the forwarded SIGINT of ros2 launch
+        time.sleep(0.05)
+        rec.calls.append("destroy")
+
+    code = run_node_program(rec.program(spin=spin, stop_steps=lambda b: [slow_destroy]))
+    assert code == EXIT_OK
+    assert rec.calls == ["init", "build", "spin", "destroy", "shutdown"]
+    assert rec.fatal == []
+    assert signal.getsignal(signal.SIGINT) is previous
+
+
+SCRIPT = textwrap.dedent("""
+    import sys, time
+    from rwhec_ros.ros.process import NodeProgram, run_node_program
+
+    def spin(built):
+        print("spinning", flush=True)
+        while True:
+            time.sleep(0.01)
+
+    def slow(name):
+        def step():
+            time.sleep(0.4)  # a slow destroy_node: the second SIGINT arrives meanwhile
+            print(name, flush=True)
+        return step
+
+    sys.exit(run_node_program(NodeProgram(
+        name="fake", init=lambda: None, build=lambda: object(), spin=spin,
+        stop_steps=lambda built: [slow("stopped"), slow("destroyed")],
+        shutdown=lambda: print("shutdown", flush=True),
+        fatal=lambda text: print("FATAL", text, flush=True))))
+""")
+
+
+@pytest.mark.parametrize("n_signals", [1, 2, 3])
+def test_ctrl_c_under_launch_exits_0_without_traceback(n_signals):
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.Popen([sys.executable, "-c", SCRIPT], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout.readline().strip() == "spinning"
+        for i in range(n_signals):
+            proc.send_signal(signal.SIGINT)
+            time.sleep(0.1 if i == 0 else 0.02)  # the later ones land in the clean-up
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert out.split() == ["stopped", "destroyed", "shutdown"]

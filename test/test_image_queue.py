@@ -1,0 +1,139 @@
+"""FairImageQueue: per-camera FIFOs served round-robin, one image per camera in service,
+readiness, drop-oldest live and blocking offline; with QueueWorker threads."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from rwhec_ros.session import FairImageQueue, QueueWorker
+
+
+def test_round_robin_one_in_service_per_key_and_fifo():
+    q = FairImageQueue(["a", "b", "c"], 10)
+    for i in range(6):
+        q.put("a", f"a{i}")  # a fast camera
+    q.put("b", "b0")
+    q.put("c", "c0")
+    got = [q.get(0)]
+    assert got == [("a", "a0")]
+    # "a" is in service: the others come first, "a" waits for task_done
+    got += [q.get(0), q.get(0)]
+    assert got[1:] == [("b", "b0"), ("c", "c0")]
+    assert q.get(0.01) is None  # a1 is queued but a0 is still in service
+    q.task_done(got[0])
+    assert q.get(0) == ("a", "a1")  # oldest first
+    stats = q.stats()
+    assert stats["a"] == {"received": 6, "dropped": 0, "processed": 1, "queued": 4}
+    assert len(q) == 4
+    with pytest.raises(KeyError):
+        q.put("z", 1)
+
+
+def test_a_fast_camera_cannot_starve_the_others():
+    q = FairImageQueue(["fast", "slow"], 3)
+    served = []
+    for i in range(20):  # the fast camera floods; its queue keeps only the 3 newest
+        q.put("fast", i)
+        if i % 5 == 0:
+            q.put("slow", i)
+        entry = q.get(0)
+        served.append(entry)
+        q.task_done(entry)
+    keys = [k for k, _ in served]
+    assert keys.count("slow") == 4  # every slow image was served
+    assert q.stats()["slow"]["dropped"] == 0
+    assert q.dropped == q.stats()["fast"]["dropped"]
+
+
+def test_full_key_drops_its_oldest_live_and_blocks_offline():
+    live = FairImageQueue(["a", "b"], 2)
+    assert live.put("a", 1) and live.put("a", 2)
+    assert not live.put("a", 3)  # drops 1
+    assert live.put("b", 9)  # another camera's room is its own
+    assert live.stats()["a"]["dropped"] == 1 and live.get(0) == ("a", 2)
+
+    offline = FairImageQueue(["a"], 1, block=True)
+    offline.put("a", 1)
+    done = threading.Event()
+
+    def producer():
+        offline.put("a", 2)  # blocks until 1 is taken
+        done.set()
+
+    t = threading.Thread(target=producer)
+    t.start()
+    assert not done.wait(0.1)
+    entry = offline.get(1.0)
+    assert entry == ("a", 1)
+    assert done.wait(2.0)
+    t.join(2.0)
+    assert offline.stats()["a"]["dropped"] == 0 and len(offline) == 1
+
+
+def test_items_wait_until_ready_then_in_order():
+    newest = {"t": 0}
+    q = FairImageQueue(["a", "b"], 10, ready=lambda stamp: stamp <= newest["t"],
+                       recheck_s=0.01)
+    q.put("a", 5)
+    q.put("a", 6)
+    q.put("b", 1)
+    assert q.get(0.02) is None  # nothing ready yet
+    newest["t"] = 1
+    q.notify()
+    first_b = q.get(0.1)
+    assert first_b == ("b", 1)
+    q.task_done(first_b)
+    newest["t"] = 10
+    entry = q.get(0.1)
+    assert entry == ("a", 5)
+    q.task_done(entry)
+    assert q.get(0.1) == ("a", 6)
+    # closing hands out what is left without the ready check
+    newest["t"] = 0
+    q.put("b", 99)
+    q.close()
+    assert q.get(0.1) == ("b", 99)
+    assert q.get(0.1) is None  # "a" was never marked done, nothing queued: empty
+
+
+def test_workers_keep_each_camera_in_order_and_join():
+    keys = [f"cam{k}" for k in range(4)]
+    q = FairImageQueue(keys, 4, block=True)
+    seen = {k: [] for k in keys}
+    active = {k: 0 for k in keys}
+    overlap = []
+    lock = threading.Lock()
+
+    def handler(entry):
+        key, i = entry
+        with lock:
+            active[key] += 1
+            if active[key] > 1:
+                overlap.append(key)
+        time.sleep(0.001)
+        with lock:
+            seen[key].append(i)
+            active[key] -= 1
+
+    workers = [QueueWorker(q, handler, name=f"w{i}").start() for i in range(3)]
+    for i in range(40):
+        for k in keys:
+            q.put(k, i)
+    assert q.join(20.0)
+    for w in workers:
+        w.stop()
+    assert not overlap  # never two images of one camera at once
+    assert all(seen[k] == list(range(40)) for k in keys)  # each camera in order, none lost
+    assert all(s["processed"] == 40 for s in q.stats().values())
+
+
+def test_validation():
+    with pytest.raises(ValueError, match="maxsize"):
+        FairImageQueue(["a"], 0)
+    with pytest.raises(ValueError, match="keys"):
+        FairImageQueue(["a", "a"], 1)
+    with pytest.raises(ValueError, match="keys"):
+        FairImageQueue([], 1)

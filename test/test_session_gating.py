@@ -1,0 +1,243 @@
+"""The session's image path: motion gate (same pairs as examining every image), lazy decoding,
+compressed images, images waiting for their pose, per-camera counters."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rwhec_ros.config import CalibratorConfig, read_parameter_file
+from rwhec_ros.data.dataset import Dataset
+from rwhec_ros.messages import gray_to_compressed_image_fields
+from rwhec_ros.session import CalibrationSession, MessageHandlers
+from rwhec_ros.simulation import Trajectory, demo_rig, simulated_stream
+from rwhec_ros.vision.intrinsics import CameraIntrinsics
+from rwhec_ros.vision.render import RenderedTag, render_tags
+
+pytest.importorskip("rosbags.typesys")
+
+from rwhec_ros.simulation import simulation_messages  # noqa: E402 - needs rosbags
+
+DEMO_YAML = Path(__file__).resolve().parents[1] / "config" / "demo.yaml"
+NS = 1_000_000_000
+# Keyframe thresholds above the motion between two images (the rig turns and tilts at up to
+# 0.4 rad/s): most pairs are refused, so the gate has work to do.
+GATED = {"keyframe.min_rotation_rad": 0.2, "keyframe.min_translation_m": 0.08}
+
+
+def config(tmp: Path, cameras, tag_ids, **overrides) -> CalibratorConfig:
+    flat = {k: v for k, v in read_parameter_file(DEMO_YAML).items()
+            if not k.startswith("cameras.")}
+    flat.update({"output.directory": str(tmp), "cameras.names": list(cameras),
+                 "tags.ids": list(tag_ids)})
+    for cam in cameras:
+        flat[f"cameras.{cam}.image_topic"] = f"/demo/{cam}/image_raw"
+        flat[f"cameras.{cam}.camera_info_topic"] = f"/demo/{cam}/camera_info"
+    flat.update(overrides)
+    return CalibratorConfig.from_parameters(flat)
+
+
+SCENES = {
+    # Two cameras turning among four tags: each camera sees a tag in a quarter of its images
+    # and never all four at once, so some edge of every camera could always take a pair (an
+    # edge whose tag is out of view has not moved with the camera): the gate never skips a
+    # whole image here, it leaves unexamined the tags whose edge has its pair already.
+    "turning": dict(rig=lambda: demo_rig(2, 4), tag_ids=(0, 1, 2, 3), seconds=24.0, rate=3.0),
+    # One camera tilting in front of tag 0 (in view in about 3/4 of the images): once the edge
+    # has a pair, images too close to it are skipped before decoding.
+    "steady": dict(rig=lambda: demo_rig(1, 8, trajectory=Trajectory(yaw_rate=0.0)),
+                   tag_ids=(0,), seconds=20.0, rate=6.0),
+}
+
+
+@pytest.fixture(scope="module")
+def streams():
+    """``get(scene)``: the scene's sensor stream (images between pose stamps, poses at 100 Hz,
+    in stamp order), rendered once per module."""
+    cache = {}
+
+    def get(name: str):
+        if name not in cache:
+            scene = SCENES[name]
+            rig = scene["rig"]()
+            samples = list(simulated_stream(rig, np.random.default_rng(3),
+                                            seconds=scene["seconds"],
+                                            image_rate_hz=scene["rate"], pose_rate_hz=100.0,
+                                            supersample=1))
+            cache[name] = rig, scene["tag_ids"], samples
+        return cache[name]
+
+    return get
+
+
+def feed(session: CalibrationSession, rig, samples, transport: str = "raw",
+         with_pose: bool = False) -> list:
+    """Feed a session through the message handlers (rosbags messages, as ``rwhec-calibrate
+    bag``), or with the pose given per image (as a tf lookup) when ``with_pose``."""
+    handlers = MessageHandlers(session)
+    for cam in rig.cameras:
+        assert session.set_camera_info(cam, rig.intrinsics[cam])
+    outcomes = []
+    if with_pose:
+        for stamp, cam, data in samples:
+            if cam is not None:
+                T = rig.T_world_rig((stamp - NS) / NS)
+                outcomes.append(session.add_image(cam, stamp, data, T_parent_child=T))
+        return outcomes
+    for topic, _, _, msg in simulation_messages(rig, samples, image_transport=transport):
+        if topic == "/demo/rig/pose":
+            assert handlers.on_pose_stamped(msg)
+        elif topic.endswith("/compressed"):
+            outcomes.append(handlers.on_compressed_image(topic.split("/")[2], msg))
+        elif topic.endswith("/image_raw"):
+            outcomes.append(handlers.on_image(topic.split("/")[2], msg))
+    return outcomes
+
+
+def saved_pairs(session: CalibrationSession, path: Path) -> dict:
+    data = Dataset.load(session.save_dataset(path))
+    return {(e.x, e.y): e for e in data.edges}
+
+
+@pytest.mark.parametrize("name, with_pose", [("turning", False), ("steady", False),
+                                             ("steady", True)],
+                         ids=["turning, pose buffer", "steady, pose buffer", "steady, pose given"])
+def test_motion_gate_keeps_the_same_pairs_as_examining_every_image(streams, tmp_path, name,
+                                                                  with_pose):
+    rig, tag_ids, samples = streams(name)
+    runs = {}
+    for gate in (True, False):
+        cfg = config(tmp_path / str(gate), rig.cameras, tag_ids, **GATED,
+                     **{"detection.motion_gate": gate})
+        session = CalibrationSession(cfg)
+        runs[gate] = session, feed(session, rig, samples, with_pose=with_pose)
+    gated, every = runs[True][0], runs[False][0]
+    c = gated.counters()
+    # The gate did work: tags left unexamined (turning; 14 measured), whole images skipped
+    # before decoding (steady) ...
+    if name == "turning":
+        assert c.get("tags_skipped_no_motion", 0) >= 5 and "images_skipped_no_motion" not in c
+    else:
+        assert c.get("images_skipped_no_motion", 0) > 20, c
+    assert "images_skipped_no_motion" not in every.counters()
+    # ... and changed no pair: same edges, stamps, A, B, sigma, kappa, bit for bit.
+    a, b = saved_pairs(gated, tmp_path / "g.yaml"), saved_pairs(every, tmp_path / "e.yaml")
+    assert a.keys() == b.keys() and sum(e.n for e in a.values()) >= 10
+    for key in a:
+        for field in ("stamps_ns", "A", "B", "sigma", "kappa"):
+            np.testing.assert_array_equal(getattr(a[key], field), getattr(b[key], field))
+    assert c["pairs_kept"] == every.counters()["pairs_kept"]
+    # the same calibration
+    ra, rb = gated.calibrate().result, every.calibrate().result
+    assert ra is not None and rb is not None
+    np.testing.assert_array_equal(ra.X, rb.X)
+    np.testing.assert_array_equal(ra.Y, rb.Y)
+    # per camera: every image is skipped, detected or rejected
+    per_camera = gated.camera_counters()
+    assert set(per_camera) == set(rig.cameras)
+    for counts in per_camera.values():
+        assert counts["images"] == counts["skipped_no_motion"] + counts["detected"] \
+            + counts["rejected"]
+    assert sum(n["pairs_kept"] for n in per_camera.values()) == c["pairs_kept"]
+    if name == "steady":  # through the buffer, images wait first and are gated later
+        statuses = {o.status for o in runs[True][1]}
+        assert ("skipped" in statuses) == with_pose
+
+
+def one_tag_image(intr: CameraIntrinsics, tag_id: int) -> np.ndarray:
+    T_cam_tag = np.diag([1.0, -1.0, -1.0, 1.0])
+    T_cam_tag[2, 3] = 1.0
+    return render_tags(intr, [RenderedTag(tag_id, T_cam_tag, 0.25)])
+
+
+class Decoder:
+    """A lazily decoded image that counts its decodings."""
+
+    def __init__(self, gray: np.ndarray) -> None:
+        self.gray, self.calls = gray, 0
+
+    def __call__(self) -> np.ndarray:
+        self.calls += 1
+        return self.gray
+
+
+def test_a_skipped_image_is_never_decoded_and_a_waiting_one_is_gated_on_its_pose(tmp_path):
+    session = CalibrationSession(config(tmp_path, ["cam0"], [3]))
+    intr = demo_rig().intrinsics["cam0"]
+    session.set_camera_info("cam0", intr)
+    gray = one_tag_image(intr, 3)
+    session.add_pose(0, np.eye(4))
+    session.add_pose(NS // 10, np.eye(4))
+    assert session.pose_ready(NS // 20) and not session.pose_ready(NS // 5)
+    assert session.pose_ready(-1)  # invalid: let it through to be rejected at once
+    first = Decoder(gray)
+    assert session.add_image("cam0", NS // 20, first).status == "used" and first.calls == 1
+    # the only edge (tag_3, cam0) has its pair at this pose: nothing to gain, nothing decoded
+    same = Decoder(gray)
+    assert session.add_image("cam0", NS // 20 + 1, same).status == "skipped"
+    assert same.calls == 0
+    # an image newer than the newest pose waits undecoded ...
+    late, moved = Decoder(gray), Decoder(gray)
+    assert session.add_image("cam0", 3 * NS // 20, late).status == "pending"
+    assert late.calls == 0
+    session.add_pose(2 * NS // 10, np.eye(4))  # ... and is gated when its pose comes: no motion
+    assert late.calls == 0 and session.counters()["pending_images"] == 0
+    assert session.add_image("cam0", 5 * NS // 20, moved).status == "pending"
+    T = np.eye(4)
+    T[0, 3] = 0.5  # 25 cm at the image stamp (interpolated): a new keyframe
+    session.add_pose(3 * NS // 10, T)
+    assert moved.calls == 1
+    counts = session.camera_counters()["cam0"]
+    assert counts == {"images": 4, "skipped_no_motion": 2, "detected": 2, "used": 2,
+                      "rejected": 0, "pairs_kept": 2}
+    assert session.counters()["images_skipped_no_motion"] == 2
+    # a decoder that fails is a bad image, counted, never raised
+    def broken():
+        raise ValueError("data is empty")
+
+    T[0, 3] = 1.5
+    session.add_pose(NS, T)
+    session.add_pose(NS + NS // 10, T)
+    out = session.add_image("cam0", NS + NS // 20, broken)
+    assert out.status == "rejected" and out.reasons == ["bad_image_message"]
+    assert out.detail == "data is empty"
+    assert session.camera_counters()["cam0"]["rejected"] == 1
+
+
+def test_compressed_images_through_the_handlers(tmp_path):
+    session = CalibrationSession(config(tmp_path, ["cam0", "cam1"], [0, 1, 2, 3]))
+    warnings = []
+    handlers = MessageHandlers(session, on_warning=lambda k, t: warnings.append((k, t)))
+    intr = demo_rig().intrinsics["cam1"]
+    session.set_camera_info("cam1", intr)
+    session.add_pose(0, np.eye(4))
+    session.add_pose(NS // 10, np.eye(4))
+
+    def message(stamp: int, **fields):
+        f = gray_to_compressed_image_fields(one_tag_image(intr, 2), stamp, "cam1_optical")
+        f.update(fields)
+        stamp_f = f["header"]["stamp"]
+        return SimpleNamespace(header=SimpleNamespace(stamp=SimpleNamespace(**stamp_f)),
+                               format=f["format"], data=f["data"])
+
+    good = message(NS // 20)
+    assert handlers.on_compressed_image("cam1", good).pairs_kept == 1
+    T = np.eye(4)
+    T[0, 3] = 0.5  # move, so that the gate lets the next images through
+    session.add_pose(2 * NS, T)
+    session.add_pose(2 * NS + NS // 10, T)
+    truncated = message(2 * NS + 1, data=good.data[: len(good.data) // 2])
+    garbage = message(2 * NS + 2, data=b"\x00\x01 not an image")
+    png = gray_to_compressed_image_fields(one_tag_image(intr, 2), 0, "x", codec="png")
+    png = message(2 * NS + 3, format=png["format"], data=png["data"][:-100])  # cut short
+    for msg in (truncated, garbage, png):
+        out = handlers.on_compressed_image("cam1", msg)
+        assert out.status == "rejected" and out.reasons == ["bad_image_message"], out
+        assert out.detail
+    assert session.counters()["bad_image_message"] == 3
+    assert session.camera_counters()["cam1"]["rejected"] == 3
+    assert [k for k, _ in warnings] == ["bad_image_message"] * 3
+    assert "truncated" in warnings[0][1]
