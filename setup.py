@@ -23,6 +23,8 @@ setup(
         "scipy>=1.11",
         "cvxpy>=1.5",
         "clarabel>=0.9",
+        # sparse LDL^T (AMD ordering) of the large-rig path; also a dependency of cvxpy/OSQP
+        "qdldl>=0.1.9",
         # 4.x only: the 5.0 Python wheel lacks calibrateHandEye / calibrateRobotWorldHandEye.
         "opencv-contrib-python-headless>=4.10,<5",
         "PyYAML>=6",

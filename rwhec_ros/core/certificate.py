@@ -46,7 +46,7 @@ from .result import Certificate, Status
 from .verified import UNIT_ROUNDOFF, gamma, smallest_eigenvalues, verified_min_eigenvalue
 
 __all__ = ["CertificateOptions", "DualBound", "ExactReduction", "certificate_matrix",
-           "rigorous_dual_bound", "certify_from_Z", "certify"]
+           "rigorous_dual_bound", "certify_from_Z", "certificate_from_bound", "certify"]
 
 
 @dataclass
@@ -236,16 +236,40 @@ def certify_from_Z(
         trivial_s = True
     bound = rigorous_dual_bound(Z, z_err_rows, float(lambda_s), reduced, scale, n_rotations,
                                 float(w[0]))
+    return certificate_from_bound(bound, w, null_dim, trivial_s, p, scale, solver_ok=solver_ok,
+                                  solver_status=solver_status, cost_floor=cost_floor, options=opts)
+
+
+def certificate_from_bound(
+    bound: DualBound,
+    w: np.ndarray,
+    null_dim: int,
+    trivial_s: bool,
+    primal_cost: float,
+    scale: float,
+    *,
+    solver_ok: bool = True,
+    solver_status: str = "",
+    cost_floor: float = 0.0,
+    options: CertificateOptions | None = None,
+) -> Certificate:
+    """The status decision of a certificate from its rigorous dual bound (scaled units), the
+    smallest eigenvalues ``w`` of the certificate matrix (an estimate; ascending), the dimension
+    of its numerical null space and whether the trivial ``e_s`` null vector of a homogeneous
+    problem was set aside (see :func:`certify_from_Z`). Shared by the dense certificate and the
+    sparse one of :mod:`rwhec_ros.core.sparse_certificate`."""
+    opts = options or CertificateOptions()
+    p = float(primal_cost)
     d = float(bound.value * scale)
     denom = max(d, cost_floor)
     rho = (p - d) / denom if np.isfinite(d) and denom > 0 else float("nan")
-    eigs = w.copy()
+    eigs = np.asarray(w, dtype=float).copy()
     margins = {"eigenvalue": bound.eigenvalue_term * scale, "rounding": bound.rounding_term * scale,
                "schur": bound.schur_term * scale}
     if not solver_ok:
         status = Status.SOLVER_INACCURATE
         msg = (f"solver status '{solver_status}': the dual point is not reliable "
-               f"(rho_hat={rho:.3g}, lambda_min={w[0]:.3g})")
+               f"(rho_hat={rho:.3g}, lambda_min={eigs[0]:.3g})")
     elif not np.isfinite(d):
         status = Status.ILL_CONDITIONED
         msg = f"not certified: no rigorous dual bound ({bound.reason})"
@@ -269,7 +293,7 @@ def certify_from_Z(
         primal_cost=p,
         dual_bound=d,
         suboptimality_bound=float(rho),
-        lambda_min=float(w[0]),
+        lambda_min=float(eigs[0]),
         eigenvalues=eigs,
         null_space_dim=null_dim,
         tolerance=opts.rho_tol,

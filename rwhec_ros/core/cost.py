@@ -34,6 +34,7 @@ __all__ = [
     "StateLayout",
     "build_cost_matrix",
     "build_cost_matrices",
+    "edge_blocks",
     "direct_cost",
     "ReducedCost",
     "reduce_cost",
@@ -83,41 +84,65 @@ class StateLayout:
 def _edge_blocks(
     A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Summed 25x25 blocks of one edge: ``1/2 sum_i (M_t^T M_t / sigma_i^2 + kappa_i M_R^T M_R)``
-    and its rotation-only part ``1/2 sum_i kappa_i M_R^T M_R``.
+    """Summed 25x25 blocks of ``E`` edges with ``N`` pairs each: ``1/2 sum_i (M_t^T M_t /
+    sigma_i^2 + kappa_i M_R^T M_R)`` and its rotation-only part ``1/2 sum_i kappa_i M_R^T M_R``.
 
-    Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``. With
-    ``M_R = [I (x) R_A, -(R_B^T (x) I)]`` on ``(r_X, r_Y)``, ``M_R^T M_R`` has identity diagonal
-    blocks and off-diagonal ``-(R_B^T (x) R_A^T)`` (cf. eq. (36)); the translation rows
-    ``M_t = [R_A, -I, t_A, 0, -(t_B^T (x) I)]`` (cf. eq. (28)) are weighted and reduced by one
-    matrix product.
+    ``A, B`` (E, N, 4, 4), ``sigma, kappa`` (E, N); returns two arrays (E, 25, 25). Local variable
+    order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``. With ``M_R = [I (x) R_A,
+    -(R_B^T (x) I)]`` on ``(r_X, r_Y)``, ``M_R^T M_R`` has identity diagonal blocks and
+    off-diagonal ``-(R_B^T (x) R_A^T)`` (cf. eq. (36)); the translation rows ``M_t = [R_A, -I,
+    t_A, 0, -(t_B^T (x) I)]`` (cf. eq. (28)) are weighted and reduced by one matrix product per
+    edge (batched over the edges).
     """
-    N = A.shape[0]
-    RA, tA = A[:, :3, :3], A[:, :3, 3]
-    RB, tB = B[:, :3, :3], B[:, :3, 3]
-    rot = np.zeros((25, 25))
+    E, N = A.shape[:2]
+    RA, tA = A[..., :3, :3], A[..., :3, 3]
+    RB, tB = B[..., :3, :3], B[..., :3, 3]
+    rot = np.zeros((E, 25, 25))
     half_k = 0.5 * kappa
-    ksum = float(half_k.sum())
-    C = np.einsum("n,nba,nji->aibj", half_k, RB, RA).reshape(9, 9)  # sum k/2 R_B^T (x) R_A^T
-    rot[7:16, 7:16] = ksum * np.eye(9)
-    rot[16:25, 16:25] = ksum * np.eye(9)
-    rot[7:16, 16:25] = -C
-    rot[16:25, 7:16] = -C.T
+    ksum = half_k.sum(axis=1)
+    # sum k/2 R_B^T (x) R_A^T per edge
+    C = np.einsum("en,enba,enji->eaibj", half_k, RB, RA).reshape(E, 9, 9)
+    rot.reshape(E, 625)[:, _ROT_DIAG] = ksum[:, None]
+    rot[:, 7:16, 16:25] = -C
+    rot[:, 16:25, 7:16] = -np.swapaxes(C, 1, 2)
     # translation rows on the 16 columns [t_X, t_Y, alpha, r_Y]
-    Mt = np.zeros((N, 3, 16))
-    Mt[:, :, 0:3] = RA
-    Mt[:, 0, 3] = Mt[:, 1, 4] = Mt[:, 2, 5] = -1.0
-    Mt[:, :, 6] = tA
+    Mt = np.zeros((E, N, 3, 16))
+    Mt[..., :, 0:3] = RA
+    Mt[..., 0, 3] = Mt[..., 1, 4] = Mt[..., 2, 5] = -1.0
+    Mt[..., :, 6] = tA
     for c in range(3):  # -(t_B^T (x) I): column block c of vec(R_Y) multiplies t_B[c]
-        Mt[:, 0, 7 + 3 * c] = -tB[:, c]
-        Mt[:, 1, 8 + 3 * c] = -tB[:, c]
-        Mt[:, 2, 9 + 3 * c] = -tB[:, c]
-    Mt *= np.sqrt(0.5 / sigma**2)[:, None, None]
-    Mt2 = Mt.reshape(3 * N, 16)
-    G = Mt2.T @ Mt2
-    cols = np.r_[0:7, 16:25]
-    full = rot.copy()
-    full[np.ix_(cols, cols)] += G
+        Mt[..., 0, 7 + 3 * c] = -tB[..., c]
+        Mt[..., 1, 8 + 3 * c] = -tB[..., c]
+        Mt[..., 2, 9 + 3 * c] = -tB[..., c]
+    Mt *= np.sqrt(0.5 / sigma**2)[..., None, None]
+    Mt2 = Mt.reshape(E, 3 * N, 16)
+    G = np.matmul(np.swapaxes(Mt2, 1, 2), Mt2)
+    full = rot.copy()  # G lives on the columns [t_X, t_Y, alpha] (0:7) and r_Y (16:25)
+    full[:, 0:7, 0:7] += G[:, :7, :7]
+    full[:, 0:7, 16:25] += G[:, :7, 7:]
+    full[:, 16:25, 0:7] += G[:, 7:, :7]
+    full[:, 16:25, 16:25] += G[:, 7:, 7:]
+    return full, rot
+
+
+#: Flat indices of the rotation diagonal (local variables 7..24) of a 25 x 25 edge block.
+_ROT_DIAG = np.arange(7, 25) * 26
+
+
+def _all_edge_blocks(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_edge_blocks` of every edge of ``problem`` (E, 25, 25), batched over the edges with
+    the same number of pairs, in edge order."""
+    E = len(problem.edges)
+    full = np.empty((E, 25, 25))
+    rot = np.empty((E, 25, 25))
+    counts = np.array([e.n for e in problem.edges])
+    for N in np.unique(counts):
+        sel = np.flatnonzero(counts == N)
+        es = [problem.edges[i] for i in sel]
+        f, r = _edge_blocks(np.stack([e.A for e in es]), np.stack([e.B for e in es]),
+                            np.stack([e.sigma for e in es]), np.stack([e.kappa for e in es]))
+        full[sel] = f
+        rot[sel] = r
     return full, rot
 
 
@@ -136,6 +161,18 @@ def _local_to_global(layout: StateLayout, xi: np.ndarray, yi: np.ndarray) -> np.
     return idx
 
 
+def edge_blocks(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The summed 25x25 blocks of every edge, exactly symmetric: ``(full, rot, idx)`` with
+    ``full`` and its rotation-only part ``rot`` (E, 25, 25) and ``idx`` (E, 25) the indices of
+    the local variables ``[t_X, t_Y, alpha, r_X, r_Y]`` in the state of eq. (44): ``Q`` is the sum
+    of ``full[e]`` scattered to ``idx[e] x idx[e]`` (see :func:`build_cost_matrices`)."""
+    layout = StateLayout(problem.M, problem.P)
+    full, rot = _all_edge_blocks(problem)  # (E, 25, 25) each
+    full = 0.5 * (full + np.swapaxes(full, 1, 2))  # exact symmetry
+    rot = 0.5 * (rot + np.swapaxes(rot, 1, 2))
+    return full, rot, _local_to_global(layout, problem.edge_x, problem.edge_y)
+
+
 #: Problems whose state has at most this many entries get dense cost matrices (faster to build
 #: and use than scipy.sparse at that size); larger ones sparse CSR.
 DENSE_MAX_SIZE = 601
@@ -152,12 +189,7 @@ def build_cost_matrices(
     ``dense=None`` chooses dense arrays up to :data:`DENSE_MAX_SIZE` and sparse CSR above.
     """
     layout = StateLayout(problem.M, problem.P)
-    pairs = [_edge_blocks(e.A, e.B, e.sigma, e.kappa) for e in problem.edges]
-    full = np.stack([p[0] for p in pairs])  # (E, 25, 25)
-    rot = np.stack([p[1] for p in pairs])
-    full = 0.5 * (full + np.swapaxes(full, 1, 2))  # exact symmetry
-    rot = 0.5 * (rot + np.swapaxes(rot, 1, 2))
-    idx = _local_to_global(layout, problem.edge_x, problem.edge_y)
+    full, rot, idx = edge_blocks(problem)
     if dense is None:
         dense = layout.size <= DENSE_MAX_SIZE
     n = layout.size

@@ -218,10 +218,74 @@ def _eliminated(layout: StateLayout, unknown_scale: bool) -> np.ndarray:
     return np.arange(n_t + 1) if unknown_scale else np.arange(n_t)
 
 
-def _block(Q, idx: np.ndarray) -> np.ndarray:
+def _block(Q, idx: np.ndarray):
+    """``Q[idx][:, idx]``, symmetrised: dense, or sparse CSR for a sparse ``Q`` above
+    :data:`SPARSE_MIN_SIZE` entries."""
     if sp.issparse(Q):
-        return sp.csr_matrix(Q)[idx][:, idx].toarray()
-    return np.asarray(Q, float)[np.ix_(idx, idx)]
+        E = sp.csr_matrix(Q)[idx][:, idx]
+        if idx.size <= SPARSE_MIN_SIZE:
+            E = E.toarray()
+    else:
+        E = np.asarray(Q, float)[np.ix_(idx, idx)]
+    return 0.5 * (E + E.T)
+
+
+#: Translation blocks with more entries than this (and a sparse ``Q``) are analysed with a sparse
+#: ``L D L^T`` factorisation and shift-invert Lanczos instead of a dense Cholesky factorisation and
+#: eigendecomposition (1,000 cameras: 3,003 entries; a dense ``eigh`` would take seconds and
+#: ``eigh`` of 9,003 entries (3,000 cameras) minutes).
+SPARSE_MIN_SIZE = 1500
+
+
+def _positive_definite(E, tau: float) -> bool:
+    """Whether ``E - tau I`` has a (floating-point) Cholesky / ``L D L^T`` factorisation with
+    positive pivots."""
+    if sp.issparse(E):
+        from .sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+
+        try:
+            return SparseLDL(upper_with_diagonal(E - tau * sp.eye(E.shape[0]))).positive_definite
+        except FactorizationError:
+            return False
+    try:
+        scipy.linalg.cholesky(E - tau * np.eye(E.shape[0]), check_finite=False)
+        return True
+    except (np.linalg.LinAlgError, ValueError):
+        return False
+
+
+def _weak_eigenpairs(E, opts: GaugeOptions, info_floor: float
+                     ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Eigenpairs of ``E`` below the thresholds of :class:`GaugeOptions`, and ``w_max``. Dense:
+    ``eigh``; sparse: the largest eigenvalue by Lanczos and the smallest by shift-invert Lanczos
+    around ``-thr`` (``E + thr I`` factored), asking for more until one above the threshold shows
+    (so none is missed)."""
+    if not sp.issparse(E):
+        w, V = np.linalg.eigh(E)
+        w_max = float(max(w[-1], 0.0)) if w.size else 0.0
+        weak = (w <= w_max / opts.max_condition) | (w < info_floor)
+        return w[weak], V[:, weak].copy(), w_max
+    import scipy.sparse.linalg as spla
+
+    from .sparse_ldl import SparseLDL, upper_with_diagonal
+    from .verified import lanczos_start
+
+    m = E.shape[0]
+    w_top = spla.eigsh(E, k=1, which="LA", tol=1e-8, return_eigenvectors=False,
+                       v0=lanczos_start(m))
+    w_max = float(max(w_top[0], 0.0))
+    thr = max(w_max / opts.max_condition, info_floor)
+    factor = SparseLDL(upper_with_diagonal(E + thr * sp.eye(m)))
+    op = spla.LinearOperator((m, m), matvec=factor.solve, dtype=float)
+    k = min(6, m - 1)
+    while True:
+        w, V = spla.eigsh(E, k=k, sigma=-thr, which="LM", OPinv=op, v0=lanczos_start(m))
+        order = np.argsort(w)
+        w, V = w[order], V[:, order]
+        weak = (w <= w_max / opts.max_condition) | (w < info_floor)
+        if not weak.all() or k >= min(m - 1, 48):
+            return w[weak], V[:, weak].copy(), w_max
+        k = min(2 * k, m - 1, 48)
 
 
 def find_unobservable_directions(
@@ -233,35 +297,32 @@ def find_unobservable_directions(
     eliminated variables (``m = 3 (M + P)``, ``+ 1`` with unknown scale: ``alpha`` last), their
     eigenvalues (k,), their descriptions, and the largest eigenvalue of ``Q_ee`` (an upper
     bound on it when no direction is weak: the eigendecomposition is skipped when a Cholesky
-    factorisation shows every eigenvalue above both thresholds).
+    factorisation shows every eigenvalue above both thresholds). Above
+    :data:`SPARSE_MIN_SIZE` entries (sparse ``Q``) the same is done with sparse factorisations and
+    Lanczos (large rigs).
     """
     idx = _eliminated(layout, problem.unknown_scale)
     return unobservable_directions_of_block(_block(Q, idx), problem, options)
 
 
 def unobservable_directions_of_block(
-    E: np.ndarray, problem: Problem, options: GaugeOptions | None = None
+    E, problem: Problem, options: GaugeOptions | None = None
 ) -> tuple[np.ndarray, np.ndarray, list[UnobservableDirection], float]:
     """:func:`find_unobservable_directions` on the translation block ``E = Q_ee`` itself
-    (m, m): ``m = 3 (M + P)`` translations (``alpha t`` for unknown scale) and then ``alpha``
-    (unknown scale only), as the Schur reduction eliminates them."""
+    (m, m), dense or (above :data:`SPARSE_MIN_SIZE` entries) sparse: ``m = 3 (M + P)``
+    translations (``alpha t`` for unknown scale) and then ``alpha`` (unknown scale only), as the
+    Schur reduction eliminates them."""
     opts = options or GaugeOptions()
-    E = np.asarray(E, float)
+    E = sp.csr_matrix(E) if sp.issparse(E) else np.asarray(E, float)
     E = 0.5 * (E + E.T)
     info_floor = 1.0 / (2.0 * opts.max_std_m**2)
     # quick exit (the usual case): E - tau I positive definite with tau above both thresholds,
     # using an upper bound on w_max (largest absolute row sum), so no eigenvalue can be weak
-    w_max_ub = float(np.abs(E).sum(axis=1).max(initial=0.0))
+    w_max_ub = float(np.asarray(abs(E).sum(axis=1)).max(initial=0.0))
     tau = max(info_floor, w_max_ub / opts.max_condition)
-    try:
-        scipy.linalg.cholesky(E - tau * np.eye(E.shape[0]), check_finite=False)
+    if _positive_definite(E, tau):
         return np.zeros((E.shape[0], 0)), np.zeros(0), [], w_max_ub
-    except (np.linalg.LinAlgError, ValueError):
-        pass
-    w, V = np.linalg.eigh(E)
-    w_max = float(max(w[-1], 0.0)) if w.size else 0.0
-    weak = (w <= w_max / opts.max_condition) | (w < info_floor)
-    V_w, w_w = V[:, weak].copy(), w[weak]
+    w_w, V_w, w_max = _weak_eigenpairs(E, opts, info_floor)
     names = problem.frame_names
     directions = []
     for i in range(V_w.shape[1]):
@@ -368,7 +429,7 @@ def build_gauge_fix(
     else:
         Vt = np.zeros((n_t, 0))
     k = Vt.shape[1]
-    rows, vals, weights = [], [], []
+    rows, vals = [], []
     prior_rows = []
     for i, p in enumerate(priors):
         if p.frame not in index:
@@ -378,41 +439,38 @@ def build_gauge_fix(
         row[3 * f: 3 * f + 3] = p.axis
         rows.append(row)
         vals.append(p.value_m)
-        weights.append(1.0)
         prior_rows.append((p, row))
     n_user = len(rows)
-    # default rule: camera (Y) frames' translations zero on average along the direction, then the
-    # tag (X) frames' (a far smaller weight, so it only decides what the cameras cannot)
-    for f in range(n):
-        w_def = 1e-6 if f >= problem.M else 1e-12
-        for c in range(3):
-            row = np.zeros(n_t)
-            row[3 * f + c] = 1.0
-            rows.append(row)
-            vals.append(0.0)
-            weights.append(w_def)
     if k == 0:
         return GaugeFix(list(directions), np.zeros((0, n_t)), np.zeros(0), 0.0, Vt,
                         not directions, prior_rows)
-    P = np.array(rows)  # (r, n_t)
-    c = np.array(vals)
-    W = np.array(weights)
-    A = P @ Vt  # (r, k)
+    # The rule's rows P: the user's priors (weight 1), then the default rule -- camera (Y)
+    # frames' translations zero on average along the direction, then the tag (X) frames' (a far
+    # smaller weight, so it only decides what the cameras cannot): one identity row per
+    # coordinate, kept implicit (P_d = I, A_d = P_d V = V) so that nothing of size n_t^2 is formed.
+    P_u = np.array(rows).reshape(n_user, n_t)
+    c_u = np.array(vals)
+    A_u = P_u @ Vt  # (n_user, k)
     pinned = False
     if n_user:
-        s = np.linalg.svd(A[:n_user], compute_uv=False)
+        s = np.linalg.svd(A_u, compute_uv=False)
         pinned = bool(s.size >= k and s[k - 1] >= 1e-3)
-    if pinned:  # the user's priors alone decide (no pull towards the default)
-        P, c, W, A = P[:n_user], c[:n_user], W[:n_user], A[:n_user]
-    P_obs = np.eye(n_t) - Vt @ Vt.T
-    Mk = A.T @ (W[:, None] * A)
-    K = np.linalg.solve(Mk, (A * W[:, None]).T)  # (k, r)
-    G = Vt.T + K @ (P @ P_obs)
-    b = K @ c
+    Mk = A_u.T @ A_u
+    W_d = np.zeros(n_t)
+    if not pinned:  # otherwise the user's priors alone decide (no pull towards the default)
+        W_d = np.repeat(np.where(np.arange(n) >= problem.M, 1e-6, 1e-12), 3)
+        Mk = Mk + Vt.T @ (W_d[:, None] * Vt)
+    K_u = np.linalg.solve(Mk, A_u.T)  # (k, n_user)
+    K_d = np.linalg.solve(Mk, (Vt * W_d[:, None]).T)  # (k, n_t)
+    # G = V^T + K P P_obs with P_obs = I - V V^T: K P - (K A) V^T, without forming P_obs
+    KP = K_u @ P_u + K_d
+    KA = K_u @ A_u + K_d @ Vt
+    G = Vt.T + KP - KA @ Vt.T
+    b = K_u @ c_u
     notes = []
     for i, d in enumerate(directions):
         t_part = T_parts[:, i] / max(float(np.linalg.norm(T_parts[:, i])), 1e-300)
-        by_user = n_user and np.linalg.norm(P[:n_user] @ t_part) >= 1e-3
+        by_user = n_user and np.linalg.norm(P_u @ t_part) >= 1e-3
         d.fixed_by = "prior" if pinned or by_user else "default"
     rho = float(max(w_max, 1.0))
     return GaugeFix(directions, G, b, rho, Vt, pinned, prior_rows, notes)

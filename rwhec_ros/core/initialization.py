@@ -20,8 +20,10 @@ import scipy.sparse.linalg as spla
 from .cost import ReducedCost, StateLayout, build_cost_matrices
 from .lie import make_transform, project_to_so3, unvec
 from .problem import Problem
+from .verified import lanczos_start
 
-__all__ = ["Estimate", "rotations_from_vector", "closed_form_estimate", "estimate_from_rotations"]
+__all__ = ["Estimate", "rotations_from_vector", "closed_form_estimate", "estimate_from_rotations",
+           "primal_cost", "initial_rotations"]
 
 
 @dataclass
@@ -89,14 +91,39 @@ def closed_form_estimate(
         L = L.toarray() if sp.issparse(L) else np.asarray(L)
         w, V = np.linalg.eigh(L)
         v = V[:, 0]
-    elif d <= 3000:
-        L = L.toarray() if sp.issparse(L) else np.asarray(L)
+    elif d <= 1000 or not sp.issparse(L):
+        L = np.asarray(L)
         w, V = scipy.linalg.eigh(L, subset_by_index=[0, 0], driver="evr")
         v = V[:, 0]
     else:
         L = sp.csr_matrix(L)
         shift = 1e-9 * abs(L).max()
-        w, V = spla.eigsh(L + shift * sp.eye(d), k=1, sigma=0, which="LM")
+        w, V = spla.eigsh(L + shift * sp.eye(d), k=1, sigma=0, which="LM",
+                          v0=lanczos_start(d))
         v = V[:, 0]
     R, _ = rotations_from_vector(v, n)
     return estimate_from_rotations(problem, reduced, R)
+
+
+def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
+    """``p`` of a certificate: the cost of ``est`` evaluated directly from the residuals of eq.
+    (33) (:func:`~rwhec_ros.core.cost.direct_cost`), plus the term of the prior that fixes
+    unobservable translations (:class:`~rwhec_ros.core.gauge.GaugeFix`) when there is one."""
+    from .cost import direct_cost
+
+    X, Y = est.split(problem.M)
+    p = direct_cost(problem, X, Y, est.alpha)
+    if gauge is not None and gauge.has_penalty:
+        p += gauge.penalty_value(est.t, est.alpha if problem.unknown_scale else 1.0)
+    return p
+
+
+def initial_rotations(problem: Problem, initial: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """The rotations (n, 3, 3) of a given start ``(X (M, 4, 4), Y (P, 4, 4))`` in state order;
+    ``ValueError`` naming ``initial`` when the counts do not match the problem."""
+    X0, Y0 = initial
+    R0 = np.concatenate([np.asarray(X0, float), np.asarray(Y0, float)])[:, :3, :3]
+    if R0.shape != (problem.n_frames, 3, 3):
+        raise ValueError(f"initial: expected {problem.M} X and {problem.P} Y transforms, "
+                         f"got {R0.shape[0]} in total")
+    return R0

@@ -36,6 +36,7 @@ __all__ = [
     "LocalSolverOptions",
     "LocalSolution",
     "refine_rotations",
+    "damped_newton",
     "fast_certificate_multipliers",
     "fast_certificate_matrix",
     "handedness_multipliers",
@@ -114,56 +115,89 @@ def _grad_hess(Q: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndar
     return f, g.reshape(-1), 0.5 * (H + H.T)
 
 
-def refine_rotations(
-    Q: np.ndarray, R0: np.ndarray, options: LocalSolverOptions | None = None
-) -> LocalSolution:
-    """Minimise ``z^T Q z`` over SO(3)^n from ``R0`` (n, 3, 3) by damped Riemannian Newton.
+class _DenseModel:
+    """Cost, gradient and Hessian of the reduced cost at ``R`` for :func:`damped_newton`."""
 
-    ``Q`` (9 n + 1, 9 n + 1) is the (possibly scaled) reduced cost of eq. (48).
+    def __init__(self, Q: np.ndarray, R: np.ndarray) -> None:
+        self.f, self.g, self.H = _grad_hess(Q, R)
+        self.scale_h = max(1.0, float(np.max(np.abs(np.diag(self.H)))))
+
+    def step(self, damping: float) -> np.ndarray:
+        return -np.linalg.solve(self.H + damping * np.eye(self.H.shape[0]), self.g)
+
+    def curvature(self, step: np.ndarray, damping: float) -> float:
+        return float(step @ self.H @ step)
+
+
+def damped_newton(R0: np.ndarray, evaluate, options: LocalSolverOptions, f_noise: float,
+                  f_floor: float = 1.0, first=None) -> LocalSolution:
+    """Damped Riemannian Newton over SO(3)^n with right perturbations, shared by the dense and the
+    sparse local solvers.
+
+    ``evaluate(R)`` returns a model with the cost ``f``, the Riemannian gradient ``g`` (3 n,), a
+    damping scale ``scale_h``, ``step(damping)`` (the step solving ``(H + damping I) step =
+    -g``; raises ``numpy.linalg.LinAlgError`` when it cannot) and ``curvature(step, damping)``
+    (``step^T H step``). A step is accepted when the decrease is at least a quarter of the
+    predicted one or below the round-off level ``f_noise``; the damping grows tenfold on every
+    rejection and shrinks tenfold on acceptance. Stops when ``|g| <= gradient_tol max(f_floor,
+    |f|)`` or the step is below ``step_tol``. ``first``: the model at ``R0`` if already built.
     """
-    opts = options or LocalSolverOptions()
     R = np.array(R0, dtype=float)
     n = R.shape[0]
     mu = 1e-6
-    # round-off level of f = z^T Q z at |z|^2 = 3 n + 1: decreases below it are noise
-    f_noise = 64.0 * np.finfo(float).eps * float(np.abs(Q).max()) * (3 * n + 1)
-    f, g, H = _grad_hess(Q, R)
+    m = first if first is not None else evaluate(R)
     converged = False
     it = 0
-    for it in range(1, opts.max_iterations + 1):
-        gnorm = float(np.linalg.norm(g))
-        if gnorm <= opts.gradient_tol * max(1.0, abs(f)):
+    step = np.zeros(3 * n)
+    for it in range(1, options.max_iterations + 1):
+        gnorm = float(np.linalg.norm(m.g))
+        if gnorm <= options.gradient_tol * max(f_floor, abs(m.f)):
             converged = True
             it -= 1
             break
-        scale_h = max(1.0, float(np.max(np.abs(np.diag(H)))))
         accepted = False
         for _ in range(30):
+            lam = mu * m.scale_h
             try:
-                step = -np.linalg.solve(H + mu * scale_h * np.eye(3 * n), g)
+                step = m.step(lam)
             except np.linalg.LinAlgError:
                 mu *= 10.0
                 continue
-            if not g @ step < 0.0:  # not a descent direction: H + mu I is not positive definite
+            if not m.g @ step < 0.0:  # not a descent direction: H + mu I is not pos. definite
                 mu *= 10.0
                 continue
             R_new = R @ so3_exp(step.reshape(n, 3))
-            f_new, g_new, H_new = _grad_hess(Q, R_new)
-            predicted = -(g @ step + 0.5 * step @ H @ step)
-            actual = f - f_new
+            m_new = evaluate(R_new)
+            predicted = -(m.g @ step + 0.5 * m.curvature(step, lam))
+            actual = m.f - m_new.f
             if actual >= 0.25 * predicted or abs(actual) <= f_noise:
-                R, f, g, H = R_new, f_new, g_new, H_new
+                R, m = R_new, m_new
                 mu = max(mu / 10.0, 1e-12)
                 accepted = True
                 break
             mu *= 10.0
         if not accepted:
             break
-        if float(np.linalg.norm(step)) < opts.step_tol:
+        if float(np.linalg.norm(step)) < options.step_tol:
             converged = True
             break
-    return LocalSolution(R=R, cost=f, gradient_norm=float(np.linalg.norm(g)), iterations=it,
+    return LocalSolution(R=R, cost=m.f, gradient_norm=float(np.linalg.norm(m.g)), iterations=it,
                          converged=converged)
+
+
+def refine_rotations(
+    Q: np.ndarray, R0: np.ndarray, options: LocalSolverOptions | None = None
+) -> LocalSolution:
+    """Minimise ``z^T Q z`` over SO(3)^n from ``R0`` (n, 3, 3) by damped Riemannian Newton
+    (:func:`damped_newton`).
+
+    ``Q`` (9 n + 1, 9 n + 1) is the (possibly scaled) reduced cost of eq. (48).
+    """
+    n = np.asarray(R0).shape[0]
+    # round-off level of f = z^T Q z at |z|^2 = 3 n + 1: decreases below it are noise
+    f_noise = 64.0 * np.finfo(float).eps * float(np.abs(Q).max()) * (3 * n + 1)
+    return damped_newton(R0, lambda R: _DenseModel(Q, R), options or LocalSolverOptions(),
+                         f_noise)
 
 
 def fast_certificate_multipliers(Q: np.ndarray, R: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ import scipy.sparse.linalg
 from threadpoolctl import ThreadpoolController
 
 from .certificate import CertificateOptions, certificate_matrix, certify
-from .cost import StateLayout, build_cost_matrices, direct_cost, reduce_cost
+from .cost import StateLayout, build_cost_matrices, reduce_cost
 from .gauge import (
     GaugeFix,
     GaugeOptions,
@@ -41,7 +41,13 @@ from .gauge import (
     build_gauge_fix,
     find_unobservable_directions,
 )
-from .initialization import closed_form_estimate, estimate_from_rotations, rotations_from_vector
+from .initialization import (
+    closed_form_estimate,
+    estimate_from_rotations,
+    initial_rotations,
+    primal_cost,
+    rotations_from_vector,
+)
 from .lie import make_transform
 from .local_solver import (
     LocalSolverOptions,
@@ -60,11 +66,13 @@ from .relaxation import (
     solve_dual_sdp_arrow,
 )
 from .result import CalibrationResult, Certificate, Status
+from .sparse_fast import failed_result, prepare_sparse, solve_fast_sparse, use_sparse
 from .sparsity import ArrowSplit, arrow_split, estimate_form_costs
 
 __all__ = ["SolveOptions", "solve", "MODES", "blas_threads"]
 
 MODES = ("sdp", "fast", "local")
+FAST_FORMS = ("auto", "dense", "sparse")
 
 #: Costs below this fraction of the largest entry of ``Q'`` count as zero (noise-free data).
 COST_FLOOR_REL = 1e-4
@@ -108,6 +116,16 @@ class SolveOptions:
         Unknown scale only: an estimate ``alpha`` at or below this positive floor (0.01: tags 100
         times smaller than their nominal size) is never certified -- the data do not determine
         the scale (noise, outliers, too little translation).
+    fast_form : str
+        How ``fast`` and ``local`` represent the problem: ``"dense"`` (the reduced ``Q'`` of eq.
+        (48)), ``"sparse"`` (the unreduced sparse cost and certificate of
+        :mod:`rwhec_ros.core.sparse_fast`, for large rigs) or ``"auto"`` (default: sparse from
+        :data:`~rwhec_ros.core.sparse_fast.SPARSE_MIN_FRAMES` frames when the camera-tag graph
+        keeps a sparse factorisation sparse).
+    sdp_fallback_max_frames : int
+        On the sparse path, an inconclusive certificate is followed by the dense path (and its SDP
+        fallback) only up to this many frames (400); above, the uncertified result is returned
+        with a note (the dense path would need minutes and gigabytes).
     """
 
     mode: str = "fast"
@@ -119,10 +137,17 @@ class SolveOptions:
     blas_threads: int | None = 1
     gauge: GaugeOptions = field(default_factory=GaugeOptions)
     min_scale: float = 0.01
+    fast_form: str = "auto"
+    sdp_fallback_max_frames: int = 400
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode: expected one of {MODES}, got {self.mode!r}")
+        if self.fast_form not in FAST_FORMS:
+            raise ValueError(f"fast_form: expected one of {FAST_FORMS}, got {self.fast_form!r}")
+        if int(self.sdp_fallback_max_frames) < 0:
+            raise ValueError(f"sdp_fallback_max_frames: must be >= 0, got "
+                             f"{self.sdp_fallback_max_frames!r}")
         if not (np.isfinite(self.min_scale) and self.min_scale > 0):
             raise ValueError(f"min_scale: must be finite and > 0, got {self.min_scale!r}")
 
@@ -141,6 +166,12 @@ class _Prepared:
     full: tuple | None = None  # the ``full`` form's data, built once by :func:`_full_form`
     gauge: GaugeFix | None = None
     constraints: ConstraintSet | None = None
+
+    def hessian_eigenpairs(self, R: np.ndarray, null_tol: float) -> tuple[np.ndarray, np.ndarray]:
+        """All eigenpairs (ascending) of the Riemannian Hessian of the scaled reduced cost at
+        rotations ``R`` (``null_tol`` is not needed by the dense analysis)."""
+        _, _, H = _grad_hess(self.Qs, R)
+        return np.linalg.eigh(H)
 
     def cons(self) -> ConstraintSet:
         """The constraints of eq. (50) on the reduced ``[vec R; s]`` (built once)."""
@@ -167,12 +198,8 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
     timing["build"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     if options.initial is not None:
-        X0, Y0 = options.initial
-        R0 = np.concatenate([np.asarray(X0, float), np.asarray(Y0, float)])[:, :3, :3]
-        if R0.shape != (problem.n_frames, 3, 3):
-            raise ValueError(f"initial: expected {problem.M} X and {problem.P} Y transforms, "
-                             f"got {R0.shape[0]} in total")
-        init = estimate_from_rotations(problem, reduced, R0)
+        init = estimate_from_rotations(problem, reduced,
+                                       initial_rotations(problem, options.initial))
     else:
         init = closed_form_estimate(problem, reduced, Q_rot)
     timing["initialise"] = time.perf_counter() - t1
@@ -189,11 +216,7 @@ def _estimate(prep: _Prepared, R: np.ndarray):
     """Translations and scale for rotations ``R`` (eq. (47)) and the cost ``p`` of that
     estimate evaluated directly (eq. (33) plus the prior's term)."""
     est = estimate_from_rotations(prep.problem, prep.reduced, R)
-    X, Y = est.split(prep.problem.M)
-    p = direct_cost(prep.problem, X, Y, est.alpha)
-    if prep.gauge is not None and prep.gauge.has_penalty:
-        p += prep.gauge.penalty_value(est.t, est.alpha if prep.problem.unknown_scale else 1.0)
-    return est, p
+    return est, primal_cost(prep.problem, est, prep.gauge)
 
 
 def _result(prep: _Prepared, est, cert: Certificate, mode: str, solver_status: str,
@@ -442,15 +465,35 @@ def blas_threads(threads: int | None):
 
 def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:
     t_start = time.perf_counter()
-    prep = _prepare(problem, options)
     notes: list[str] = []
-    if options.mode == "sdp":
-        res = _solve_sdp(prep, options, notes)
+    if options.mode != "sdp" and use_sparse(problem, options.fast_form):
+        prep, res = _solve_sparse(problem, options, notes)
     else:
-        res = _solve_fast(prep, options, notes)
-    _check_identifiability(prep, options, res)
+        prep = _prepare(problem, options)
+        if options.mode == "sdp":
+            res = _solve_sdp(prep, options, notes)
+        else:
+            res = _solve_fast(prep, options, notes)
+    if prep is not None:
+        _check_identifiability(prep, options, res)
     res.timing_s["total"] = time.perf_counter() - t_start
     return res
+
+
+def _solve_sparse(problem: Problem, options: SolveOptions, notes: list[str]):
+    """The sparse path of :mod:`rwhec_ros.core.sparse_fast`; when its translation block cannot be
+    factorised, the dense path (which reports why) up to ``sdp_fallback_max_frames`` frames,
+    else a ``solver_failed`` result."""
+    try:
+        prep = prepare_sparse(problem, options)
+    except NUMERICAL_ERRORS as exc:
+        msg = f"the sparse path could not start ({type(exc).__name__}: {exc})"
+        notes.append(msg)
+        if problem.n_frames > options.sdp_fallback_max_frames:
+            return None, failed_result(problem, options, msg, notes)
+        prep = _prepare(problem, options)
+        return prep, _solve_fast(prep, options, notes)
+    return solve_fast_sparse(prep, options, notes)
 
 
 def _downgrade(res: CalibrationResult, status: Status, message: str) -> None:
@@ -511,13 +554,12 @@ def _check_identifiability(prep: _Prepared, options: SolveOptions,
         _downgrade(res, Status.NOT_IDENTIFIABLE, "not identifiable: " + "; ".join(reasons) + ".")
 
 
-def _rotation_gauge_words(prep: _Prepared, res: CalibrationResult, null_tol: float) -> str:
+def _rotation_gauge_words(prep, res: CalibrationResult, null_tol: float) -> str:
     """Words for rotation directions the data do not determine (near-null directions of the
     Riemannian Hessian of the reduced cost at the estimate, at a minimum), or ``""``."""
     R = np.concatenate([res.X, res.Y])[:, :3, :3]
     try:
-        _, _, H = _grad_hess(prep.Qs, R)
-        w, V = np.linalg.eigh(H)
+        w, V = prep.hessian_eigenpairs(R, null_tol)
     except NUMERICAL_ERRORS:
         return ""
     # flat directions of the scaled cost: the Riemannian Hessian is ~4 Z on the tangent space

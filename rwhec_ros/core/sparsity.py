@@ -41,6 +41,7 @@ __all__ = [
     "cone_cost",
     "estimate_form_costs",
     "group_adjacency",
+    "elimination_front",
 ]
 
 
@@ -260,3 +261,47 @@ def estimate_form_costs(Q_reduced: np.ndarray, n: int, Q_full: sp.spmatrix | Non
         costs["arrow"] = (_cliques_cost(hadj, hw)
                           + float(sum(cone_cost(c) for c in split.cone_sizes[:-1])))
     return costs
+
+
+def elimination_front(M: int, P: int, edge_x: np.ndarray, edge_y: np.ndarray,
+                      max_work: float | None = None) -> tuple[int, float]:
+    """The largest front of a minimum-degree elimination of the frame graph (X-Y edges) -- the
+    most frames adjacent to a frame when it is eliminated, fill included -- and the sum of the
+    squared fronts (proportional to the work of the factorisation).
+
+    A sparse factorisation of ``Q`` (eq. (42)) or of the unreduced certificate matrix eliminates
+    whole frames (their translation and rotation, plus the shared ``alpha``/``s``); its dense
+    fronts hold about 12 times this many variables, so the number says whether a sparse
+    factorisation stays sparse. One target seen by every camera: 1 (each camera touches only
+    the target). The elimination stops as soon as the work exceeds ``max_work`` (both numbers are
+    then lower bounds).
+    """
+    import heapq
+
+    n = M + P
+    adj: list[set[int]] = [set() for _ in range(n)]
+    for j, k in zip(np.asarray(edge_x, int), np.asarray(edge_y, int), strict=True):
+        adj[j].add(M + k)
+        adj[M + k].add(j)
+    heap = [(len(a), v) for v, a in enumerate(adj)]
+    heapq.heapify(heap)
+    alive = np.ones(n, dtype=bool)
+    front = 0
+    work = 0.0
+    while heap:
+        deg, v = heapq.heappop(heap)
+        if not alive[v] or deg != len(adj[v]):
+            continue  # a stale entry
+        front = max(front, deg)
+        work += float(deg + 1) ** 2
+        if max_work is not None and work > max_work:
+            return front, work
+        alive[v] = False
+        nb = adj[v]
+        for u in nb:
+            adj[u].discard(v)
+            adj[u] |= nb
+            adj[u].discard(u)
+            heapq.heappush(heap, (len(adj[u]), u))
+        adj[v] = set()
+    return front, work

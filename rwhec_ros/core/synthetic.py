@@ -21,6 +21,7 @@ __all__ = [
     "perturb_measurements",
     "GroundTruth",
     "random_instance",
+    "random_camera_tag_graph",
     "planar_instance",
 ]
 
@@ -139,6 +140,22 @@ def random_instance(
         unknown_scale=unknown_scale,
     )
     return problem, GroundTruth(X=X, Y=Y, alpha=alpha)
+
+
+def random_camera_tag_graph(rng: np.random.Generator, M: int, P: int, per_camera: int
+                            ) -> list[tuple[int, int]]:
+    """Edges ``(j, k)`` of a random sparse camera-tag graph for :func:`random_instance`: every
+    camera (Y frame ``k``) sees ``per_camera`` distinct random tags (X frames); a tag no camera
+    sees is given to a random camera (so that every frame has an edge)."""
+    if not 1 <= per_camera <= M:
+        raise ValueError(f"per_camera: must be in 1..{M}, got {per_camera}")
+    edges = set()
+    for k in range(P):
+        for j in rng.choice(M, per_camera, replace=False):
+            edges.add((int(j), k))
+    seen = {j for j, _ in edges}
+    edges |= {(j, int(rng.integers(P))) for j in range(M) if j not in seen}
+    return sorted(edges)
 
 
 def planar_instance(

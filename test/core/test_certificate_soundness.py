@@ -207,9 +207,12 @@ def test_verdict_catches_fabricated_false_certificates(monkeypatch, tmp_path):
     assert rec["crash"].startswith("RuntimeError") and not rec["certified"]
 
 
-def test_quick_soundness_sample():
-    """The seeded quick sample: no false certificate, cost mismatch or crash (issue 10)."""
-    records = [cs.evaluate(si.make_instance(SEED, i), "fast", sc.CheckerOptions())
+@pytest.mark.parametrize("mode", ["fast", "fast-sparse"])
+def test_quick_soundness_sample(mode):
+    """The seeded quick sample: no false certificate, cost mismatch or crash (issue 10); also
+    with the sparse unreduced path of ``fast`` forced and no fallback (issue 14), so that every
+    certificate there is the sparse one."""
+    records = [cs.evaluate(si.make_instance(SEED, i), mode, sc.CheckerOptions())
                for i in cs._select(SEED, QUICK_SELECT, 0)]
     bad = [(r["key"], r["status"], r.get("reasons"), r.get("mismatch_rel"), r.get("crash"))
            for r in records if r["false_cert"] or r["mismatch"] or r.get("crash")]

@@ -244,9 +244,11 @@ def test_certified_fast_solve_does_not_run_the_sdp():
     assert "solve" not in res.timing_s and not any("SDP" in n for n in res.notes)
 
 
-def test_exact_single_axis_rotation_only_problem_names_the_rotation():
+@pytest.mark.parametrize("fast_form", ["auto", "sparse"])
+def test_exact_single_axis_rotation_only_problem_names_the_rotation(fast_form):
     """No translation and rotations about one axis: the yaw of the frames is a free gauge (the
-    optimum is not unique): not_identifiable, with the rotation named, never certified."""
+    optimum is not unique): not_identifiable, with the rotation named, never certified -- also by
+    the large-rig sparse path on its own (its Hessian analysis, no dense fallback)."""
     rng = np.random.default_rng(13)
     X = random_transforms(rng, 1)
     Y = random_transforms(rng, 1)
@@ -255,7 +257,8 @@ def test_exact_single_axis_rotation_only_problem_names_the_rotation():
                        np.zeros((12, 3)))
     B = invert_transform(Y[0]) @ A @ X[0]
     problem = Problem(["tag_0"], ["cam0"], [Edge.build("tag_0", "cam0", A, B, 0.01, 125)])
-    res = solve(problem)
+    res = solve(problem, SolveOptions(fast_form=fast_form, sdp_fallback_max_frames=0))
+    assert any("sparse unreduced path" in n for n in res.notes) == (fast_form == "sparse")
     assert not res.certified
     assert res.certificate.status is Status.NOT_IDENTIFIABLE, res.certificate.message
     assert "rotation of tag_0, cam0 about z" in res.certificate.message

@@ -95,9 +95,11 @@ def test_noisy_certified_and_agrees(graph, sigma, kappa, unknown_scale):
         assert np.allclose(R.T @ R, np.eye(3), atol=1e-12) and np.linalg.det(R) > 0
 
 
-def test_wrong_basin_is_never_certified():
+@pytest.mark.parametrize("fast_form", ["dense", "sparse"])
+def test_wrong_basin_is_never_certified(fast_form):
     """Random starts on heavy-noise 2X2Y data reach non-global stationary points; the fast
-    certificate (no SDP fallback) must flag every one of them and certify the global ones."""
+    certificate (no SDP fallback) must flag every one of them and certify the global ones --
+    on the dense path and on the large-rig sparse path (:mod:`rwhec_ros.core.sparse_fast`)."""
     non_global = 0
     for seed in (3, 5, 8):
         rng = np.random.default_rng(seed)
@@ -108,7 +110,7 @@ def test_wrong_basin_is_never_certified():
             X0 = make_transform(random_rotations(rng, 2), np.zeros((2, 3)))
             Y0 = make_transform(random_rotations(rng, 2), np.zeros((2, 3)))
             res = solve(problem, SolveOptions(mode="fast", initial=(X0, Y0),
-                                              fallback_to_sdp=False))
+                                              fallback_to_sdp=False, fast_form=fast_form))
             if res.certificate.primal_cost > best.certificate.primal_cost * (1 + 1e-6):
                 non_global += 1
                 assert res.certificate.status is Status.NOT_TIGHT
