@@ -8,14 +8,18 @@ reach the certificate (``pytest -x -q`` on the files in ``TESTS``). A mutant is 
 test fails (or the run exceeds the timeout), *survives* otherwise. Survivors are listed, each
 either killed later by a new test or argued equivalent in ``EQUIVALENT`` (one line each).
 
-Targets: ``rwhec_ros/core/certificate.py`` and ``rwhec_ros/core/verified.py`` (every line but
-docstrings), and the status decisions of ``rwhec_ros/core/solve.py`` (the functions in
-``SOLVE_FUNCTIONS``).
+Targets (``TARGETS``): ``rwhec_ros/core/certificate.py``, ``rwhec_ros/core/verified.py`` and
+the large-rig path's ``rwhec_ros/core/sparse_certificate.py`` (every line but docstrings), and
+the status decisions of ``rwhec_ros/core/solve.py`` and ``rwhec_ros/core/sparse_fast.py`` (the
+functions named there).
 
 Usage (from the repository root; prints Markdown, ~1-2 h on 2 cores)::
 
-    python benchmarks/mutation.py --jobs 2 > benchmarks/mutation.md
+    python benchmarks/mutation.py --jobs 2 --log run1.jsonl > benchmarks/mutation.md
     python benchmarks/mutation.py --list             # the mutants only, no test runs
+    # after adding tests: run only the survivors of run1 again, report on every mutant
+    python benchmarks/mutation.py --jobs 2 --rerun-survivors run1.jsonl --log run2.jsonl \
+        > benchmarks/mutation.md
 """
 
 from __future__ import annotations
@@ -23,11 +27,13 @@ from __future__ import annotations
 import argparse
 import ast
 import copy
+import json
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -42,6 +48,9 @@ TARGETS = {
         "_certify", "_failed_certificate", "_solve_fast", "_solve_sdp", "_check_identifiability",
         "_downgrade", "_rotation_gauge_words", "_estimate",
     },
+    # the large-rig path (issue 14): its certificate and the status decisions of its solve
+    "rwhec_ros/core/sparse_certificate.py": None,
+    "rwhec_ros/core/sparse_fast.py": {"solve_fast_sparse", "failed_result"},
 }
 
 #: The tests that reach each target, fastest first (``pytest -x`` stops at the first failure).
@@ -52,6 +61,9 @@ TESTS = {
                                    "test/core/test_gauge.py"],
     "rwhec_ros/core/solve.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
                                 "test/core/test_solve.py"],
+    "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_path.py",
+                                             "test/core/test_gauge.py"],
+    "rwhec_ros/core/sparse_fast.py": ["test/core/test_sparse_path.py", "test/core/test_gauge.py"],
 }
 
 #: Mutants argued equivalent (no observable change), keyed by (file, source line, mutation).
@@ -255,11 +267,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--list", action="store_true", help="list the mutants, run nothing")
     ap.add_argument("--file", action="append", help="only these target files")
     ap.add_argument("--limit", type=int, default=0, help="at most this many mutants (0: all)")
+    ap.add_argument("--log", type=Path, help="JSON-lines record of every mutant's outcome")
+    ap.add_argument("--rerun-survivors", type=Path, metavar="LOG",
+                    help="take the outcomes of an earlier run's --log and run only its survivors "
+                         "again (after new tests); the report covers every mutant")
     args = ap.parse_args(argv)
     files = args.file or list(TARGETS)
     mutants = [m for f in files for m in generate(f, TARGETS[f])]
     if args.limit:
         mutants = mutants[: args.limit]
+    earlier: dict[tuple[str, int, str, str], str] = {}
+    if args.rerun_survivors:
+        for line in args.rerun_survivors.read_text().splitlines():
+            r = json.loads(line)
+            earlier[(r["file"], r["lineno"], r["source"], r["description"])] = r["outcome"]
     if args.list:
         for m in mutants:
             print(f"{m.file}:{m.lineno}: {m.description}    | {m.source}")
@@ -276,14 +297,27 @@ def main(argv: list[str] | None = None) -> int:
     timeout = max(120.0, 5 * max(t_base.values()))
     results: list[tuple[Mutant, str, float]] = [None] * len(mutants)  # type: ignore[list-item]
     free = list(range(len(workdirs)))
+    log_lock = threading.Lock()
 
     def task(i: int):
+        m = mutants[i]
+        before = earlier.get((m.file, m.lineno, m.source, m.description))
+        if before is not None and before.startswith("killed"):
+            results[i] = (m, before + " (earlier run)", 0.0)
+            return
         w = free.pop()
         try:
             outcome, dt = run_mutant(mutants[i], workdirs[w], timeout)
         finally:
             free.append(w)
+        if before is not None:
+            outcome = outcome + " (re-run)"
         results[i] = (mutants[i], outcome, dt)
+        if args.log:
+            with log_lock, args.log.open("a") as fh:
+                fh.write(json.dumps({"file": m.file, "lineno": m.lineno, "source": m.source,
+                                     "description": m.description, "outcome": outcome,
+                                     "seconds": round(dt, 1)}) + "\n")
         done = sum(r is not None for r in results)
         print(f"[{done}/{len(mutants)}] {mutants[i].file}:{mutants[i].lineno} "
               f"{mutants[i].description}: {outcome} ({dt:.0f} s)", file=sys.stderr)
@@ -314,7 +348,7 @@ def report(results, t_base: dict[str, float], total: float) -> None:
     all_k = all_n = 0
     for f, rs in by_file.items():
         killed = sum(o.startswith("killed") for _, o in rs)
-        surv = [(m, o) for m, o in rs if o == "survived"]
+        surv = [(m, o) for m, o in rs if o.startswith("survived")]
         eq = sum((m.file, m.source, m.description) in EQUIVALENT for m, _ in surv)
         non_eq = len(rs) - eq
         all_k += killed
@@ -327,7 +361,7 @@ def report(results, t_base: dict[str, float], total: float) -> None:
     print("| location | mutation | source line | equivalent because |")
     print("|---|---|---|---|")
     for m, outcome, _ in results:
-        if outcome == "survived":
+        if outcome.startswith("survived"):
             why = EQUIVALENT.get((m.file, m.source, m.description), "**not argued: a gap**")
             src = m.source.replace("|", "\\|")
             print(f"| `{m.file}:{m.lineno}` | {m.description} | `{src}` | {why} |")
