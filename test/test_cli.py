@@ -112,6 +112,7 @@ def test_csv_known_scale_is_certified_with_all_outputs(paper_known):
     page = (out / "report.html").read_text()  # self-contained: the figure embedded
     assert "data:image/png;base64," in page and "CAUTION: usable, read the reasons" in page
     for what, name in (("result", "result.yaml"), ("launch", "static_transforms.launch.py"),
+                       ("urdf", "calibration.urdf.xacro"), ("frames", "frames.yaml"),
                        ("dataset", "dataset.yaml"), ("report", "report.png"),
                        ("report page", "report.html")):
         assert f"{what}: {out / name}\n" in stdout
@@ -407,6 +408,7 @@ def synthetic_inputs(tmp_path) -> dict[str, list]:
 
 
 OUTPUT_FILES = (("result", "result.yaml"), ("launch", "static_transforms.launch.py"),
+                ("urdf", "calibration.urdf.xacro"), ("frames", "frames.yaml"),
                 ("dataset", "dataset.yaml"))
 
 

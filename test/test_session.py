@@ -163,7 +163,7 @@ def test_end_to_end_with_ros_messages(fed_session, recording):
 
     # the written outputs
     files = {k: Path(v) for k, v in out.files.items()}
-    assert set(files) == {"result", "launch", "dataset"}
+    assert set(files) == {"result", "launch", "urdf", "frames", "dataset"}
     assert all(p.is_file() for p in files.values())
     assert files["result"].parent.name.startswith("calibration_20250102T030405")
     doc = yaml.safe_load(files["result"].read_text())
@@ -198,6 +198,45 @@ def test_static_transform_launch_reproduces_the_result(fed_session):
         assert p == parent
         # repr() of every number: the launch file reproduces the estimate to rounding
         assert np.allclose(T_launch, T, atol=1e-12)
+
+
+def test_robot_description_files_reproduce_the_published_frames(fed_session):
+    """Issue 12 item 4: beside the launch file, a URDF/xacro snippet and a frames YAML of the
+    same frames; read back independently (xml.etree / yaml + scipy), each transform to 1e-9."""
+    import xml.etree.ElementTree as ET
+
+    import yaml
+    from scipy.spatial.transform import Rotation
+
+    session, _ = fed_session
+    out = session.calibrate()
+    assert out.success, out.message
+    expected = {child: (parent, T) for parent, child, T in session.published_transforms(
+        out.result, out.verdict)}
+    assert len(expected) == 9
+    root = ET.parse(out.files["urdf"]).getroot()
+    joints = root.findall("joint")
+    assert {link.get("name") for link in root.findall("link")} == set(expected)
+    assert len(joints) == len(expected)
+    for joint in joints:
+        assert joint.get("type") == "fixed"
+        child = joint.find("child").get("link")
+        parent, T = expected[child]
+        assert joint.find("parent").get("link") == parent
+        origin = joint.find("origin")
+        xyz = [float(v) for v in origin.get("xyz").split()]
+        rpy = [float(v) for v in origin.get("rpy").split()]
+        # URDF rpy: fixed-axis roll, pitch, yaw = scipy's extrinsic "xyz"
+        R = Rotation.from_euler("xyz", rpy).as_matrix()
+        assert np.allclose(xyz, T[:3, 3], atol=1e-9) and np.allclose(R, T[:3, :3], atol=1e-9)
+    doc = yaml.safe_load(Path(out.files["frames"]).read_text())
+    assert doc["metadata"]["calibration"].startswith(out.verdict.headline().split(":")[0])
+    assert len(doc["frames"]) == len(expected)
+    for f in doc["frames"]:
+        parent, T = expected[f["child"]]
+        assert f["parent"] == parent
+        R = Rotation.from_quat(f["quaternion_xyzw"]).as_matrix()
+        assert np.allclose(f["xyz"], T[:3, 3], atol=1e-9) and np.allclose(R, T[:3, :3], atol=1e-9)
 
 
 def test_outputs_are_never_overwritten(fed_session):

@@ -300,7 +300,7 @@ def output_paths(args: argparse.Namespace, *, report: bool):
     # the report files too, with or without --report: a new result must not sit beside an older
     # report (with --force and without --report they are removed once the result is written)
     targets = [paths.result, paths.launch, paths.dataset, paths.dataset.with_suffix(".npz"),
-               paths.report_png, paths.report_html]
+               paths.report_png, paths.report_html, paths.urdf, paths.frames]
     refuse_existing(targets, args.force)
     return paths
 
@@ -352,7 +352,7 @@ def solve_and_write(
     defaults); the launch file holds the usable frames only unless ``publish_unusable``."""
     from ..data.results import new_output_dir, result_document, session_output_paths, write_outputs
     from ..session import static_transforms_launch, summary
-    from ..session.outputs import launch_header, publishable
+    from ..session.outputs import description_texts, launch_header, publishable
     from ..session.solving import solve_and_assess, verdict_options
 
     frames = list(dataset.y_names) + list(dataset.x_names)
@@ -383,13 +383,16 @@ def solve_and_write(
     names = list(result.y_names) + list(result.x_names)
     transforms, left_out = publishable(naming.transforms(result), names, verdict,
                                        publish_unusable=publish_unusable)
-    launch = static_transforms_launch(transforms, header=launch_header(
-        result, verdict, left_out, f"from {source.get('type', '?')} {source.get('path', '')}"))
+    header = launch_header(result, verdict, left_out,
+                           f"from {source.get('type', '?')} {source.get('path', '')}")
+    launch = static_transforms_launch(transforms, header=header)
+    urdf, frames = description_texts(transforms, header)
     try:
         if paths is None:
             paths = session_output_paths(new_output_dir(settings.output_root))
         files = write_outputs(paths, result_yaml=yaml.safe_dump(doc, sort_keys=False),
-                              launch_text=launch, dataset=dataset, force=force)
+                              launch_text=launch, dataset=dataset, force=force,
+                              urdf_text=urdf, frames_text=frames)
         if not report:
             remove_stale_reports(say, paths)
     except OSError as exc:

@@ -180,14 +180,18 @@ class OutputPaths:
     dataset: Path
     report_png: Path
     report_html: Path
+    urdf: Path
+    frames: Path
 
     def all(self) -> tuple[Path, ...]:
-        return (self.result, self.launch, self.dataset, self.report_png, self.report_html)
+        return (self.result, self.launch, self.dataset, self.report_png, self.report_html,
+                self.urdf, self.frames)
 
 
 def output_paths(result_path: str | Path) -> OutputPaths:
     """Files beside an explicit result path ``OUT.yaml``: ``OUT.launch.py``,
-    ``OUT.dataset.yaml``, ``OUT.report.png`` and ``OUT.report.html`` (same stem)."""
+    ``OUT.dataset.yaml``, ``OUT.report.png``, ``OUT.report.html``, ``OUT.urdf.xacro`` and
+    ``OUT.frames.yaml`` (same stem)."""
     p = Path(result_path)
     stem = p.with_suffix("") if p.suffix in (".yaml", ".yml") else p
     base = stem.name
@@ -197,15 +201,19 @@ def output_paths(result_path: str | Path) -> OutputPaths:
         dataset=p.with_name(base + ".dataset.yaml"),
         report_png=p.with_name(base + ".report.png"),
         report_html=p.with_name(base + ".report.html"),
+        urdf=p.with_name(base + ".urdf.xacro"),
+        frames=p.with_name(base + ".frames.yaml"),
     )
 
 
 def session_output_paths(directory: str | Path) -> OutputPaths:
     """The files of a session output directory (``result.yaml``,
-    ``static_transforms.launch.py``, ``dataset.yaml``) plus ``report.png``/``report.html``."""
+    ``static_transforms.launch.py``, ``calibration.urdf.xacro``, ``frames.yaml``,
+    ``dataset.yaml``) plus ``report.png``/``report.html``."""
     d = Path(directory)
     return OutputPaths(d / "result.yaml", d / "static_transforms.launch.py", d / "dataset.yaml",
-                       d / "report.png", d / "report.html")
+                       d / "report.png", d / "report.html", d / "calibration.urdf.xacro",
+                       d / "frames.yaml")
 
 
 def utc_stamp(now: _dt.datetime | None = None) -> str:
@@ -239,13 +247,22 @@ def write_outputs(
     launch_text: str,
     dataset=None,
     force: bool = False,
+    urdf_text: str | None = None,
+    frames_text: str | None = None,
 ) -> dict[str, str]:
-    """Write the result YAML, the launch file and (optionally) the data set.
+    """Write the result YAML, the launch file and (optionally) the data set, the URDF/xacro
+    snippet and the frames YAML (:mod:`rwhec_ros.data.export`).
 
     Nothing is written when any target exists and ``force`` is False: ``FileExistsError``
-    naming the existing files. Returns ``{"result", "launch"[, "dataset"]}`` -> path.
+    naming the existing files. Returns ``{"result", "launch"[, "urdf"][, "frames"][,
+    "dataset"]}`` -> path.
     """
-    targets = [paths.result, paths.launch]
+    texts = [(paths.result, "result", result_yaml), (paths.launch, "launch", launch_text)]
+    if urdf_text is not None:
+        texts.append((paths.urdf, "urdf", urdf_text))
+    if frames_text is not None:
+        texts.append((paths.frames, "frames", frames_text))
+    targets = [path for path, _, _ in texts]
     if dataset is not None:  # Dataset.save writes its arrays to <stem>.npz when large
         targets += [paths.dataset, paths.dataset.with_suffix(".npz")]
     existing = [str(p) for p in targets if p.exists()]
@@ -255,11 +272,11 @@ def write_outputs(
         )
     paths.result.parent.mkdir(parents=True, exist_ok=True)
     mode = "w" if force else "x"
-    with open(paths.result, mode, encoding="utf-8") as fh:
-        fh.write(result_yaml)
-    with open(paths.launch, mode, encoding="utf-8") as fh:
-        fh.write(launch_text)
-    files = {"result": str(paths.result), "launch": str(paths.launch)}
+    files = {}
+    for path, kind, text in texts:
+        with open(path, mode, encoding="utf-8") as fh:
+            fh.write(text)
+        files[kind] = str(path)
     if dataset is not None:
         files["dataset"] = str(dataset.save(paths.dataset))
     return files

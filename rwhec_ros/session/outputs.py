@@ -11,10 +11,11 @@ from ..core.lie import transform_to_quat_xyzw
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict
 from ..data.dataset import Dataset
+from ..data.export import frames_yaml, urdf_snippet
 from ..data.results import session_output_paths, write_outputs
 
 __all__ = ["summary", "publishable", "launch_header", "static_transforms_launch",
-           "session_dataset", "write_session_outputs"]
+           "description_texts", "session_dataset", "write_session_outputs"]
 
 
 def summary(result: CalibrationResult, problem, excluded: dict, config,
@@ -162,15 +163,29 @@ def session_dataset(acc, config) -> Dataset | None:
         return None
 
 
+def description_texts(transforms: list[tuple[str, str, np.ndarray]], header: str
+                      ) -> tuple[str, str]:
+    """The robot-description forms of the published ``transforms`` (issue 12, item 4): the
+    URDF/xacro snippet (one fixed joint per calibrated frame, ``header`` -- e.g.
+    :func:`launch_header` -- as its comment) and the plain frames YAML (``header`` as its
+    ``metadata.calibration``); see :mod:`rwhec_ros.data.export`."""
+    one_line = " / ".join(line.strip() for line in header.splitlines() if line.strip())
+    urdf = urdf_snippet(transforms, comment=one_line)
+    frames = frames_yaml(transforms, metadata={"calibration": one_line} if one_line else None)
+    return urdf, frames
+
+
 def write_session_outputs(out: Path, transforms: list[tuple[str, str, np.ndarray]],
                           result: CalibrationResult, text: str, dataset, *, created: str,
                           force: bool = False, verdict: Verdict | None = None,
                           left_out: dict[str, str] | None = None) -> dict[str, str]:
     """Write the result YAML ``text``, the launch file of ``transforms`` (its comment gives the
-    ``verdict``, the frames ``left_out`` and when it was ``created``) and ``dataset`` into the
+    ``verdict``, the frames ``left_out`` and when it was ``created``), the same transforms as a
+    URDF/xacro snippet and a frames YAML (:func:`description_texts`) and ``dataset`` into the
     directory ``out``; returns the written paths. Existing files are refused
     (``FileExistsError``) unless ``force``."""
-    launch = static_transforms_launch(transforms, header=launch_header(
-        result, verdict, left_out or {}, f"created {created}"))
+    header = launch_header(result, verdict, left_out or {}, f"created {created}")
+    launch = static_transforms_launch(transforms, header=header)
+    urdf, frames = description_texts(transforms, header)
     return write_outputs(session_output_paths(out), result_yaml=text, launch_text=launch,
-                         dataset=dataset, force=force)
+                         dataset=dataset, force=force, urdf_text=urdf, frames_text=frames)
