@@ -25,7 +25,6 @@ __all__ = [
     "Solved",
     "solve_and_assess",
     "verdict_options",
-    "accuracy_options",
 ]
 
 
@@ -163,15 +162,6 @@ def verdict_options(section: Mapping[str, Any] | None) -> VerdictOptions:
 #: What :func:`solve_and_assess` computes by default: uncertainty, 5-fold cross-validation,
 #: guidance (frozen, so safe as a default argument).
 DEFAULT_ACCURACY = AccuracyOptions()
-
-
-def accuracy_options(parameters: Mapping[str, Any] | None, *, moving: str = "y"
-                     ) -> AccuracyOptions:
-    """:class:`AccuracyOptions` from flat parameters (``accuracy.cross_validation_folds``,
-    ``accuracy.guidance``; absent: the defaults) and which carrier ``moving``."""
-    p = dict(parameters or {})
-    return AccuracyOptions(folds=int(p.get("accuracy.cross_validation_folds", 5)),
-                           guidance=bool(p.get("accuracy.guidance", True)), moving=moving)
 
 
 def solve_and_assess(
