@@ -33,7 +33,8 @@ from ..core.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertaint
 from ..core.validation import CrossValidation, cross_validate
 from ..core.verdict.words import deg, mm
 
-__all__ = ["AccuracyOptions", "Accuracy", "assess_accuracy", "accuracy_lines", "std_words"]
+__all__ = ["AccuracyOptions", "Accuracy", "assess_accuracy", "accuracy_lines", "std_words",
+           "unobservable_axes"]
 
 _AXES = ("x", "y", "z")
 
@@ -232,6 +233,21 @@ def assess_accuracy(problem: Problem, result, *, solve_options=None,
     return acc
 
 
+def unobservable_axes(uncertainty: Uncertainty) -> list[str]:
+    """``cam0 translation z``, ``tag_1 rotation x``, ``the scale``: every unobservable axis of
+    ``uncertainty``, by frame (axes of the frame's parent)."""
+    out = []
+    for fu in uncertainty.frames:
+        for what, bad in (("translation", fu.unobservable_translation),
+                          ("rotation", fu.unobservable_rotation)):
+            axes = [a for a, b in zip(_AXES, bad, strict=True) if b]
+            if axes:
+                out.append(f"{fu.name} {what} {'/'.join(axes)}")
+    if uncertainty.scale_std is not None and np.isnan(uncertainty.scale_std):
+        out.append("the scale")
+    return out
+
+
 def accuracy_lines(accuracy: Accuracy | None) -> list[str]:
     """The summary's accuracy lines: the largest std (predicted and a posteriori), the worst
     held-out edge against its in-sample residuals, and the next motion in one sentence."""
@@ -245,8 +261,11 @@ def accuracy_lines(accuracy: Accuracy | None) -> list[str]:
         post = (f"; a posteriori x{np.sqrt(vf):.2g} (variance factor {vf:.2g} of the residuals)"
                 if np.isfinite(vf) else "")
         lines.append(f"largest std: {big[0]} (1 sigma, predicted from the stated noise{post})")
-    if unc is not None and unc.unobservable and not unc.conditioned_on_priors:
-        lines.append("unobservable: " + "; ".join(unc.unobservable))
+    if unc is not None:
+        axes = unobservable_axes(unc)
+        if axes:
+            lines.append("unobservable (not determined by the data, axes of the parents): "
+                         + ", ".join(axes))
     w = accuracy.worst_held_out()
     if w is not None:
         lines.append(f"cross-validation ({accuracy.validation.folds} folds), worst held-out "
