@@ -743,3 +743,33 @@ def test_robust_drops_the_tag_23_cam_6_edge_of_the_paper_data(paper_dir, tmp_pat
     doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     assert doc["verdict"] == "caution"  # the tag scale (alpha 1.025) remains
     assert doc["reasons"][0].startswith("CAUTION: the camera-tag distances are 1.025 times")
+
+
+# --- accuracy: uncertainty, cross-validation, guidance (issue 11) ------------------------------
+
+
+def test_accuracy_switches_reach_the_result(tmp_path):
+    from rwhec_ros.core.synthetic import random_instance
+
+    problem, _ = random_instance(np.random.default_rng(5), 3, 2, n_per_edge=10, sigma=0.005,
+                                 kappa=400.0)
+    path = Dataset.from_problem(problem).save(tmp_path / "in.yaml")
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "on", "-q"])
+    assert code == EXIT_OK, stdout + stderr
+    doc = yaml.safe_load((tmp_path / "on" / "result.yaml").read_text())
+    assert doc["cross_validation"]["folds"] == 5 and doc["guidance"]["message"]
+    assert all(len(f["std_translation_m"]) == 3 for f in doc["frames"])
+    assert "cross-validation (5 folds), worst held-out edge: " in stdout
+    assert "\nnext motion: " in stdout and "\nlargest std: " in stdout
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "off", "-q", "--folds", "0",
+                                "--no-guidance"])
+    assert code == EXIT_OK, stdout + stderr
+    doc = yaml.safe_load((tmp_path / "off" / "result.yaml").read_text())
+    assert doc["cross_validation"] is None and doc["guidance"] is None
+    assert doc["config"]["accuracy.cross_validation_folds"] == 0
+    assert doc["config"]["accuracy.guidance"] is False
+    # the uncertainty is always there: it is cheap
+    assert all(len(f["std_rotation_deg"]) == 3 for f in doc["frames"])
+    assert "worst held-out" not in stdout and "next motion" not in stdout
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "bad", "--folds", "1"])
+    assert code == EXIT_BAD_INPUT and "--folds: must be 0 (off) or >= 2, got 1" in stdout + stderr
