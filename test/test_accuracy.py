@@ -208,3 +208,41 @@ def test_options_are_validated():
         AccuracyOptions(folds=1)
     with pytest.raises(ValueError, match="moving"):
         AccuracyOptions(moving="z")
+
+
+def test_reprojection_per_camera_from_a_data_set_with_corners():
+    from rwhec_ros.data.corners import corner_data
+    from rwhec_ros.data.dataset import Dataset, DatasetEdge
+    from rwhec_ros.vision.detection import tag_object_points
+    from rwhec_ros.vision.intrinsics import CameraIntrinsics
+    from rwhec_ros.vision.reprojection import reprojection_errors
+
+    rng = np.random.default_rng(7)
+    problem, truth = random_instance(rng, 2, 2, n_per_edge=15)  # exact B
+    intr = {"y0": CameraIntrinsics.pinhole(640, 480, 500.0),
+            "y1": CameraIntrinsics.pinhole(800, 600, 650.0)}
+    size = 0.2
+    edges = []
+    for e in Dataset.from_problem(problem).edges:
+        # the corners the detector would see: the tag through the measured (exact) B
+        c = np.stack([intr[e.y].project_points(tag_object_points(size) @ B[:3, :3].T + B[:3, 3])
+                      for B in e.B])
+        c[e.B[:, 2, 3] <= 0.5] = np.nan  # tags behind (or at) the camera: no corners
+        edges.append(DatasetEdge(e.x, e.y, e.stamps_ns, e.A, e.B, e.sigma, e.kappa,
+                                 corners_px=c))
+    ds = Dataset(problem.x_names, problem.y_names, edges, intrinsics=intr,
+                 tag_sizes_m={"x0": size, "x1": size})
+    corners = corner_data(ds)
+    assert corners is not None and len(corners[0]) > 10
+    solved, doc = _document(problem, corners=corners,
+                            accuracy=AccuracyOptions(folds=0, guidance=False))
+    ref = reprojection_errors(*corners, solved.result)
+    assert set(doc["reprojection"]) == set(ref) == {"y0", "y1"}
+    for cam, r in ref.items():
+        assert doc["reprojection"][cam] == pytest.approx(r.to_dict())
+        # exact data: the calibrated chain reproduces the corners (solver tolerance ~1e-9 m)
+        assert doc["reprojection"][cam]["rms_px"] < 1e-3
+    text = summary(solved.result, solved.problem, {}, _naming(problem), solved.verdict,
+                   solved.accuracy)
+    assert "reprojection error of the tag corners through the calibration (RMS): y0 " in text
+    assert "reprojection y0" in dict(solved.accuracy.diagnostic_values())

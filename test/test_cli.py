@@ -343,6 +343,18 @@ def test_demo_end_to_end_and_report_subcommand(tmp_path):
     # same acceptance bound as the bag tests; measured ~2.5 mm / ~0.15 deg
     assert t_mm < 5.0 and r_deg < 0.5, max_line
     assert max_line.endswith("s in total)") and "over 9 frames" in max_line  # a full turn
+    # the session kept every pair's corners and the intrinsics: reprojection per camera in
+    # pixels (rendered tags, detector noise of a few tenths of a pixel; measured ~0.4 px)
+    assert set(doc["reprojection"]) == {"cam0", "cam1", "cam2"}
+    assert all(0 < r["rms_px"] < 1.5 for r in doc["reprojection"].values())
+    assert "reprojection error of the tag corners through the calibration (RMS): cam0 " in stdout
+    # and the saved data set gives it again
+    code, again, stderr = run(["dataset", out / "dataset.yaml", "-o", tmp_path / "again", "-q",
+                               "--min-pairs", "2", "--folds", "0", "--no-guidance"])
+    assert code == EXIT_OK, again + stderr
+    doc2 = yaml.safe_load((tmp_path / "again" / "result.yaml").read_text())
+    for cam, r in doc["reprojection"].items():  # the same pairs solved again: same estimate
+        assert doc2["reprojection"][cam]["rms_px"] == pytest.approx(r["rms_px"], rel=1e-4)
     result = out / "result.yaml"
     code, stdout, stderr = run(["report", result])
     assert code == EXIT_OK, stdout + stderr

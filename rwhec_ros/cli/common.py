@@ -364,6 +364,7 @@ def solve_and_write(
     ``dataset``); ``paths`` None: a new directory under ``settings.output_root``. The verdict's
     thresholds come from ``verdict_config`` (a configuration's ``verdict`` section, else the
     defaults); the launch file holds the usable frames only unless ``publish_unusable``."""
+    from ..data.corners import corner_data
     from ..data.results import new_output_dir, result_document, session_output_paths, write_outputs
     from ..session import static_transforms_launch, summary
     from ..session.accuracy import AccuracyOptions
@@ -386,7 +387,8 @@ def solve_and_write(
             expected_x=naming.x_names, expected_y=naming.y_names, excluded=excluded,
             carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
             accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,
-                                     moving=_moving(config)))
+                                     moving=_moving(config)),
+            corners=corner_data(dataset))
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
         say(f"no solution: the solver failed ({type(exc).__name__}: {exc}); try --mode sdp, "
             "or --robust if some pairs may be outliers")

@@ -1,10 +1,11 @@
-"""The report's accuracy part: per-frame std bars, held-out vs in-sample residuals, the guidance.
+"""The report's accuracy part: per-frame std bars, held-out vs in-sample residuals, the
+reprojection error per camera, the guidance.
 
 Everything is read from the result YAML mapping (keys of
 :func:`rwhec_ros.data.results.result_document` with an accuracy: each frame's
 ``std_translation_m``/``std_rotation_deg``/``unobservable``/``a_posteriori``, and
-``cross_validation``, ``guidance``); a result written before these keys existed simply has no
-accuracy part (:func:`has_accuracy`).
+``cross_validation``, ``reprojection``, ``guidance``); a result written before these keys
+existed simply has no accuracy part (:func:`has_accuracy`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import numpy as np
 from .residuals import natural_key
 
 __all__ = ["has_accuracy", "has_validation", "draw_std_bars", "draw_validation",
-           "guidance_lines", "accuracy_sections"]
+           "summary_text_lines", "accuracy_sections"]
 
 _AXES = ("x", "y", "z")
 _AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
@@ -126,13 +127,21 @@ def draw_validation(ax, doc: Mapping[str, Any], what: str, label: int = 4) -> No
                  f"{float(ins.get(key, np.nan)):.3g} {unit})", fontsize=11)
 
 
-def guidance_lines(doc: Mapping[str, Any], width: int = 40) -> list[str]:
-    """The next motion (or why none is needed) wrapped to ``width``; empty without guidance."""
+def summary_text_lines(doc: Mapping[str, Any], width: int = 40) -> list[str]:
+    """The reprojection RMS per camera and the next motion (or why none is needed), wrapped to
+    ``width``; empty without them."""
+    lines = []
+    rep = doc.get("reprojection")
+    if rep:
+        lines += ["reprojection RMS per camera:"] + textwrap.wrap(
+            ", ".join(f"{cam} {r['rms_px']:.2f} px" for cam, r in
+                      sorted(rep.items(), key=lambda kv: natural_key(kv[0]))),
+            width, initial_indent="  ", subsequent_indent="  ") + [""]
     g = doc.get("guidance")
-    if not g:
-        return []
-    return ["next motion:"] + textwrap.wrap(str(g.get("message", "")), width,
-                                            initial_indent="  ", subsequent_indent="  ")
+    if g:
+        lines += ["next motion:"] + textwrap.wrap(str(g.get("message", "")), width,
+                                                  initial_indent="  ", subsequent_indent="  ")
+    return lines
 
 
 def _std_text(values, scale: float, unit: str, digits: int) -> str:
@@ -183,6 +192,19 @@ def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, lis
                     "rig, too few motions).",
                     ("tag (X)", "camera (Y)", "pairs", "in-sample RMS [mm]", "held-out RMS [mm]",
                      "in-sample RMS [deg]", "held-out RMS [deg]", "note"), rows))
+    rep = doc.get("reprojection")
+    if rep:
+        rows = [(cam, r["n_pairs"], f"{r['rms_px']:.2f}", f"{r['median_px']:.2f}",
+                 f"{r['max_px']:.1f}", r.get("n_behind", 0)) for cam, r in
+                sorted(rep.items(), key=lambda kv: natural_key(kv[0]))]
+        out.append(("Reprojection error per camera",
+                    "The detected tag corners against the tag placed by the calibrated chain "
+                    "(camera <- carrier <- pose stream <- tag carrier <- tag) and projected "
+                    "with the camera's intrinsics, in pixels: the residual of the whole "
+                    "calibration, to compare with the detector's noise (a few tenths of a "
+                    "pixel for sharp tags).",
+                    ("camera", "pairs", "RMS [px]", "median [px]", "max [px]",
+                     "pairs behind the camera"), rows))
     g = doc.get("guidance")
     if g:
         rows = [(c.get("x"), c.get("y"), f"{c.get('kind')} about/along {c.get('axis')}",

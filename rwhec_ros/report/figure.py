@@ -27,7 +27,13 @@ import numpy as np
 
 from ..core.problem import Problem
 from ..core.verdict import FitStatistics
-from .accuracy import draw_std_bars, draw_validation, guidance_lines, has_accuracy, has_validation
+from .accuracy import (
+    draw_std_bars,
+    draw_validation,
+    has_accuracy,
+    has_validation,
+    summary_text_lines,
+)
 from .residuals import EdgeResiduals, natural_key
 
 __all__ = ["BANNER_COLORS", "draw_report"]
@@ -317,7 +323,7 @@ def _summary_lines(doc: Mapping[str, Any], problem: Problem,
     excluded = doc.get("excluded_edges") or {}
     if excluded:
         lines += ["", f"{len(excluded)} edge(s) left out (see report.html)"]
-    motion = guidance_lines(doc)
+    motion = summary_text_lines(doc)
     if motion:
         lines += ["", *motion]
     return lines
@@ -366,8 +372,12 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
     grid_h = max(3.0, 0.3 * len(y_names) + 2.0)
     banner = banner_lines(doc)
     n_ranked = min(15, sum(np.isfinite(e.ratio) for e in fit.edges))
+    text = _summary_lines(doc, problem, residuals) if with_text else []
+    fit_text = _fit_lines(fit) if with_text else []
+    line_h = 0.18  # inches per line of 10 pt monospace text
     heights = ([1.0 + 0.2 * max(len(banner), 1)] if with_text else []) + [
-        grid_h, grid_h, max(2.5, 0.3 * n_ranked + 1.0), 6.5, 3.2]
+        max(grid_h, line_h * len(text) + 0.3), max(grid_h, line_h * len(fit_text) + 0.3),
+        max(2.5, 0.3 * n_ranked + 1.0), 6.5, 3.2]
     std_rows = has_accuracy(doc)
     cv_rows = has_validation(doc)
     if std_rows:  # three bars per frame
@@ -387,8 +397,8 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
     if with_text:
         _banner(fig.add_subplot(gs[0, :]), doc)
         row = 1
-        _text(fig.add_subplot(gs[row, 0]), _summary_lines(doc, problem, residuals))
-        _text(fig.add_subplot(gs[row + 1, 0]), _fit_lines(fit))
+        _text(fig.add_subplot(gs[row, 0]), text)
+        _text(fig.add_subplot(gs[row + 1, 0]), fit_text)
     ax = fig.add_subplot(gs[row, 1:3])
     _identifiability(ax, ident, x_names, y_names)
     _color_ticks(ax, levels)

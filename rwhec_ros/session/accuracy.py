@@ -8,9 +8,13 @@ At the solution of :func:`~rwhec_ros.session.solving.solve_and_assess`:
 * the **cross-validation** (:func:`rwhec_ros.core.validation.cross_validate`, ``folds`` folds,
   ``0`` for none): per edge the held-out residuals next to the in-sample ones;
 * the **next-motion guidance** (:func:`rwhec_ros.core.guidance.suggest_next_motion`): the motion
-  that would most reduce the largest remaining std, in words.
+  that would most reduce the largest remaining std, in words;
+* the **reprojection error per camera**
+  (:func:`rwhec_ros.vision.reprojection.reprojection_errors`) of the detected tag corners through
+  the calibrated chain, when the data keep corners and intrinsics
+  (:func:`rwhec_ros.data.corners.corner_observations`).
 
-:class:`Accuracy` holds the three (each None when skipped or failed, with a note saying why) and
+:class:`Accuracy` holds them (each None when skipped or failed, with a note saying why) and
 gives the result-YAML keys (:meth:`Accuracy.frame_fields`, :meth:`Accuracy.to_dict`), the summary
 lines (:func:`accuracy_lines`) and the /diagnostics values (:meth:`Accuracy.diagnostic_values`).
 
@@ -84,6 +88,8 @@ class Accuracy:
     uncertainty : Uncertainty or None
     validation : CrossValidation or None
     guidance : Guidance or None
+    reprojection : dict of str to CameraReprojection, or None
+        Per camera (None without corners).
     options : AccuracyOptions
     notes : list of str
         Why a part is missing (switched off, or failed and how).
@@ -94,6 +100,7 @@ class Accuracy:
     uncertainty: Uncertainty | None = None
     validation: CrossValidation | None = None
     guidance: Guidance | None = None
+    reprojection: dict | None = None
     options: AccuracyOptions = field(default_factory=AccuracyOptions)
     notes: list[str] = field(default_factory=list)
     timing_s: dict[str, float] = field(default_factory=dict)
@@ -117,7 +124,8 @@ class Accuracy:
     def to_dict(self) -> dict:
         """The top-level result-YAML keys ``uncertainty`` (convention, variance factor, scale
         std, unobservable directions in words; the frames' numbers are with the frames),
-        ``cross_validation`` and ``guidance`` (None when not computed), and ``accuracy_notes``."""
+        ``cross_validation``, ``guidance`` and ``reprojection`` (per camera; None when not
+        computed), and ``accuracy_notes``."""
         unc = None
         if self.uncertainty is not None:
             unc = self.uncertainty.to_dict()
@@ -133,6 +141,8 @@ class Accuracy:
                   "timing_s": float(self.validation.timing_s)}
         return {"uncertainty": unc, "cross_validation": cv,
                 "guidance": None if self.guidance is None else self.guidance.to_dict(),
+                "reprojection": None if self.reprojection is None else {
+                    cam: r.to_dict() for cam, r in self.reprojection.items()},
                 "accuracy_notes": list(self.notes),
                 "accuracy_timing_s": {k: float(v) for k, v in self.timing_s.items()}}
 
@@ -174,6 +184,8 @@ class Accuracy:
         w = self.worst_held_out()
         if w is not None:
             out.append(("worst_held_out_edge", _held_out_words(w)))
+        for cam, r in (self.reprojection or {}).items():
+            out.append((f"reprojection {cam}", _reprojection_words(r)))
         if self.guidance is not None:
             out.append(("next_motion", self.guidance.message))
         return out
@@ -183,6 +195,13 @@ def _held_out_words(e) -> str:
     return (f"({e.x}, {e.y}) held out {mm(e.held_out.rms_translation_mm / 1e3)}, "
             f"{deg(e.held_out.rms_rotation_deg)} RMS (in-sample "
             f"{mm(e.in_sample.rms_translation_mm / 1e3)}, {deg(e.in_sample.rms_rotation_deg)})")
+
+
+def _reprojection_words(r) -> str:
+    if not np.isfinite(r.rms_px):
+        return f"no pair in front of the camera ({r.n_pairs} pairs)"
+    return (f"RMS {r.rms_px:.2f} px, median {r.median_px:.2f} px, max {r.max_px:.1f} px over "
+            f"{r.n_pairs} pairs" + (f" ({r.n_behind} behind the camera)" if r.n_behind else ""))
 
 
 def _timed(acc: Accuracy, key: str, what: str, fn):
@@ -198,13 +217,16 @@ def _timed(acc: Accuracy, key: str, what: str, fn):
 
 def assess_accuracy(problem: Problem, result, *, solve_options=None,
                     options: AccuracyOptions | None = None,
-                    carriers: tuple[str, str] = ("the camera carrier", "the tag carrier")
-                    ) -> Accuracy:
+                    carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
+                    corners=None) -> Accuracy:
     """Uncertainty, cross-validation and guidance of ``result`` for ``problem`` (module
     docstring). ``solve_options`` (:class:`~rwhec_ros.core.solve.SolveOptions`) gives the
     priors (its ``gauge``) and the folds' solver options (mode ``fast`` there); ``carriers``
-    names the camera and tag carrier in the guidance's sentences. A part that fails leaves a
-    note and None; nothing raises for the data's sake."""
+    names the camera and tag carrier in the guidance's sentences; ``corners``
+    ``(observations, intrinsics)`` (a sequence of
+    :class:`~rwhec_ros.vision.reprojection.CornerObservation` and camera -> intrinsics) give the
+    reprojection error per camera (observations of frames the result lacks are left out). A part
+    that fails leaves a note and None; nothing raises for the data's sake."""
     from ..core.gauge import GaugeOptions
     from ..core.solve import SolveOptions
 
@@ -230,6 +252,15 @@ def assess_accuracy(problem: Problem, result, *, solve_options=None,
                               lambda: suggest_next_motion(problem, result, g_opts))
     else:
         acc.notes.append("next-motion guidance off (accuracy.guidance = false)")
+    if corners is not None:
+        obs, intrinsics = corners
+        names = set(result.x_names) | set(result.y_names)
+        obs = [o for o in obs if o.x in names and o.y in names and o.y in intrinsics]
+        if obs:
+            from ..vision.reprojection import reprojection_errors
+
+            acc.reprojection = _timed(acc, "reprojection", "the reprojection error",
+                                      lambda: reprojection_errors(obs, intrinsics, result))
     return acc
 
 
@@ -270,6 +301,10 @@ def accuracy_lines(accuracy: Accuracy | None) -> list[str]:
     if w is not None:
         lines.append(f"cross-validation ({accuracy.validation.folds} folds), worst held-out "
                      f"edge: {_held_out_words(w)}")
+    if accuracy.reprojection:
+        lines.append("reprojection error of the tag corners through the calibration (RMS): "
+                     + ", ".join(f"{cam} {r.rms_px:.2f} px" for cam, r in
+                                 accuracy.reprojection.items()))
     if accuracy.guidance is not None:
         lines.append(f"next motion: {accuracy.guidance.message}")
     lines += [f"note: {n}" for n in accuracy.notes if "failed" in n]

@@ -20,6 +20,7 @@ from ..config.live_parameters import restart_only_differences
 from ..core.lie import invert_transform
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict
+from ..data.corners import corner_data
 from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
 from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
@@ -343,7 +344,7 @@ class CalibrationSession(ImageInput):
                 min_scale=c.solver.min_scale, thresholds=verdict_options(c.verdict),
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
-                accuracy=self._accuracy_options())
+                accuracy=self._accuracy_options(), corners=corner_data(dataset))
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
                 False, f"the solver failed ({type(exc).__name__}: {exc}); all data kept: try "
@@ -430,7 +431,7 @@ class CalibrationSession(ImageInput):
 
     def _dataset_locked(self):
         """A data-set object of the kept pairs (lock held), or None if unavailable."""
-        return session_dataset(self._acc, self.config)
+        return session_dataset(self._acc, self.config, self._intrinsics)
 
     def save_dataset(self, path: str | Path | None = None) -> str:
         """Save the kept pairs (format of :mod:`rwhec_ros.data.dataset`) and return the path.

@@ -165,10 +165,12 @@ def static_transforms_launch(
     return "\n".join(lines)
 
 
-def session_dataset(acc, config) -> Dataset | None:
+def session_dataset(acc, config, intrinsics=None) -> Dataset | None:
     """A data set of the kept pairs of ``acc`` (a :class:`~rwhec_ros.sync.PairAccumulator`)
-    named by ``config`` (a :class:`~rwhec_ros.config.CalibratorConfig`), or None if it cannot be
-    built (call with the session's lock held)."""
+    named by ``config`` (a :class:`~rwhec_ros.config.CalibratorConfig`), with the pairs' tag
+    corners, the cameras' ``intrinsics`` (camera -> CameraIntrinsics) and the configured tag
+    sizes (for the reprojection error per camera), or None if it cannot be built (call with
+    the session's lock held)."""
     c = config
     carriers = {n: c.camera_carrier.frame for n in c.y_names}
     carriers.update({n: c.tag_carrier.frame for n in c.x_names})
@@ -180,6 +182,8 @@ def session_dataset(acc, config) -> Dataset | None:
             unknown_scale=c.tags.unknown_scale,
             metadata={"config": c.to_parameters()},
             carriers=carriers,
+            intrinsics=dict(intrinsics or {}),
+            tag_sizes_m={c.tags.frame_name(t): s for t, s in c.tags.sizes.items()},
         )
     except ValueError:
         return None

@@ -178,6 +178,7 @@ def solve_and_assess(
     excluded: Mapping[str, str] | None = None,
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
     accuracy: AccuracyOptions | None = DEFAULT_ACCURACY,
+    corners=None,
 ) -> Solved:
     """Solve ``problem`` (as :func:`solve_problem`: ``mode``, ``reject_outliers``, ``priors``,
     ``unobservable_std_m``, ``min_scale``), analyse identifiability at the solution and
@@ -186,7 +187,8 @@ def solve_and_assess(
     solve (with reasons), ``carriers`` the camera and tag carrier frame names. ``accuracy``
     says what of the per-frame uncertainty, cross-validation and guidance to compute
     (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the verdict's
-    precision uses that uncertainty. Exceptions of the solver propagate."""
+    precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
+    reprojection error per camera. Exceptions of the solver propagate."""
     from ..core.solve import blas_threads
 
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
@@ -199,7 +201,7 @@ def solve_and_assess(
     acc = None
     if accuracy is not None:
         acc = assess_accuracy(solved, result, solve_options=options, options=accuracy,
-                              carriers=carriers)
+                              carriers=carriers, corners=corners)
     with blas_threads(1):
         verdict = assess(result, solved, identifiability=ident, options=thresholds,
                          uncertainty=None if acc is None else acc.uncertainty,
