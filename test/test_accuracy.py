@@ -201,6 +201,9 @@ def test_unknown_scale_has_a_scale_std():
     assert s == pytest.approx(ref, rel=1e-12) and 0 < s < 0.1
     vf = doc["uncertainty"]["variance_factor"]
     assert doc["uncertainty"]["scale_std_a_posteriori"] == pytest.approx(s * np.sqrt(vf))
+    text = summary(solved.result, solved.problem, {}, _naming(problem), solved.verdict,
+                   solved.accuracy)
+    assert f"scale {solved.result.scale:.5f} +-{s:.5f} (1 sigma, predicted)" in text
 
 
 def test_options_are_validated():

@@ -136,6 +136,9 @@ def test_report_shows_the_accuracy_and_grows_by_its_rows(tmp_path):
     assert "<h2>Cross-validation (3 folds)</h2>" in page
     assert "<h2>Next motion</h2>" in page
     assert solved.accuracy.guidance.message.split(" (")[0] in page
+    best = solved.accuracy.guidance.best
+    assert best is not None and ("rotate about " if best.kind == "rotate" else
+                                 "translate along ") + "xyz"[best.axis] + " by +-" in page
     # the stds as numbers in the table: the first camera's predicted translation std in mm
     fu = solved.accuracy.uncertainty.frame("y0")
     assert " / ".join(f"{1e3 * v:.2f}" for v in fu.std_translation_m) + " mm" in page

@@ -149,6 +149,15 @@ def _std_text(values, scale: float, unit: str, digits: int) -> str:
                       for v in values) + f" {unit}"
 
 
+def _motion_words(c: Mapping[str, Any]) -> str:
+    """``rotate about x by +-30 deg``, ``translate along y by +-0.2 m`` (``, new view`` when the
+    camera has not seen the tag yet) for a guidance candidate's mapping."""
+    amount = float(c.get("amount", float("nan")))
+    how = (f"rotate about {c.get('axis')} by +-{amount:.0f} deg" if c.get("kind") == "rotate"
+           else f"translate along {c.get('axis')} by +-{amount:.2g} m")
+    return how + (", new view" if c.get("new_edge") else "")
+
+
 def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, list[tuple]]]:
     """The HTML page's accuracy sections as ``(heading, paragraph, table header, rows)``: the
     per-frame stds (predicted and a posteriori), the cross-validation per edge, the guidance."""
@@ -207,8 +216,8 @@ def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, lis
                      "pairs behind the camera"), rows))
     g = doc.get("guidance")
     if g:
-        rows = [(c.get("x"), c.get("y"), f"{c.get('kind')} about/along {c.get('axis')}",
-                 c.get("worst", "")) for c in g.get("candidates") or []]
+        rows = [(c.get("x"), c.get("y"), _motion_words(c), c.get("worst", ""))
+                for c in g.get("candidates") or []]
         out.append(("Next motion", str(g.get("message", "")),
                     ("tag", "camera", "motion", "largest std predicted after it"), rows))
     return out

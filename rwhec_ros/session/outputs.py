@@ -43,7 +43,11 @@ def summary(result: CalibrationResult, problem, excluded: dict, config,
     lines.append(f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
                  f"{result.mode}")
     if problem.unknown_scale:
-        lines.append(f"scale {result.scale:.5f}")
+        s = None if accuracy is None or accuracy.uncertainty is None else \
+            accuracy.uncertainty.scale_std
+        std = ("" if s is None else " (not determined by the data)" if np.isnan(s) else
+               f" +-{s:.5f} (1 sigma, predicted)")
+        lines.append(f"scale {result.scale:.5f}{std}")
     frames = config.published_frames()
     estimates = dict(zip(result.y_names, result.Y, strict=True))
     estimates.update(zip(result.x_names, result.X, strict=True))
