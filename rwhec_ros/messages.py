@@ -305,6 +305,7 @@ def diagnostic_rows(
     prefix: str = "rwhec_calibrator",
     hardware_id: str = "",
     calibration: tuple[str, str] | None = None,
+    accuracy: Sequence[tuple[str, str]] = (),
 ) -> list[dict[str, Any]]:
     """``diagnostic_msgs/DiagnosticStatus`` rows from the session's diagnostics.
 
@@ -324,6 +325,11 @@ def diagnostic_rows(
         (:class:`~rwhec_ros.core.verdict.Verdict`: ``good``, ``caution`` or ``unusable`` and its
         first line): the session row is then at least OK, WARN or ERROR respectively, and its
         message starts with ``last calibration: <headline>``.
+    accuracy : sequence of (str, str)
+        The latest calibration's accuracy as ``(key, value)`` pairs
+        (:meth:`rwhec_ros.session.accuracy.Accuracy.diagnostic_values`: ``std <frame>``,
+        ``largest_std``, ``worst_held_out_edge``, ``next_motion``), added to the session row;
+        its ``next_motion`` also ends the row's message.
 
     Returns
     -------
@@ -352,6 +358,11 @@ def diagnostic_rows(
         message = f"last calibration: {headline}; {message}"
         values.insert(0, ("last_calibration", headline))
         values.insert(0, ("verdict", cal_level))
+    accuracy = [(str(k), str(v)) for k, v in accuracy]
+    values += accuracy
+    motion = dict(accuracy).get("next_motion")
+    if motion:
+        message += f"; next motion: {motion}"
     rows.append(
         {
             "name": f"{prefix}: session",

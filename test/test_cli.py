@@ -344,6 +344,18 @@ def test_demo_end_to_end_and_report_subcommand(tmp_path):
     # same acceptance bound as the bag tests; measured ~2.5 mm / ~0.15 deg
     assert t_mm < 5.0 and r_deg < 0.5, max_line
     assert max_line.endswith("s in total)") and "over 9 frames" in max_line  # a full turn
+    # the session kept every pair's corners and the intrinsics: reprojection per camera in
+    # pixels (rendered tags, detector noise of a few tenths of a pixel; measured ~0.4 px)
+    assert set(doc["reprojection"]) == {"cam0", "cam1", "cam2"}
+    assert all(0 < r["rms_px"] < 1.5 for r in doc["reprojection"].values())
+    assert "reprojection error of the tag corners through the calibration (RMS): cam0 " in stdout
+    # and the saved data set gives it again
+    code, again, stderr = run(["dataset", out / "dataset.yaml", "-o", tmp_path / "again", "-q",
+                               "--min-pairs", "2", "--folds", "0", "--no-guidance"])
+    assert code == EXIT_OK, again + stderr
+    doc2 = yaml.safe_load((tmp_path / "again" / "result.yaml").read_text())
+    for cam, r in doc["reprojection"].items():  # the same pairs solved again: same estimate
+        assert doc2["reprojection"][cam]["rms_px"] == pytest.approx(r["rms_px"], rel=1e-4)
     result = out / "result.yaml"
     code, stdout, stderr = run(["report", result])
     assert code == EXIT_OK, stdout + stderr
@@ -745,3 +757,33 @@ def test_robust_drops_the_tag_23_cam_6_edge_of_the_paper_data(paper_dir, tmp_pat
     doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     assert doc["verdict"] == "caution"  # the tag scale (alpha 1.025) remains
     assert doc["reasons"][0].startswith("CAUTION: the camera-tag distances are 1.025 times")
+
+
+# --- accuracy: uncertainty, cross-validation, guidance (issue 11) ------------------------------
+
+
+def test_accuracy_switches_reach_the_result(tmp_path):
+    from rwhec_ros.core.synthetic import random_instance
+
+    problem, _ = random_instance(np.random.default_rng(5), 3, 2, n_per_edge=10, sigma=0.005,
+                                 kappa=400.0)
+    path = Dataset.from_problem(problem).save(tmp_path / "in.yaml")
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "on", "-q"])
+    assert code == EXIT_OK, stdout + stderr
+    doc = yaml.safe_load((tmp_path / "on" / "result.yaml").read_text())
+    assert doc["cross_validation"]["folds"] == 5 and doc["guidance"]["message"]
+    assert all(len(f["std_translation_m"]) == 3 for f in doc["frames"])
+    assert "cross-validation (5 folds), worst held-out edge: " in stdout
+    assert "\nnext motion: " in stdout and "\nlargest std: " in stdout
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "off", "-q", "--folds", "0",
+                                "--no-guidance"])
+    assert code == EXIT_OK, stdout + stderr
+    doc = yaml.safe_load((tmp_path / "off" / "result.yaml").read_text())
+    assert doc["cross_validation"] is None and doc["guidance"] is None
+    assert doc["config"]["accuracy.cross_validation_folds"] == 0
+    assert doc["config"]["accuracy.guidance"] is False
+    # the uncertainty is always there: it is cheap
+    assert all(len(f["std_rotation_deg"]) == 3 for f in doc["frames"])
+    assert "worst held-out" not in stdout and "next motion" not in stdout
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "bad", "--folds", "1"])
+    assert code == EXIT_BAD_INPUT and "--folds: must be 0 (off) or >= 2, got 1" in stdout + stderr

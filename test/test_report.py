@@ -111,3 +111,37 @@ def test_document_without_a_frame_of_the_data_is_rejected():
     doc["frames"] = [f for f in doc["frames"] if f["name"] != "x1"]
     with pytest.raises(ValueError, match=r"no estimate for \['x1'\]"):
         estimates_from_document(doc, problem)
+
+
+def test_report_shows_the_accuracy_and_grows_by_its_rows(tmp_path):
+    from matplotlib.image import imread
+
+    from rwhec_ros.session.accuracy import AccuracyOptions
+    from rwhec_ros.session.solving import solve_and_assess
+
+    problem, _ = random_instance(np.random.default_rng(3), 3, 2, n_per_edge=12, sigma=0.01,
+                                 kappa=400.0)
+    solved = solve_and_assess(problem, accuracy=AccuracyOptions(folds=3))
+    naming = FrameNaming.from_carriers(problem.x_names, problem.y_names,
+                                       camera_carrier="rig", tag_carrier="world")
+    plain_doc = result_document(solved.result, naming, verdict=solved.verdict)
+    doc = result_document(solved.result, naming, verdict=solved.verdict,
+                          accuracy=solved.accuracy)
+    without = write_report(plain_doc, problem, tmp_path / "a.png", tmp_path / "a.html")
+    files = write_report(doc, problem, tmp_path / "r.png", tmp_path / "r.html")
+    # two more rows (std bars; cross-validation) of at least 3 inches each at 80 dpi
+    assert imread(str(files.png)).shape[0] >= imread(str(without.png)).shape[0] + 2 * 3 * 80
+    page = files.html.read_text()
+    assert "<h2>Uncertainty per frame</h2>" in page
+    assert "<h2>Cross-validation (3 folds)</h2>" in page
+    assert "<h2>Next motion</h2>" in page
+    assert solved.accuracy.guidance.message.split(" (")[0] in page
+    best = solved.accuracy.guidance.best
+    assert best is not None and ("rotate about " if best.kind == "rotate" else
+                                 "translate along ") + "xyz"[best.axis] + " by +-" in page
+    # the stds as numbers in the table: the first camera's predicted translation std in mm
+    fu = solved.accuracy.uncertainty.frame("y0")
+    assert " / ".join(f"{1e3 * v:.2f}" for v in fu.std_translation_m) + " mm" in page
+    assert "Uncertainty per frame" not in without.html.read_text()  # older results: no section
+    text = page.split("base64,")[0] + page.split("base64,")[1].split("'", 1)[1]  # no figure
+    assert "None" not in text and "nan" not in text  # words, not Python values

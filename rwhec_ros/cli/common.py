@@ -161,7 +161,8 @@ def check_positive(name: str, value: float) -> None:
 
 
 def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
-    """The flat parameters that ``--mode``, ``--min-pairs`` and ``--robust`` set (those given)."""
+    """The flat parameters that ``--mode``, ``--min-pairs``, ``--robust``, ``--folds`` and
+    ``--no-guidance`` set (those given)."""
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
     out: dict[str, Any] = {}
@@ -171,6 +172,13 @@ def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["solver.min_pairs"] = int(args.min_pairs)
     if args.robust:
         out["solver.reject_outliers"] = True
+    folds = getattr(args, "folds", None)
+    if folds is not None:
+        if folds < 0 or folds == 1:
+            raise BadInput(f"--folds: must be 0 (off) or >= 2, got {folds}")
+        out["accuracy.cross_validation_folds"] = int(folds)
+    if getattr(args, "no_guidance", False):
+        out["accuracy.guidance"] = False
     return out
 
 
@@ -211,6 +219,8 @@ class SolveSettings:
     priors: tuple[tuple[str, str, float], ...] = ()
     unobservable_std_m: float = 1.0
     min_scale: float = 0.01
+    folds: int = 5
+    guidance: bool = True
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
@@ -226,17 +236,21 @@ class SolveSettings:
                              output_root=str(plain_output_root(p.get("output.directory", ""))),
                              priors=priors,
                              unobservable_std_m=float(p.get("solver.unobservable_std_m", 1.0)),
-                             min_scale=float(p.get("solver.min_scale", 0.01)))
+                             min_scale=float(p.get("solver.min_scale", 0.01)),
+                             folds=int(p.get("accuracy.cross_validation_folds", 5)),
+                             guidance=bool(p.get("accuracy.guidance", True)))
 
     def parameters(self) -> dict[str, Any]:
-        """The ``solver.*`` and ``priors.*`` parameters of these settings."""
+        """The ``solver.*``, ``priors.*`` and ``accuracy.*`` parameters of these settings."""
         return {"solver.mode": self.mode, "solver.min_pairs": self.min_pairs,
                 "solver.reject_outliers": self.robust,
                 "solver.unobservable_std_m": self.unobservable_std_m,
                 "solver.min_scale": self.min_scale,
                 "priors.frames": [f for f, _, _ in self.priors],
                 "priors.axes": [a for _, a, _ in self.priors],
-                "priors.values_m": [x for _, _, x in self.priors]}
+                "priors.values_m": [x for _, _, x in self.priors],
+                "accuracy.cross_validation_folds": self.folds,
+                "accuracy.guidance": self.guidance}
 
 
 def config_from_parameters(flat: Mapping[str, Any], where: str):
@@ -350,8 +364,10 @@ def solve_and_write(
     ``dataset``); ``paths`` None: a new directory under ``settings.output_root``. The verdict's
     thresholds come from ``verdict_config`` (a configuration's ``verdict`` section, else the
     defaults); the launch file holds the usable frames only unless ``publish_unusable``."""
+    from ..data.corners import corner_data
     from ..data.results import new_output_dir, result_document, session_output_paths, write_outputs
     from ..session import static_transforms_launch, summary
+    from ..session.accuracy import AccuracyOptions
     from ..session.outputs import description_texts, launch_header, publishable
     from ..session.solving import solve_and_assess, verdict_options
 
@@ -369,7 +385,10 @@ def solve_and_write(
             priors=settings.priors, unobservable_std_m=settings.unobservable_std_m,
             min_scale=settings.min_scale, thresholds=verdict_options(verdict_config),
             expected_x=naming.x_names, expected_y=naming.y_names, excluded=excluded,
-            carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"))
+            carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
+            accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,
+                                     moving=_moving(config)),
+            corners=corner_data(dataset))
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
         say(f"no solution: the solver failed ({type(exc).__name__}: {exc}); try --mode sdp, "
             "or --robust if some pairs may be outliers")
@@ -379,7 +398,7 @@ def solve_and_write(
     ident = solved.identifiability
     doc = result_document(result, naming, excluded=excluded,
                           identifiability=solved.identifiability_dict, config=config,
-                          source=source, verdict=verdict)
+                          source=source, verdict=verdict, accuracy=solved.accuracy)
     names = list(result.y_names) + list(result.x_names)
     transforms, left_out = publishable(naming.transforms(result), names, verdict,
                                        publish_unusable=publish_unusable)
@@ -399,11 +418,19 @@ def solve_and_write(
         if isinstance(exc, FileExistsError) and not exc.strerror:
             raise
         raise BadInput(f"cannot write the outputs: {describe_os_error(exc)}") from None
-    say.summary(summary(result, solved.problem, excluded, naming, verdict))
+    say.summary(summary(result, solved.problem, excluded, naming, verdict, solved.accuracy))
     say.files(files)
     if report:
         write_report(say, doc, solved.problem, paths.report_png, paths.report_html, ident)
     return exit_code(verdict)
+
+
+def _moving(parameters: Mapping[str, Any]) -> str:
+    """The carrier the guidance moves: ``"x"`` when the configuration says only the tag carrier
+    moves, else ``"y"`` (the camera carrier)."""
+    tag = bool(parameters.get("tag_carrier.moving", False))
+    cam = bool(parameters.get("camera_carrier.moving", not tag))
+    return "x" if tag and not cam else "y"
 
 
 def calibrate_session(say: Printer, session, paths, *, force: bool,

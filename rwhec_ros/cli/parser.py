@@ -2,7 +2,8 @@
 
 Every solving subcommand (``csv``, ``bag``, ``dataset``, ``demo``) takes the same options with the
 same meaning: ``-o/--output DIR``, ``--force``, ``--config FILE`` (``--node-name``), ``--mode``,
-``--min-pairs``, ``--robust``, ``--report`` and ``-q/--quiet``; ``report`` takes ``-o`` and
+``--min-pairs``, ``--robust``, ``--prior``, ``--folds``, ``--no-guidance``, ``--report`` and
+``-q/--quiet``; ``report`` takes ``-o`` and
 ``--force``. Help texts end with ``(default: ...)``; a default that comes from the configuration
 reads "the configuration's <parameter>, else <value>".
 """
@@ -54,6 +55,13 @@ def _add_solver(p: argparse.ArgumentParser) -> None:
                         "cam0.z=0.45 (repeatable); fixes a translation the data do not "
                         "determine, such as heights on a ground robot (default: the "
                         "configuration's priors.*, else none)")
+    p.add_argument("--folds", type=int, default=None, metavar="K",
+                   help="k-fold cross-validation over the pairs, per edge held-out vs in-sample "
+                        "residuals; 0: off (default: the configuration's "
+                        "accuracy.cross_validation_folds, else 5)")
+    p.add_argument("--no-guidance", action="store_true",
+                   help="do not compute the next-motion guidance (default: the configuration's "
+                        "accuracy.guidance, else on)")
     p.add_argument("--report", action="store_true",
                    help="also write report.png and report.html (default: off)")
     p.add_argument("-q", "--quiet", action="store_true",

@@ -12,6 +12,7 @@ from typing import Any
 import yaml
 
 from .sections import (
+    AccuracyConfig,
     CameraConfig,
     CarrierConfig,
     DetectionConfig,
@@ -63,6 +64,7 @@ class CalibratorConfig:
     verdict: dict[str, Any] = field(default_factory=dict, compare=False)
     parameters: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
     priors: PriorsConfig = field(default_factory=PriorsConfig)
+    accuracy: AccuracyConfig = field(default_factory=AccuracyConfig)
 
     # --- names ------------------------------------------------------------------------------
     @property
@@ -270,6 +272,11 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         diagnostics_period_s=check_positive(v, "ros.diagnostics_period_s"),
         image_queue_depth=check_positive_int(v, "ros.image_queue_depth", 1),
     )
+    folds = v["accuracy.cross_validation_folds"]
+    if folds < 0 or folds == 1:
+        raise ValueError(f"accuracy.cross_validation_folds: must be 0 (off) or >= 2, got "
+                         f"{folds!r}")
+    accuracy = AccuracyConfig(cross_validation_folds=int(folds), guidance=v["accuracy.guidance"])
     plain = {k: (list(x) if isinstance(x, tuple) else x) for k, x in v.items() if x is not None}
     return dict(
         camera_carrier=cam_carrier,
@@ -287,6 +294,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         verdict=_build_verdict(v),
         parameters=plain,
         priors=priors,
+        accuracy=accuracy,
     )
 
 

@@ -11,8 +11,8 @@ of the file the node was started with), and so are the parameters ROS itself man
 
 What a live change does (the text also goes into the callback's answer and the log):
 
-* ``solver.*``, ``priors.*`` -- used by the next ``calibrate`` (the three ``priors.*`` arrays are
-  parallel: to add or remove a prior, set them together, atomically);
+* ``solver.*``, ``priors.*``, ``accuracy.*`` -- used by the next ``calibrate`` (the three
+  ``priors.*`` arrays are parallel: to add or remove a prior, set them together, atomically);
 * ``noise.sigma``, ``noise.kappa`` -- given at once to every kept pair (unless
   ``noise.from_reprojection``, where they only fill in detections without their own precision),
   so the next ``calibrate``, ``save_dataset`` and ``/diagnostics`` use them;
@@ -58,6 +58,7 @@ LIVE_PARAMETERS: dict[str, str] = {
     "keyframe.min_rotation_rad": "used for the pairs offered from now on",
     "keyframe.min_translation_m": "used for the pairs offered from now on",
     "priors.": _NEXT_SOLVE,
+    "accuracy.": _NEXT_SOLVE,
     "output.directory": "used by the next calibrate and save_dataset",
     "output.": _NEXT_SOLVE,
 }

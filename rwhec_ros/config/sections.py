@@ -16,6 +16,7 @@ __all__ = [
     "SolverConfig",
     "OutputConfig",
     "RosConfig",
+    "AccuracyConfig",
 ]
 
 
@@ -169,3 +170,13 @@ class RosConfig:
     image_qos: str
     diagnostics_period_s: float
     image_queue_depth: int = 5
+
+
+@dataclass(frozen=True)
+class AccuracyConfig:
+    """What the calibrate step computes besides the per-frame uncertainty (always): the k-fold
+    cross-validation (``cross_validation_folds``, 0 for none) and the next-motion guidance
+    (:mod:`rwhec_ros.session.accuracy`)."""
+
+    cross_validation_folds: int = 5
+    guidance: bool = True

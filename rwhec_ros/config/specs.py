@@ -215,6 +215,12 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="unknown scale: caution when the scale's relative std exceeds this"),
     ParamSpec("verdict.unusable_scale_rel_std", "double", 0.1,
               doc="unknown scale: unusable when the scale's relative std exceeds this"),
+    ParamSpec("accuracy.cross_validation_folds", "int", 5,
+              doc="k-fold cross-validation over the pairs at calibrate (held-out vs in-sample "
+                  "residuals per edge); 0: off"),
+    ParamSpec("accuracy.guidance", "bool", True,
+              doc="suggest the next motion at calibrate (the one that most reduces the largest "
+                  "std)"),
     ParamSpec("ros.image_qos", "string", "sensor_data",
               doc="image/camera_info QoS: 'sensor_data' (best effort) or 'reliable'"),
     ParamSpec("ros.diagnostics_period_s", "double", 1.0, doc="period of /diagnostics [s]"),

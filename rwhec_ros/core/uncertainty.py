@@ -163,6 +163,23 @@ class FrameUncertainty:
     def std_rotation_deg_a_posteriori(self) -> np.ndarray:
         return np.sqrt(self.variance_factor) * self.std_rotation_deg
 
+    def worst_std(self) -> tuple[float, float]:
+        """Predicted std in the worst direction: ``(translation [m], rotation [deg])``, the
+        square roots of the largest eigenvalues of the 3x3 translation and rotation blocks of
+        :attr:`covariance` (at least the largest per-axis std); ``inf`` for a block with an
+        unobservable axis (not determined)."""
+        out = []
+        for sl, bad, unit in ((slice(0, 3), self.unobservable_translation, 1.0),
+                              (slice(3, 6), self.unobservable_rotation, np.degrees(1.0))):
+            if np.asarray(bad).any():
+                out.append(float("inf"))
+                continue
+            block = self.covariance[sl, sl]
+            lam = np.linalg.eigvalsh(0.5 * (block + block.T))[-1] if np.isfinite(block).all() \
+                else np.inf
+            out.append(float(unit * np.sqrt(max(lam, 0.0))))
+        return out[0], out[1]
+
     @property
     def observable(self) -> bool:
         """No axis of this frame is unobservable."""

@@ -16,6 +16,11 @@ takes 20 s to write and 28 s to read with libyaml alone (49 s / 145 s through :m
 ``arrays="auto"`` writes inline up to ``inline_max_pairs`` pairs (default 2000) and ``.npz``
 above.
 
+Optional keys (:mod:`rwhec_ros.data.corners`; files without them load as before): per edge
+``corners_px`` (each pair's detected tag corners [px], ``.nan`` for a pair without), and at the
+top ``intrinsics`` (per camera) and ``tag_sizes_m`` (per tag), which give the reprojection error
+per camera.
+
 Inline edge layout (``A``/``B``: one 4x4 matrix per pair, rows as flow lists)::
 
     edges:
@@ -111,6 +116,10 @@ class Dataset:
     carriers : dict[str, str]
         Optional: for a frame name, the frame it is rigidly attached to (camera -> camera
         carrier, tag -> tag carrier), e.g. ``{"cam_0": "base_link", "tag_0": "world"}``.
+    intrinsics : dict[str, CameraIntrinsics]
+        Optional: camera (Y frame) -> its intrinsics (for the reprojection error).
+    tag_sizes_m : dict[str, float]
+        Optional: tag (X frame) -> edge length [m] (nominal for unknown scale).
     """
 
     x_names: tuple[str, ...]
@@ -119,6 +128,8 @@ class Dataset:
     unknown_scale: bool = False
     metadata: dict[str, Any] = field(default_factory=dict)
     carriers: dict[str, str] = field(default_factory=dict)
+    intrinsics: dict[str, Any] = field(default_factory=dict)
+    tag_sizes_m: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.x_names = tuple(check_name(n, f"x_names[{i}]") for i, n in enumerate(self.x_names))
@@ -152,6 +163,26 @@ class Dataset:
                 raise ValueError(f"carriers: {frame!r} is not a frame of the data set")
             check_name(carrier, f"carriers[{frame!r}]")
         self.carriers = dict(self.carriers)
+        self._check_corner_data()
+
+    def _check_corner_data(self) -> None:
+        """``intrinsics`` of cameras of the data set (mappings converted), ``tag_sizes_m`` of its
+        tags (:mod:`rwhec_ros.data.corners`)."""
+        if not self.intrinsics and not self.tag_sizes_m:
+            self.intrinsics, self.tag_sizes_m = {}, {}
+            return
+        from .corners import check_tag_sizes, intrinsics_from_dict
+
+        if not isinstance(self.intrinsics, Mapping):
+            raise ValueError(f"intrinsics: expected a mapping camera -> intrinsics, got "
+                             f"{self.intrinsics!r}")
+        out = {}
+        for cam, value in self.intrinsics.items():
+            if cam not in self.y_names:
+                raise ValueError(f"intrinsics: {cam!r} is not a camera (Y frame) of the data set")
+            out[cam] = intrinsics_from_dict(value, f"intrinsics[{cam!r}]")
+        self.intrinsics = out
+        self.tag_sizes_m = check_tag_sizes(self.tag_sizes_m, self.x_names)
 
     # --- sizes -------------------------------------------------------------------------------
     @property
@@ -227,8 +258,12 @@ class Dataset:
         unknown_scale: bool = False,
         metadata: Mapping[str, Any] | None = None,
         carriers: Mapping[str, str] | None = None,
+        intrinsics: Mapping[str, Any] | None = None,
+        tag_sizes_m: Mapping[str, float] | None = None,
     ) -> Dataset:
-        """Every kept pair of a :class:`~rwhec_ros.sync.accumulator.PairAccumulator`.
+        """Every kept pair of a :class:`~rwhec_ros.sync.accumulator.PairAccumulator` (with their
+        corners when the accumulator kept them; ``intrinsics`` and ``tag_sizes_m`` of the frames
+        listed, for the reprojection error).
 
         No ``min_pairs`` filter (a data set keeps the raw collection). Frame lists default to
         the sorted names of the edges; when given, they must contain every edge's frames (frames
@@ -252,6 +287,8 @@ class Dataset:
             unknown_scale=unknown_scale,
             metadata={**default_metadata(), **dict(metadata or {})},
             carriers=dict(carriers or {}),
+            intrinsics={k: v for k, v in dict(intrinsics or {}).items() if k in ys},
+            tag_sizes_m={k: v for k, v in dict(tag_sizes_m or {}).items() if k in xs},
         )
 
     # --- files -------------------------------------------------------------------------------
@@ -286,6 +323,12 @@ class Dataset:
             "carriers": dict(self.carriers),
             "metadata": self.metadata,
         }
+        if self.intrinsics:
+            from .corners import intrinsics_to_dict
+
+            doc["intrinsics"] = {k: intrinsics_to_dict(v) for k, v in self.intrinsics.items()}
+        if self.tag_sizes_m:
+            doc["tag_sizes_m"] = dict(self.tag_sizes_m)
         edges_doc = []
         if arrays == "npz":
             npz_path = path.with_suffix(".npz")
@@ -293,6 +336,8 @@ class Dataset:
             named = {
                 f"e{i}_{k}": getattr(e, k) for i, e in enumerate(self.edges) for k in _ARRAY_KEYS
             }
+            named.update({f"e{i}_corners_px": e.corners_px for i, e in enumerate(self.edges)
+                          if e.corners_px is not None})
             np.savez(buffer, **named)
             payload = buffer.getvalue()
             npz_path.write_bytes(payload)
@@ -313,6 +358,8 @@ class Dataset:
                         "B": e.B.tolist(),
                     }
                 )
+                if e.corners_px is not None:
+                    edges_doc[-1]["corners_px"] = e.corners_px.tolist()
         doc["edges"] = edges_doc
         text = yaml.dump(doc, Dumper=_Dumper, sort_keys=False, default_flow_style=None, width=100)
         path.write_text(text, encoding="utf-8")
@@ -368,6 +415,10 @@ class Dataset:
                     if key not in ed:
                         raise ValueError(f"{label}: missing key {key!r}")
                     values[key] = _array_from_yaml(ed[key], key, label)
+            if npz is not None and f"e{i}_corners_px" in npz:
+                values["corners_px"] = npz[f"e{i}_corners_px"]
+            elif npz is None and ed.get("corners_px") is not None:
+                values["corners_px"] = _array_from_yaml(ed["corners_px"], "corners_px", label)
             n = ed["n"]
             if values["stamps_ns"].ndim != 1 or values["stamps_ns"].shape[0] != n:
                 raise ValueError(
@@ -386,6 +437,8 @@ class Dataset:
                 unknown_scale=doc.get("unknown_scale", False),
                 metadata=doc.get("metadata") or {},
                 carriers=doc.get("carriers") or {},
+                intrinsics=doc.get("intrinsics") or {},
+                tag_sizes_m=doc.get("tag_sizes_m") or {},
             )
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None

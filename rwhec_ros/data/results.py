@@ -138,6 +138,7 @@ def result_document(
     config: Mapping[str, Any] | None = None,
     source: Mapping[str, Any] | None = None,
     verdict=None,
+    accuracy=None,
 ) -> dict[str, Any]:
     """The result YAML mapping, with the keys of the session's
     :meth:`~rwhec_ros.session.CalibrationSession.result_document`.
@@ -152,6 +153,15 @@ def result_document(
     With a :class:`~rwhec_ros.core.verdict.Verdict`, each frame also says whether it is
     ``usable`` (and its ``verdict`` and ``why``), and ``verdict_details`` holds the fit
     statistics, the scale check and the per-frame verdicts.
+
+    With an :class:`~rwhec_ros.session.accuracy.Accuracy`, each frame also has its uncertainty
+    (:meth:`~rwhec_ros.session.accuracy.Accuracy.frame_fields`: ``std_kind``, predicted
+    ``std_translation_m`` [x, y, z] and ``std_rotation_deg`` [x, y, z] about the parent's axes,
+    the 6x6 ``covariance`` of ``[dt (m), phi (rad)]``, the same under ``a_posteriori``, the
+    ``unobservable`` axes, whose entries are ``null``), and the document has ``uncertainty``
+    (convention, variance factor, ``scale_std``), ``cross_validation`` (per edge held-out and
+    in-sample residuals in mm and deg) and ``guidance`` (the next motion), each ``null`` when not
+    computed, with ``accuracy_notes`` saying why.
     """
     doc = {"verdict": "unknown" if verdict is None else verdict.level,
            "reasons": [] if verdict is None else verdict.messages()}
@@ -162,12 +172,16 @@ def result_document(
         fv = None if verdict is None else verdict.frames.get(f["name"])
         if fv is not None:
             f["usable"], f["verdict"], f["why"] = fv.usable, fv.level, list(fv.why)
+        if accuracy is not None:
+            f.update(accuracy.frame_fields(f["name"]))
     doc["excluded_edges"] = dict(excluded or {})
     doc["identifiability"] = None if identifiability is None else dict(identifiability)
     doc["config"] = dict(config or {})
     doc["source"] = dict(source or {})
     if verdict is not None:
         doc["verdict_details"] = verdict.to_dict()
+    if accuracy is not None:
+        doc.update(accuracy.to_dict())
     return plain(doc)
 
 

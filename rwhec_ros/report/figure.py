@@ -10,7 +10,10 @@ Matplotlib on the Agg canvas without pyplot (no global state). Layout, top to bo
 3. the fit per edge on the same grid (noise of the edge over that of the median edge; outliers
    framed) and the worst edges ranked, so that 70+ edges stay readable;
 4. the estimated frames as axes triads in 3D, labels placed so that they do not overlap;
-5. histograms of the residuals of all pairs.
+5. histograms of the residuals of all pairs;
+6. with an accuracy in the result (:mod:`.accuracy`): the per-frame std bars (translation,
+   rotation), and the held-out vs in-sample residuals per edge of the cross-validation; the next
+   motion ends the summary text.
 """
 
 from __future__ import annotations
@@ -24,6 +27,13 @@ import numpy as np
 
 from ..core.problem import Problem
 from ..core.verdict import FitStatistics
+from .accuracy import (
+    draw_std_bars,
+    draw_validation,
+    has_accuracy,
+    has_validation,
+    summary_text_lines,
+)
 from .residuals import EdgeResiduals, natural_key
 
 __all__ = ["BANNER_COLORS", "draw_report"]
@@ -313,6 +323,9 @@ def _summary_lines(doc: Mapping[str, Any], problem: Problem,
     excluded = doc.get("excluded_edges") or {}
     if excluded:
         lines += ["", f"{len(excluded)} edge(s) left out (see report.html)"]
+    motion = summary_text_lines(doc)
+    if motion:
+        lines += ["", *motion]
     return lines
 
 
@@ -359,8 +372,18 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
     grid_h = max(3.0, 0.3 * len(y_names) + 2.0)
     banner = banner_lines(doc)
     n_ranked = min(15, sum(np.isfinite(e.ratio) for e in fit.edges))
+    text = _summary_lines(doc, problem, residuals) if with_text else []
+    fit_text = _fit_lines(fit) if with_text else []
+    line_h = 0.18  # inches per line of 10 pt monospace text
     heights = ([1.0 + 0.2 * max(len(banner), 1)] if with_text else []) + [
-        grid_h, grid_h, max(2.5, 0.3 * n_ranked + 1.0), 6.5, 3.2]
+        max(grid_h, line_h * len(text) + 0.3), max(grid_h, line_h * len(fit_text) + 0.3),
+        max(2.5, 0.3 * n_ranked + 1.0), 6.5, 3.2]
+    std_rows = has_accuracy(doc)
+    cv_rows = has_validation(doc)
+    if std_rows:  # three bars per frame
+        heights.append(max(3.0, 0.33 * len(doc["frames"]) + 1.2))
+    if cv_rows:
+        heights.append(5.0)
     total = sum(heights) + 0.9 * len(heights) + 1.0
     fig = Figure(figsize=(18, total))
     FigureCanvasAgg(fig)
@@ -374,8 +397,8 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
     if with_text:
         _banner(fig.add_subplot(gs[0, :]), doc)
         row = 1
-        _text(fig.add_subplot(gs[row, 0]), _summary_lines(doc, problem, residuals))
-        _text(fig.add_subplot(gs[row + 1, 0]), _fit_lines(fit))
+        _text(fig.add_subplot(gs[row, 0]), text)
+        _text(fig.add_subplot(gs[row + 1, 0]), fit_text)
     ax = fig.add_subplot(gs[row, 1:3])
     _identifiability(ax, ident, x_names, y_names)
     _color_ticks(ax, levels)
@@ -409,6 +432,14 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
         ax.set_title(f"{what} residuals of A X = Y B, all {pooled.size} pairs"
                      + (" (log count)" if log else ""), fontsize=11)
         ax.tick_params(labelsize=8)
+    if std_rows:
+        row += 1
+        draw_std_bars(fig.add_subplot(gs[row, 0:2]), doc, "translation")
+        draw_std_bars(fig.add_subplot(gs[row, 2:4]), doc, "rotation")
+    if cv_rows:
+        row += 1
+        draw_validation(fig.add_subplot(gs[row, 0:2]), doc, "translation")
+        draw_validation(fig.add_subplot(gs[row, 2:4]), doc, "rotation")
     fig.suptitle(title, fontsize=15, y=1 - 0.25 / total)
     fig.canvas.draw()  # the 3D projections of the final layout, for the labels
     for ax, labels in views:

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..core.problem import Problem
 from ..core.verdict import FitStatistics
+from .accuracy import accuracy_sections
 from .figure import BANNER_COLORS
 from .residuals import EdgeResiduals, natural_key
 
@@ -173,6 +174,7 @@ def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeRe
         _table(("tag (X)", "camera (Y)", "pairs", "identifiability", "translation RMS [mm]",
                 "translation max [mm]", "rotation RMS [deg]", "rotation max [deg]",
                 "vs. median edge", ""), rows),
+        *_accuracy_html(doc),
         "<h2>Edges left out</h2>",
         _table(("edge", "reason"), excluded) if excluded else "<p>none</p>",
     ]
@@ -180,3 +182,13 @@ def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeRe
         parts += ["<h2>Notes</h2>", "<ul>" + "".join(f"<li>{n}</li>" for n in notes) + "</ul>"]
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def _accuracy_html(doc: Mapping[str, Any]) -> list[str]:
+    """The uncertainty, cross-validation and guidance sections (:mod:`.accuracy`)."""
+    parts = []
+    for heading, text, header, rows in accuracy_sections(doc):
+        parts += [f"<h2>{html.escape(heading)}</h2>", f"<p>{html.escape(text)}</p>"]
+        if rows:
+            parts.append(_table(header, rows))
+    return parts

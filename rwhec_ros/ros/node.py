@@ -367,13 +367,16 @@ class CalibratorNode(Node):
         counters["image_queue_dropped_total"] = self._queue.dropped
         report = self.session.report()
         last = self.session.last_outcome
-        calibration = None
+        calibration, accuracy = None, ()
         if last is not None and last.verdict is not None:
             calibration = (last.verdict.level, last.verdict.headline())
+        if last is not None and last.accuracy is not None:
+            accuracy = last.accuracy.diagnostic_values()
         rows = diagnostic_rows(
             self.session.diagnostics(), counters, prefix=self.get_name(),
             identifiable=None if report is None else bool(report.identifiable),
             verdict="" if report is None else str(report.verdict), calibration=calibration,
+            accuracy=accuracy,
         )
         rows[1:1] = self._camera_diagnostics.rows(
             self.session.camera_counters(), self._queue.stats(), prefix=self.get_name())

@@ -276,7 +276,8 @@ class ImageInput:
             else:
                 sigma, kappa = noise.sigma, noise.kappa
             x = self._tag_names[o.tag_id]
-            ok = self._acc.offer(x, camera, stamp, A, o.T_cam_tag, sigma, kappa)
+            ok = self._acc.offer(x, camera, stamp, A, o.T_cam_tag, sigma, kappa,
+                                 corners_px=o.corners)
             self._count("pairs_offered")
             if ok:
                 kept += 1

@@ -20,12 +20,14 @@ from ..config.live_parameters import restart_only_differences
 from ..core.lie import invert_transform
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict
+from ..data.corners import corner_data
 from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
 from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
 from ..sync.buffer import PoseBuffer
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
+from .accuracy import AccuracyOptions
 from .image_input import CAMERA_COUNTERS, ImageInput
 from .outcomes import SolveOutcome, edge_rows
 from .outputs import publishable, session_dataset, summary, write_session_outputs
@@ -341,7 +343,8 @@ class CalibrationSession(ImageInput):
                 priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
                 min_scale=c.solver.min_scale, thresholds=verdict_options(c.verdict),
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
-                carriers=(c.camera_carrier.frame, c.tag_carrier.frame))
+                carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
+                accuracy=self._accuracy_options(), corners=corner_data(dataset))
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
                 False, f"the solver failed ({type(exc).__name__}: {exc}); all data kept: try "
@@ -351,15 +354,25 @@ class CalibrationSession(ImageInput):
         result, verdict = solved.result, solved.verdict
         excl.update(solved.dropped)
         ident = solved.identifiability_dict or ident
-        text = yaml.safe_dump(self.result_document(result, excl, ident, verdict),
-                              sort_keys=False)
+        text = yaml.safe_dump(self.result_document(result, excl, ident, verdict,
+                                                   solved.accuracy), sort_keys=False)
         try:
             files = self._write_outputs(result, text, dataset, output_dir, force, verdict)
             write_error = ""
         except OSError as exc:
             files, write_error = {}, f"\nWRITING THE OUTPUTS FAILED: {describe_os_error(exc)}"
-        message = summary(result, solved.problem, excl, self.config, verdict) + write_error
-        return SolveOutcome(True, message, result, excl, files, ident, text, verdict)
+        message = summary(result, solved.problem, excl, self.config, verdict,
+                          solved.accuracy) + write_error
+        return SolveOutcome(True, message, result, excl, files, ident, text, verdict,
+                            solved.accuracy)
+
+    def _accuracy_options(self) -> AccuracyOptions:
+        """``accuracy.*`` of the configuration; the guidance moves the carrier that moves (the
+        camera carrier unless only the tag carrier does)."""
+        c = self.config
+        moving = "x" if c.tag_carrier.moving and not c.camera_carrier.moving else "y"
+        return AccuracyOptions(folds=c.accuracy.cross_validation_folds,
+                               guidance=c.accuracy.guidance, moving=moving)
 
     # --- outputs -----------------------------------------------------------------------------
     def published_transforms(self, result: CalibrationResult, verdict: Verdict | None = None
@@ -385,15 +398,18 @@ class CalibrationSession(ImageInput):
         excluded: dict[str, str] | None = None,
         identifiability: dict | None = None,
         verdict: Verdict | None = None,
+        accuracy=None,
     ) -> dict[str, Any]:
         """The result YAML as a mapping (:func:`rwhec_ros.data.results.result_document`:
         ``certified``, ``suboptimality_bound``, ``scale``, ``frames`` with published
         ``parent``/``child``, ``timing_s``, ``identifiability``, ``excluded_edges``, ``config``)
-        plus this session's ``counters``."""
+        plus this session's ``counters``; with an ``accuracy``
+        (:class:`~rwhec_ros.session.accuracy.Accuracy`) the uncertainty, cross-validation and
+        guidance keys."""
         doc = result_document(result, FrameNaming.from_config(self.config), excluded=excluded,
                               identifiability=identifiability,
                               config=self.config.to_parameters(), source={"type": "session"},
-                              verdict=verdict)
+                              verdict=verdict, accuracy=accuracy)
         doc["counters"] = plain(self.counters())
         return doc
 
@@ -415,7 +431,7 @@ class CalibrationSession(ImageInput):
 
     def _dataset_locked(self):
         """A data-set object of the kept pairs (lock held), or None if unavailable."""
-        return session_dataset(self._acc, self.config)
+        return session_dataset(self._acc, self.config, self._intrinsics)
 
     def save_dataset(self, path: str | Path | None = None) -> str:
         """Save the kept pairs (format of :mod:`rwhec_ros.data.dataset`) and return the path.

@@ -69,6 +69,9 @@ class SolveOutcome:
         The text of the result YAML (also written to ``files["result"]``); empty on failure.
     verdict : Verdict or None
         Use the result or not, and why (:func:`rwhec_ros.core.verdict.assess`); None on failure.
+    accuracy : Accuracy or None
+        Per-frame uncertainty, cross-validation and guidance
+        (:class:`~rwhec_ros.session.accuracy.Accuracy`); None on failure.
     """
 
     success: bool
@@ -79,6 +82,7 @@ class SolveOutcome:
     identifiability: dict | None = None
     result_yaml: str = ""
     verdict: Verdict | None = None
+    accuracy: Any = None
 
     @property
     def usable(self) -> bool:

@@ -13,19 +13,26 @@ from ..core.verdict import Verdict
 from ..data.dataset import Dataset
 from ..data.export import frames_yaml, urdf_snippet
 from ..data.results import session_output_paths, write_outputs
+from .accuracy import Accuracy, accuracy_lines, std_words
 
 __all__ = ["summary", "publishable", "launch_header", "static_transforms_launch",
            "description_texts", "session_dataset", "write_session_outputs"]
 
 
 def summary(result: CalibrationResult, problem, excluded: dict, config,
-            verdict: Verdict | None = None) -> str:
+            verdict: Verdict | None = None, accuracy: Accuracy | None = None) -> str:
     """The summary of the ``calibrate`` service and the CLI, one line per item: the verdict
     first (``GOOD: ...``, ``CAUTION: <top reason>``, ``UNUSABLE: <top reason>``) and its other
     reasons, the certificate, then each frame (``parent->child: t=[...] q=[...]``, or ``NOT
     CALIBRATED (why)`` for a frame the verdict finds unusable: never a number), the edges
     excluded and why, notes. ``config`` names the published frames (a :class:`CalibratorConfig`
-    or :class:`~rwhec_ros.data.results.FrameNaming`)."""
+    or :class:`~rwhec_ros.data.results.FrameNaming`).
+
+    With an ``accuracy`` (:class:`~rwhec_ros.session.accuracy.Accuracy`) each frame line ends
+    with its std in the worst direction (``+-1.2 mm, +-0.05 deg``: the verdict's, i.e. the
+    larger of predicted and a posteriori), followed by the largest per-axis std, the worst
+    held-out edge of the cross-validation and the next motion
+    (:func:`~rwhec_ros.session.accuracy.accuracy_lines`)."""
     c = result.certificate
     lines = []
     if verdict is not None:
@@ -37,7 +44,11 @@ def summary(result: CalibrationResult, problem, excluded: dict, config,
     lines.append(f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
                  f"{result.mode}")
     if problem.unknown_scale:
-        lines.append(f"scale {result.scale:.5f}")
+        s = None if accuracy is None or accuracy.uncertainty is None else \
+            accuracy.uncertainty.scale_std
+        std = ("" if s is None else " (not determined by the data)" if np.isnan(s) else
+               f" +-{s:.5f} (1 sigma, predicted)")
+        lines.append(f"scale {result.scale:.5f}{std}")
     frames = config.published_frames()
     estimates = dict(zip(result.y_names, result.Y, strict=True))
     estimates.update(zip(result.x_names, result.X, strict=True))
@@ -50,7 +61,8 @@ def summary(result: CalibrationResult, problem, excluded: dict, config,
         elif name in estimates:
             q, t = transform_to_quat_xyzw(estimates[name])
             lines.append(f"{parent}->{child}: t=[{t[0]:.4f} {t[1]:.4f} {t[2]:.4f}] "
-                         f"q=[{q[0]:.4f} {q[1]:.4f} {q[2]:.4f} {q[3]:.4f}]")
+                         f"q=[{q[0]:.4f} {q[1]:.4f} {q[2]:.4f} {q[3]:.4f}]"
+                         + _frame_std(name, fv, accuracy))
     parents = {name: pc[0] for name, pc in frames.items()}
     for d in result.unobservable:
         if d.fixed_by != "prior" and verdict is not None:
@@ -65,8 +77,23 @@ def summary(result: CalibrationResult, problem, excluded: dict, config,
         missing = [n for n in config.y_names + config.x_names if n not in problem.frame_names]
         if missing:
             lines.append(f"not calibrated (no usable edge): {missing}")
+    lines += accuracy_lines(accuracy)
     lines += [f"note: {n}" for n in result.notes]
     return "\n".join(lines)
+
+
+def _frame_std(name: str, fv, accuracy: Accuracy | None) -> str:
+    """`` +-1.2 mm, +-0.05 deg`` for a frame line: the verdict's precision of the frame (one
+    source: :mod:`rwhec_ros.core.verdict.precision`), else the predicted worst-direction std;
+    empty when neither is known."""
+    if fv is not None and np.isfinite(fv.std_translation_m) and np.isfinite(fv.std_rotation_deg):
+        return " " + std_words(fv.std_translation_m, fv.std_rotation_deg)
+    if accuracy is not None and accuracy.uncertainty is not None:
+        try:
+            return " " + std_words(*accuracy.uncertainty.frame(name).worst_std())
+        except KeyError:
+            return ""
+    return ""
 
 
 def publishable(transforms: list[tuple[str, str, np.ndarray]], names: list[str],
@@ -143,10 +170,12 @@ def static_transforms_launch(
     return "\n".join(lines)
 
 
-def session_dataset(acc, config) -> Dataset | None:
+def session_dataset(acc, config, intrinsics=None) -> Dataset | None:
     """A data set of the kept pairs of ``acc`` (a :class:`~rwhec_ros.sync.PairAccumulator`)
-    named by ``config`` (a :class:`~rwhec_ros.config.CalibratorConfig`), or None if it cannot be
-    built (call with the session's lock held)."""
+    named by ``config`` (a :class:`~rwhec_ros.config.CalibratorConfig`), with the pairs' tag
+    corners, the cameras' ``intrinsics`` (camera -> CameraIntrinsics) and the configured tag
+    sizes (for the reprojection error per camera), or None if it cannot be built (call with
+    the session's lock held)."""
     c = config
     carriers = {n: c.camera_carrier.frame for n in c.y_names}
     carriers.update({n: c.tag_carrier.frame for n in c.x_names})
@@ -158,6 +187,8 @@ def session_dataset(acc, config) -> Dataset | None:
             unknown_scale=c.tags.unknown_scale,
             metadata={"config": c.to_parameters()},
             carriers=carriers,
+            intrinsics=dict(intrinsics or {}),
+            tag_sizes_m={c.tags.frame_name(t): s for t, s in c.tags.sizes.items()},
         )
     except ValueError:
         return None

@@ -1,4 +1,6 @@
-"""The solve step of the session and the CLI, identifiability at the solution, the verdict."""
+"""The solve step of the session and the CLI: identifiability at the solution, the accuracy
+(uncertainty, cross-validation, guidance: :mod:`.accuracy`) and the verdict, computed once here and
+shared by the CLI and the node."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from ..core.problem import Problem
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict, VerdictOptions, assess
 from ..data.results import plain
+from .accuracy import Accuracy, AccuracyOptions, assess_accuracy
 
 __all__ = [
     "solve_options",
@@ -132,6 +135,9 @@ class Solved:
     identifiability : IdentifiabilityReport or None
         At the solution (with the numeric check).
     verdict : Verdict
+    accuracy : Accuracy or None
+        Per-frame uncertainty, cross-validation and guidance (:mod:`.accuracy`); None when not
+        asked for.
     """
 
     result: CalibrationResult
@@ -140,6 +146,7 @@ class Solved:
     notes: list[str] = field(default_factory=list)
     identifiability: object = None
     verdict: Verdict | None = None
+    accuracy: Accuracy | None = None
 
     @property
     def identifiability_dict(self) -> dict | None:
@@ -150,6 +157,11 @@ def verdict_options(section: Mapping[str, Any] | None) -> VerdictOptions:
     """:class:`VerdictOptions` from a configuration's ``verdict`` thresholds (short names of the
     ``verdict.*`` parameters, :attr:`CalibratorConfig.verdict`); None or empty: the defaults."""
     return VerdictOptions(**dict(section or {}))
+
+
+#: What :func:`solve_and_assess` computes by default: uncertainty, 5-fold cross-validation,
+#: guidance (frozen, so safe as a default argument).
+DEFAULT_ACCURACY = AccuracyOptions()
 
 
 def solve_and_assess(
@@ -165,13 +177,18 @@ def solve_and_assess(
     expected_y: Iterable[str] = (),
     excluded: Mapping[str, str] | None = None,
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
+    accuracy: AccuracyOptions | None = DEFAULT_ACCURACY,
+    corners=None,
 ) -> Solved:
     """Solve ``problem`` (as :func:`solve_problem`: ``mode``, ``reject_outliers``, ``priors``,
     ``unobservable_std_m``, ``min_scale``), analyse identifiability at the solution and
     :func:`~rwhec_ros.core.verdict.assess` it with ``thresholds``. ``expected_x``/``expected_y``
     are the tags and cameras the user asked for, ``excluded`` the edges left out before the
-    solve (with reasons), ``carriers`` the camera and tag carrier frame names. Exceptions of the
-    solver propagate."""
+    solve (with reasons), ``carriers`` the camera and tag carrier frame names. ``accuracy``
+    says what of the per-frame uncertainty, cross-validation and guidance to compute
+    (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the verdict's
+    precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
+    reprojection error per camera. Exceptions of the solver propagate."""
     from ..core.solve import blas_threads
 
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
@@ -181,9 +198,14 @@ def solve_and_assess(
     notes = prior_notes + notes
     result.notes.extend(notes)
     ident = analyze_at_solution(solved, result)
+    acc = None
+    if accuracy is not None:
+        acc = assess_accuracy(solved, result, solve_options=options, options=accuracy,
+                              carriers=carriers, corners=corners)
     with blas_threads(1):
         verdict = assess(result, solved, identifiability=ident, options=thresholds,
+                         uncertainty=None if acc is None else acc.uncertainty,
                          expected_x=[*expected_x, *problem.x_names],
                          expected_y=[*expected_y, *problem.y_names],
                          excluded={**dict(excluded or {}), **dropped}, carriers=carriers)
-    return Solved(result, solved, dropped, notes, ident, verdict)
+    return Solved(result, solved, dropped, notes, ident, verdict, acc)

@@ -10,12 +10,12 @@ Keyframe selection: a pair is kept only if its ``A`` moved by more than ``keyfra
 ``A_last^-1 A``) since the edge's last kept pair, so a stationary robot does not flood an edge with
 copies of the same constraint. The first pair of an edge is always kept.
 
-Memory bound: pairs are stored in preallocated float64/int64 arrays of 296 bytes per slot
-(stamp 8, A 128, B 128, sigma 8, kappa 8, nearest-neighbour bookkeeping 16), grown by doubling up
-to ``max_pairs_per_edge`` slots, so the memory held between calls never exceeds
-``max_edges * (296 * max_pairs_per_edge + 8192)`` bytes (8192 bytes cover the per-edge Python
+Memory bound: pairs are stored in preallocated float64/int64 arrays of 360 bytes per slot
+(stamp 8, A 128, B 128, sigma 8, kappa 8, tag corners 64, nearest-neighbour bookkeeping 16), grown
+by doubling up to ``max_pairs_per_edge`` slots, so the memory held between calls never exceeds
+``max_edges * (360 * max_pairs_per_edge + 8192)`` bytes (8192 bytes cover the per-edge Python
 objects, measured at 3-4.5 kB with ``tracemalloc``); with the defaults (256 edges, 2000 pairs)
-that is 153.6 MB. An offer needs transient work arrays of a few hundred bytes per stored pair of
+that is 186.4 MB. An offer needs transient work arrays of a few hundred bytes per stored pair of
 its edge. See :meth:`PairAccumulator.memory_bound_bytes` and :meth:`PairAccumulator.nbytes`.
 
 Full edge policy (counted, never silent): when an edge holds ``max_pairs_per_edge`` pairs, a new
@@ -49,7 +49,7 @@ __all__ = ["PairAccumulator", "PairListener"]
 #: ``callback(x_name, y_name, A (4, 4), B (4, 4))``, called for every kept pair.
 PairListener = Callable[[str, str, np.ndarray, np.ndarray], None]
 
-_BYTES_PER_SLOT = 8 + 128 + 128 + 8 + 8 + 8 + 8
+_BYTES_PER_SLOT = 8 + 128 + 128 + 8 + 8 + 64 + 8 + 8
 _BYTES_PER_EDGE_OVERHEAD = 8192
 _INITIAL_SLOTS = 64
 
@@ -81,10 +81,22 @@ def _rotation_angles(R_stack: np.ndarray, R: np.ndarray) -> np.ndarray:
     return np.arctan2(s, c)
 
 
+def _corners(value) -> np.ndarray | None:
+    """``value`` as four finite corners (4, 2), or None (absent or not that)."""
+    if value is None:
+        return None
+    try:
+        c = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return c if c.shape == (4, 2) and np.isfinite(c).all() else None
+
+
 class _EdgeStore:
     """Growing preallocated arrays of one edge plus nearest-neighbour bookkeeping."""
 
-    _FIELDS = ("stamps", "A", "B", "sigma", "kappa", "nn_dist", "nn_idx")
+    _FIELDS = ("stamps", "A", "B", "sigma", "kappa", "corners", "nn_dist", "nn_idx")
+    _FILL = {"nn_dist": np.inf, "corners": np.nan}  # of new slots (else 0)
 
     def __init__(self, x: str, y: str, max_pairs: int) -> None:
         self.x, self.y = x, y
@@ -96,6 +108,7 @@ class _EdgeStore:
         self.B = np.zeros((slots, 4, 4))
         self.sigma = np.zeros(slots)
         self.kappa = np.zeros(slots)
+        self.corners = np.full((slots, 4, 2), np.nan)  # detected corners [px]; NaN: none
         self.nn_dist = np.full(slots, np.inf)  # distance of each pair to its nearest neighbour
         self.nn_idx = np.full(slots, -1, dtype=np.int64)  # index of that neighbour
 
@@ -103,8 +116,7 @@ class _EdgeStore:
         """Reallocate every array to ``slots`` entries, keeping the first ``n``."""
         for name in self._FIELDS:
             old = getattr(self, name)
-            new = np.full((slots,) + old.shape[1:], np.inf if name == "nn_dist" else 0,
-                          dtype=old.dtype)
+            new = np.full((slots,) + old.shape[1:], self._FILL.get(name, 0), dtype=old.dtype)
             new[: self.n] = old[: self.n]
             setattr(self, name, new)
 
@@ -122,8 +134,10 @@ class _EdgeStore:
         trans = np.linalg.norm(stored[:, :3, 3] - A[:3, 3], axis=-1) / trans_scale
         return np.maximum(rot, trans)
 
-    def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float) -> None:
+    def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float,
+              corners=None) -> None:
         self.stamps[i] = stamp
+        self.corners[i] = np.nan if corners is None else corners
         self.A[i] = A
         self.B[i] = B
         self.sigma[i] = sigma
@@ -141,6 +155,7 @@ class _EdgeStore:
             sigma=self.sigma[: self.n][order].copy(),
             kappa=self.kappa[: self.n][order].copy(),
             rotation_tol=rotation_tol,
+            corners_px=self.corners[: self.n][order].copy(),
         )
 
 
@@ -259,6 +274,7 @@ class PairAccumulator:
         kappa: float,
         *,
         strict: bool = False,
+        corners_px: np.ndarray | None = None,
     ) -> bool:
         """Offer one pair of edge ``(x, y)``; returns True when it was kept.
 
@@ -277,6 +293,9 @@ class PairAccumulator:
         strict : bool
             Raise ``ValueError`` for invalid stamp/A/B/sigma/kappa instead of counting
             ``"rejected_invalid"`` and returning False.
+        corners_px : ndarray, shape (4, 2), optional
+            The detected tag corners [px] of ``B`` (kept with the pair for the reprojection
+            error); corners that are not four finite points are not kept (the pair is).
         """
         self._check_names(x, y)
         self._counters["offered"] += 1
@@ -300,10 +319,11 @@ class PairAccumulator:
         if refusal is not None:
             self._counters[refusal] += 1
             return False
+        corners = _corners(corners_px)
         if store.n < self.max_pairs_per_edge:
-            self._append(store, stamp, A, B, sigma, kappa)
+            self._append(store, stamp, A, B, sigma, kappa, corners)
         else:
-            self._replace_most_redundant(store, stamp, A, B, sigma, kappa)
+            self._replace_most_redundant(store, stamp, A, B, sigma, kappa, corners)
         store.last_A = A.copy()
         self._counters["kept"] += 1
         for callback in list(self._listeners):
@@ -347,12 +367,13 @@ class PairAccumulator:
             return None
         return r, d
 
-    def _append(self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float) -> None:
+    def _append(self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float,
+                corners=None) -> None:
         if store.n == store.slots:
             store.grow(min(2 * store.slots, self.max_pairs_per_edge))
         d = self._distances(store, A)
         k = store.n
-        store.write(k, stamp, A, B, sigma, kappa)
+        store.write(k, stamp, A, B, sigma, kappa, corners)
         if k:
             closer = d < store.nn_dist[:k]
             store.nn_dist[:k][closer] = d[closer]
@@ -362,12 +383,12 @@ class PairAccumulator:
         store.n = k + 1
 
     def _replace_most_redundant(
-        self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float
+        self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float, corners=None
     ) -> None:
         """Replace the most redundant pair by the new one (``_refusal`` said it spreads)."""
         n = store.n
         r, d = self._replacement(store, A)
-        store.write(r, stamp, A, B, sigma, kappa)
+        store.write(r, stamp, A, B, sigma, kappa, corners)
         others = np.arange(n) != r
         affected = np.flatnonzero(others & (store.nn_idx[:n] == r))
         closer = others & (d < store.nn_dist[:n])
@@ -402,7 +423,7 @@ class PairAccumulator:
         return sum(store.nbytes() for store in self._edges.values())
 
     def memory_bound_bytes(self) -> int:
-        """Bound on the memory held, ``max_edges * (296 * max_pairs_per_edge + 8192)`` bytes."""
+        """Bound on the memory held, ``max_edges * (360 * max_pairs_per_edge + 8192)`` bytes."""
         return self.max_edges * (
             _BYTES_PER_SLOT * self.max_pairs_per_edge + _BYTES_PER_EDGE_OVERHEAD
         )

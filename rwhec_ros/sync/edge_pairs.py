@@ -2,7 +2,8 @@
 
 It is what the pair accumulator (:meth:`rwhec_ros.sync.PairAccumulator.edges`) returns and what a
 data set (:class:`rwhec_ros.data.dataset.Dataset`) stores: image stamps, the pairs ``(A_i, B_i)``
-with ``A_i X = Y B_i`` (paper eq. (7)) and their precisions ``sigma`` [m], ``kappa`` (eq. (32)).
+with ``A_i X = Y B_i`` (paper eq. (7)) and their precisions ``sigma`` [m], ``kappa`` (eq. (32)),
+and optionally the detected tag corners of each pair (for the reprojection error per camera).
 It lives in ``sync``, which ``data`` builds on, so that imports run one way: ``data`` uses
 ``sync``, never the reverse.
 """
@@ -43,6 +44,11 @@ class DatasetEdge:
     rotation_tol : float
         Tolerance of the rotation checks (:func:`~rwhec_ros.core.problem.check_transforms`);
         the pair accumulator passes its own, files are read with the default.
+    corners_px : ndarray, shape (N, 4, 2), or None
+        The detected corners of each pair's tag in distorted pixels (order of
+        :data:`~rwhec_ros.vision.detection.TAG_CORNERS_UNIT`); NaN rows for pairs without
+        corners; None when no pair has them (data sets written before they were kept, paper
+        CSV data).
     """
 
     x: str
@@ -53,6 +59,7 @@ class DatasetEdge:
     sigma: np.ndarray
     kappa: np.ndarray
     rotation_tol: float = field(default=DEFAULT_ROTATION_TOL, repr=False)
+    corners_px: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         name = f"edge ({self.x}, {self.y})"
@@ -86,6 +93,17 @@ class DatasetEdge:
                 i = int(np.argmax(bad))
                 raise ValueError(f"{name} {what}[{i}]: must be finite and > 0, got {float(v[i])!r}")
             arrays[what] = v
+        if self.corners_px is not None:
+            c = np.asarray(self.corners_px, dtype=float)
+            if c.shape != (n, 4, 2):
+                raise ValueError(f"{name} corners_px: expected shape ({n}, 4, 2), got {c.shape}")
+            rows = np.isfinite(c).reshape(n, 8)
+            partial = rows.any(axis=1) & ~rows.all(axis=1)
+            if partial.any() or np.isinf(c).any():
+                i = int(np.argmax(partial | np.isinf(c).reshape(n, 8).any(axis=1)))
+                raise ValueError(f"{name} corners_px[{i}]: expected 4 finite corners or all NaN "
+                                 f"(no corners), got {c[i].tolist()!r}")
+            arrays["corners_px"] = c if rows.any() else None
         for key, value in arrays.items():
             object.__setattr__(self, key, value)
 

@@ -234,3 +234,122 @@ def test_construction_validation():
     ds = Dataset(("t", "unused"), ("c",), (e,), metadata={"n": np.int64(3), "v": np.ones(2)})
     assert ds.metadata == {"n": 3, "v": [1.0, 1.0]}
     assert ds.to_problem().x_names == ("t",)  # frames without an edge are dropped
+
+
+# --- corners, intrinsics, tag sizes (reprojection error per camera, issue 11) -------------------
+
+OLD_FORMAT = """\
+format: rwhec_ros.dataset
+version: 1
+unknown_scale: false
+x_names: [tag_0]
+y_names: [cam_0]
+carriers: {cam_0: rig, tag_0: world}
+metadata: {created: '2026-11-20T10:00:00+00:00', package_version: 0.1.0, config: {}}
+edges:
+- x: tag_0
+  y: cam_0
+  n: 1
+  stamps_ns: [1000]
+  sigma: [0.01]
+  kappa: [125.0]
+  A:
+  - - [1.0, 0.0, 0.0, 0.5]
+    - [0.0, 1.0, 0.0, 0.0]
+    - [0.0, 0.0, 1.0, 0.0]
+    - [0.0, 0.0, 0.0, 1.0]
+  B:
+  - - [1.0, 0.0, 0.0, 0.0]
+    - [0.0, 1.0, 0.0, 0.0]
+    - [0.0, 0.0, 1.0, 2.0]
+    - [0.0, 0.0, 0.0, 1.0]
+"""
+
+
+def test_a_file_written_before_corners_were_kept_still_loads(tmp_path):
+    from rwhec_ros.data.corners import corner_data
+
+    path = tmp_path / "old.yaml"
+    path.write_text(OLD_FORMAT)  # the format as written before corners/intrinsics existed
+    ds = Dataset.load(path)
+    assert ds.n_pairs == 1 and ds.edges[0].corners_px is None
+    assert ds.intrinsics == {} and ds.tag_sizes_m == {}
+    assert corner_data(ds) is None  # no reprojection error, nothing else changes
+    np.testing.assert_array_equal(ds.edges[0].B[0, :3, 3], [0.0, 0.0, 2.0])
+    # written again: still without the new keys
+    again = yaml.safe_load(ds.save(tmp_path / "again.yaml").read_text())
+    assert "intrinsics" not in again and "corners_px" not in again["edges"][0]
+
+
+def _with_corners(rng):
+    from rwhec_ros.vision.intrinsics import CameraIntrinsics
+
+    ds = awkward_dataset(rng)
+    corners = []
+    for e in ds.edges:
+        c = rng.uniform(0, 640, size=(e.n, 4, 2))
+        c[0] = np.nan  # the first pair of every edge without corners
+        corners.append(c)
+    edges = tuple(DatasetEdge(e.x, e.y, e.stamps_ns, e.A, e.B, e.sigma, e.kappa, corners_px=c)
+                  for e, c in zip(ds.edges, corners, strict=True))
+    K = np.array([[500.0, 0.0, 320.0], [0.0, 501.0, 240.5], [0.0, 0.0, 1.0]])
+    intr = {"y0": CameraIntrinsics(640, 480, K, np.array([0.1, -0.2, 1e-3, 2e-3, 0.05]))}
+    return Dataset(ds.x_names, ds.y_names, edges, unknown_scale=True, metadata=ds.metadata,
+                   carriers=ds.carriers, intrinsics=intr, tag_sizes_m={"x0": 0.16, "x1": 0.08})
+
+
+@pytest.mark.parametrize("arrays", ["inline", "npz"])
+def test_corners_intrinsics_and_tag_sizes_round_trip(tmp_path, arrays):
+    from rwhec_ros.data.corners import corner_observations
+
+    ds = _with_corners(np.random.default_rng(4))
+    back = Dataset.load(ds.save(tmp_path / "c.yaml", arrays=arrays))
+    assert_bit_exact(ds, back)
+    for e1, e2 in zip(ds.edges, back.edges, strict=True):
+        # NaN rows stay NaN (the sign bit of a NaN is not kept by YAML), the others exact
+        np.testing.assert_array_equal(e1.corners_px, e2.corners_px)
+    assert back.intrinsics == ds.intrinsics and back.tag_sizes_m == {"x0": 0.16, "x1": 0.08}
+    obs = corner_observations(back)
+    # the pairs with corners, of cameras with intrinsics (y0 only) and tags with a size
+    assert len(obs) == sum(e.n - 1 for e in ds.edges if e.y == "y0")
+    assert {o.y for o in obs} == {"y0"}
+
+
+def test_bad_corner_data_is_named():
+    ds = _with_corners(np.random.default_rng(5))
+    e = ds.edges[0]
+    bad = e.corners_px.copy()
+    bad[1, 2, 0] = np.nan  # three corners only
+    with pytest.raises(ValueError, match=r"corners_px\[1\]: expected 4 finite corners"):
+        DatasetEdge(e.x, e.y, e.stamps_ns, e.A, e.B, e.sigma, e.kappa, corners_px=bad)
+    with pytest.raises(ValueError, match=r"corners_px: expected shape \(4, 4, 2\)"):
+        DatasetEdge(e.x, e.y, e.stamps_ns, e.A, e.B, e.sigma, e.kappa, corners_px=bad[:, :3])
+    with pytest.raises(ValueError, match="intrinsics: 'cam9' is not a camera"):
+        Dataset(ds.x_names, ds.y_names, ds.edges, intrinsics={"cam9": ds.intrinsics["y0"]})
+    with pytest.raises(ValueError, match=r"intrinsics\['y0'\]: missing key 'K'"):
+        Dataset(ds.x_names, ds.y_names, ds.edges, intrinsics={"y0": {"width": 1, "height": 1}})
+    with pytest.raises(ValueError, match=r"tag_sizes_m\['x0'\]: must be finite and > 0"):
+        Dataset(ds.x_names, ds.y_names, ds.edges, tag_sizes_m={"x0": -1.0})
+
+
+def test_accumulator_keeps_the_corners_of_kept_pairs(tmp_path):
+    rng = np.random.default_rng(6)
+    acc = PairAccumulator(max_pairs_per_edge=3)
+    A = random_transforms(rng, 6)
+    B = random_transforms(rng, 6)
+    corners = rng.uniform(0, 100, size=(6, 4, 2))
+    for i in range(6):
+        c = None if i == 1 else corners[i]
+        acc.offer("tag_0", "cam_0", 1000 + i, A[i], B[i], 0.01, 125.0, corners_px=c)
+    e = acc.edges()[("tag_0", "cam_0")]
+    assert e.n == 3 and e.corners_px.shape == (3, 4, 2)
+    for stamp, c in zip(e.stamps_ns, e.corners_px, strict=True):
+        i = int(stamp) - 1000  # a replaced pair's corners go with it
+        if i == 1:
+            assert np.isnan(c).all()
+        else:
+            np.testing.assert_array_equal(c, corners[i])
+    # corners that are not four finite points: the pair is kept, without corners
+    acc2 = PairAccumulator()
+    acc2.offer("tag_0", "cam_0", 5, A[0], B[0], 0.01, 125.0, corners_px=[[1.0, 2.0]])
+    assert acc2.edges()[("tag_0", "cam_0")].corners_px is None

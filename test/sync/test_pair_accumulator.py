@@ -168,9 +168,9 @@ def test_memory_bound_respected():
         tracemalloc.stop()
     assert acc.counts() == {(f"tag_{e}", "cam_0"): max_pairs for e in range(max_edges)}
     assert acc.counters()["dropped_max_edges"] == n_offer
-    assert acc.nbytes() == max_edges * max_pairs * 296  # slots grew 64 -> 128 -> 130
+    assert acc.nbytes() == max_edges * max_pairs * 360  # slots grew 64 -> 128 -> 130
     assert held <= acc.memory_bound_bytes()  # everything allocated, object headers included
-    assert acc.memory_bound_bytes() == max_edges * (296 * max_pairs + 8192)
+    assert acc.memory_bound_bytes() == max_edges * (360 * max_pairs + 8192)
 
 
 def test_duplicates_invalid_and_strict():

@@ -1,15 +1,13 @@
-"""How precisely each frame is determined: one source, so that it can be swapped.
+"""How precisely each frame is determined: one source for the verdict, the summary and the YAML.
 
-Today the source is the identifiability numeric check at the solution
-(:func:`rwhec_ros.core.identifiability.numeric_check`): the inverse of the exact Hessian of the
+The source is the per-frame covariance of :mod:`rwhec_ros.core.uncertainty`
+(:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`): the inverse of the exact Hessian of the
 MLE cost on the manifold, predicted from the **stated** noise, per frame the worst-direction
-standard deviation of the translation [m] and of the rotation [deg]. The verdict uses the larger
-of that prediction and the prediction rescaled by the a-posteriori noise ratio ``s`` of the fit
-(:mod:`.fit`): a stated noise that is too small must not make a frame look precise, and one that is
-too large keeps its (conservative) prediction.
-
-When the per-frame covariance of issue 11 lands, :func:`frame_precisions` is the one function to
-change (its covariance's worst-direction standard deviations instead of the numeric check's).
+standard deviation of the translation [m] and of the rotation [deg]
+(:meth:`~rwhec_ros.core.uncertainty.FrameUncertainty.worst_std`). The verdict uses the larger of
+that prediction and the prediction rescaled by the a-posteriori noise ratio ``s`` of the fit
+(:mod:`.fit`): a stated noise that is too small must not make a frame look precise, and one that
+is too large keeps its (conservative) prediction.
 """
 
 from __future__ import annotations
@@ -19,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FramePrecision", "frame_precisions"]
+__all__ = ["FramePrecision", "frame_precisions", "scale_rel_std"]
 
 
 @dataclass(frozen=True)
@@ -30,7 +28,8 @@ class FramePrecision:
     ----------
     name : str
     predicted_translation_m, predicted_rotation_deg : float
-        Standard deviations predicted from the stated noise (``inf``: not determined).
+        Standard deviations predicted from the stated noise (``inf``: not determined; ``nan``:
+        unknown).
     factor : float
         ``max(1, s)``, the a-posteriori noise ratio applied.
     """
@@ -57,23 +56,37 @@ class FramePrecision:
                     and np.isfinite(self.predicted_rotation_deg))
 
 
-def frame_precisions(identifiability, noise_ratio: float = 1.0,
+def noise_factor(noise_ratio: float) -> float:
+    """``max(1, noise_ratio)`` (1 for a ratio that is not finite)."""
+    return max(1.0, float(noise_ratio)) if np.isfinite(noise_ratio) else 1.0
+
+
+def frame_precisions(uncertainty, noise_ratio: float = 1.0,
                      pinned: Iterable[str] = ()) -> dict[str, FramePrecision]:
-    """Per frame, its predicted precision from an identifiability report at the solution
-    (:class:`~rwhec_ros.core.identifiability.IdentifiabilityReport` with a numeric check), with
-    the factor ``max(1, noise_ratio)``; empty when the report has no numeric check. A frame in
-    ``pinned`` (a translation direction fixed by the user's priors, which the numeric check does
-    not know) gets ``nan`` for an unbounded translation (unknown, not undetermined)."""
-    numeric = getattr(identifiability, "numeric", None)
-    if numeric is None:
+    """Per frame, its predicted precision from an
+    :class:`~rwhec_ros.core.uncertainty.Uncertainty` at the solution, with the factor
+    ``max(1, noise_ratio)``; empty when ``uncertainty`` is None. A frame in ``pinned`` (a
+    translation direction fixed by the user's priors) whose translation is unobservable in
+    ``uncertainty`` (computed without those priors) gets ``nan`` (unknown, not undetermined);
+    computed with the solve's priors (``UncertaintyOptions(gauge=...)``) its translation std is
+    the one given the priors."""
+    if uncertainty is None:
         return {}
-    factor = max(1.0, float(noise_ratio)) if np.isfinite(noise_ratio) else 1.0
+    factor = noise_factor(noise_ratio)
     pinned = set(pinned)
     out = {}
-    for name in numeric.frame_status:
-        t = float(numeric.translation_std_m.get(name, np.inf))
-        if name in pinned and not np.isfinite(t):
+    for fu in uncertainty.frames:
+        t, r = fu.worst_std()
+        if fu.name in pinned and not np.isfinite(t):
             t = float("nan")
-        out[name] = FramePrecision(name, t, float(numeric.rotation_std_deg.get(name, np.inf)),
-                                   factor)
+        out[fu.name] = FramePrecision(fu.name, t, r, factor)
     return out
+
+
+def scale_rel_std(uncertainty, scale: float) -> float | None:
+    """Predicted relative std of the unknown scale (``inf`` when not determined); None for
+    known scale or without ``uncertainty``."""
+    if uncertainty is None or uncertainty.scale_std is None:
+        return None
+    s = float(uncertainty.scale_std)
+    return float("inf") if np.isnan(s) else s / abs(float(scale))

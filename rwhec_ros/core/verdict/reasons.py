@@ -12,7 +12,7 @@ from ..result import CalibrationResult, Status
 from .fit import EdgeFit, FitStatistics, rotation_std_deg
 from .model import Builder, Reason
 from .options import VerdictOptions
-from .precision import frame_precisions
+from .precision import frame_precisions, noise_factor, scale_rel_std
 from .scale_check import ScaleCheck
 from .words import deg, mm, names, times
 
@@ -323,10 +323,12 @@ def fit_reasons(b: Builder, fit: FitStatistics, opts: VerdictOptions,
         b.add(level, "fit", f"{noise}: {todo}", why=f"{what} fit {s:.1f}x the stated noise")
 
 
-def precision_reasons(b: Builder, ident, fit: FitStatistics | None, opts: VerdictOptions,
-               problem: Problem, pinned: list[str]) -> None:
+def precision_reasons(b: Builder, uncertainty, fit: FitStatistics | None, opts: VerdictOptions,
+                      problem: Problem, pinned: list[str], scale: float = 1.0) -> None:
+    """Frames (and the scale) less precise than the thresholds, from ``uncertainty`` (an
+    :class:`~rwhec_ros.core.uncertainty.Uncertainty` at the solution, or None: unknown)."""
     s = fit.noise_ratio if fit is not None and fit.testable else 1.0
-    prec = frame_precisions(ident, s, pinned=pinned)
+    prec = frame_precisions(uncertainty, s, pinned=pinned)
     groups: dict[str, list[str]] = {"unusable": [], "caution": []}
     for name, p in prec.items():
         f = b.frames.get(name)
@@ -358,10 +360,9 @@ def precision_reasons(b: Builder, ident, fit: FitStatistics | None, opts: Verdic
             + ", ".join(items) + "; record more views of "
             + ("this frame" if len(items) == 1 else "these frames")
             + " with rotation about two axes and varied distances", tuple(named)))
-    numeric = getattr(ident, "numeric", None)
-    rel = getattr(numeric, "scale_rel_std", None)
+    rel = scale_rel_std(uncertainty, scale)
     if problem.unknown_scale and rel is not None and np.isfinite(rel):
-        rel = rel * max(1.0, s)
+        rel = rel * noise_factor(s)
         if rel > opts.caution_scale_rel_std:
             level = "unusable" if rel > opts.unusable_scale_rel_std else "caution"
             b.add(level, "precision",

@@ -9,7 +9,8 @@ It combines, for a solution of a :class:`~rwhec_ros.core.problem.Problem`:
   globally (chi-square test on the a-posteriori variance factor) and per edge (edges far beyond
   the median edge are named);
 * the scale check of a known-scale problem (:mod:`.scale_check`);
-* the precision of each frame (:mod:`.precision`);
+* the precision of each frame (:mod:`.precision`, from the per-frame covariance of
+  :mod:`rwhec_ros.core.uncertainty`);
 * the frames the user asked for that got no estimate at all.
 
 The result is a :class:`Verdict`: a level (``good``, ``caution``, ``unusable``), the reasons as
@@ -59,6 +60,7 @@ def assess(
     excluded: Mapping[str, str] | None = None,
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
     scale_check: ScaleCheck | None = None,
+    uncertainty=None,
 ) -> Verdict:
     """The verdict of ``result``, the solution of ``problem``.
 
@@ -80,6 +82,10 @@ def assess(
         Names of the camera and tag carrier frames, for directions in words.
     scale_check : ScaleCheck, optional
         A scale check already made (known scale); made here when None and enabled.
+    uncertainty : Uncertainty, optional
+        The per-frame covariance at the solution
+        (:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`, ideally with the solve's
+        ``GaugeOptions`` so that the priors count); computed here (without priors) when None.
     """
     opts = options or VerdictOptions()
     xs = list(dict.fromkeys([*expected_x, *problem.x_names]))
@@ -107,7 +113,13 @@ def assess(
     if fit is not None:
         edge_reasons(b, fit, problem, opts)
         fit_reasons(b, fit, opts, scale_check)
-    precision_reasons(b, identifiability, fit, opts, problem, pinned_frames(result))
+    if uncertainty is None:
+        uncertainty = _uncertainty(problem, result)
+    if uncertainty is None:
+        b.add("caution", "check_failed", "the uncertainty at the solution could not be "
+              "computed, so the precision of the frames is unknown", why="precision unknown")
+    precision_reasons(b, uncertainty, fit, opts, problem, pinned_frames(result),
+                      float(result.scale))
     summary = _summary(result, fit, b)
     return b.verdict(fit, scale_check, summary, opts)
 
@@ -117,6 +129,15 @@ def _analyze(problem: Problem, result: CalibrationResult):
 
     try:
         return analyze(problem, solution=(result.X, result.Y, float(result.scale)))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
+
+
+def _uncertainty(problem: Problem, result: CalibrationResult):
+    from ..uncertainty import frame_uncertainty
+
+    try:
+        return frame_uncertainty(problem, result)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
 
