@@ -14,6 +14,7 @@ import yaml
 from .sections import (
     CameraConfig,
     CarrierConfig,
+    ConvergenceConfig,
     DetectionConfig,
     KeyframeConfig,
     NoiseConfig,
@@ -63,6 +64,7 @@ class CalibratorConfig:
     verdict: dict[str, Any] = field(default_factory=dict, compare=False)
     parameters: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
     priors: PriorsConfig = field(default_factory=PriorsConfig)
+    convergence: ConvergenceConfig = field(default_factory=ConvergenceConfig)
 
     # --- names ------------------------------------------------------------------------------
     @property
@@ -256,6 +258,11 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         reject_outliers=v["solver.reject_outliers"],
         unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
         min_scale=check_positive(v, "solver.min_scale"),
+        live_period_s=check_positive(v, "solver.live_period_s", allow_zero=True),
+    )
+    convergence = ConvergenceConfig(
+        max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),
+        max_std_rotation_deg=check_positive(v, "convergence.max_std_rotation_deg"),
     )
     priors = _build_priors(v, names, tags)
     output = OutputConfig(
@@ -287,6 +294,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         verdict=_build_verdict(v),
         parameters=plain,
         priors=priors,
+        convergence=convergence,
     )
 
 

@@ -27,6 +27,7 @@ from ..sync.buffer import PoseBuffer
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .image_input import CAMERA_COUNTERS, ImageInput
+from .live_solve import LiveSolver, PairsSnapshot
 from .outcomes import SolveOutcome, edge_rows
 from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
@@ -55,6 +56,15 @@ class CalibrationSession(ImageInput):
         Directory under which :meth:`calibrate` and :meth:`save_dataset` create their output
         directories (the node passes :func:`~rwhec_ros.session.paths.node_output_root`);
         default :func:`~rwhec_ros.session.paths.plain_output_root` of ``output.directory``.
+    live_solve : callable, optional
+        The live re-solve of :attr:`live` (default
+        :func:`~rwhec_ros.session.live_solve.solve_with_uncertainty`); injectable for tests.
+
+    Attributes
+    ----------
+    live : LiveSolver
+        The background re-solve and convergence verdict (:mod:`rwhec_ros.session.live_solve`);
+        driven by its ``tick()`` (the node's timer, the bag replay), stopped by :meth:`close`.
 
     Notes
     -----
@@ -69,6 +79,7 @@ class CalibrationSession(ImageInput):
         *,
         now: Callable[[], _dt.datetime] | None = None,
         output_root: str | Path | None = None,
+        live_solve: Callable | None = None,
     ) -> None:
         self.config = config
         self.output_root = (Path(output_root) if output_root is not None
@@ -92,7 +103,12 @@ class CalibrationSession(ImageInput):
         self._tag_names = {t: config.tags.frame_name(t) for t in config.tags.ids}
         self._intrinsics: dict[str, CameraIntrinsics] = {}
         self._last_outcome: SolveOutcome | None = None
+        # never reset: the live solver compares them across resets
+        self._data_version = 0
+        self._calibrations = 0
+        self._resets = 0
         self._init_data()
+        self.live = LiveSolver(self, solve_fn=live_solve)
 
     # --- state -------------------------------------------------------------------------------
     def _init_data(self) -> None:
@@ -143,6 +159,7 @@ class CalibrationSession(ImageInput):
             if not noise.from_reprojection and (noise.sigma, noise.kappa) != (
                     old.noise.sigma, old.noise.kappa):
                 self._acc.set_precisions(noise.sigma, noise.kappa)
+                self._data_version += 1
                 self._tracker = make_tracker(config.tags.unknown_scale)
                 for e in self._acc.edges().values():
                     try:
@@ -280,6 +297,8 @@ class CalibrationSession(ImageInput):
                   force: bool = False) -> SolveOutcome:
         """Solve with the data so far and write the outputs; never discards data.
 
+        Never waits for a live re-solve (:attr:`live`); one that overlaps it is dropped.
+
         Parameters
         ----------
         output_dir : str or Path, optional
@@ -296,6 +315,8 @@ class CalibrationSession(ImageInput):
             raised; otherwise the result, a short summary and the written files.
         """
         with self._solve_lock:
+            with self._lock:
+                self._calibrations += 1
             outcome = self._calibrate(output_dir, force)
         with self._lock:
             self._last_outcome = outcome
@@ -433,6 +454,31 @@ class CalibrationSession(ImageInput):
         return str(saved if saved is not None else target)
 
     def reset(self) -> None:
-        """Forget poses, pairs, pending images and counters (intrinsics are kept)."""
+        """Forget poses, pairs, pending images, counters and the live estimate (intrinsics are
+        kept)."""
         with self._lock:
             self._init_data()
+            self._data_version += 1
+            self._resets += 1
+        self.live.forget()
+
+    def close(self, timeout: float | None = 1.0) -> None:
+        """Stop the live re-solve's worker thread, waiting up to ``timeout`` s for a running
+        re-solve (a daemon thread: it never keeps the process alive); the data stay and
+        :meth:`calibrate` still works."""
+        self.live.stop(timeout)
+
+    # --- live re-solve (rwhec_ros.session.live_solve) ----------------------------------------
+    def pairs_snapshot(self) -> PairsSnapshot:
+        """Copies of the kept pairs per edge and the data version, taken under the lock (array
+        copies only: build the problem outside, :func:`~rwhec_ros.sync.accumulator.
+        problem_from_edges`)."""
+        with self._lock:
+            return PairsSnapshot(self._data_version, self._acc.edges(), self._acc.rotation_tol)
+
+    def live_counts(self) -> tuple[int, int, int, bool]:
+        """``(data version, calibrations started, resets, calibrate running)``: what the live
+        solver needs to decide whether a re-solve is due or its result still holds."""
+        with self._lock:
+            return (self._data_version, self._calibrations, self._resets,
+                    self._solve_lock.locked())

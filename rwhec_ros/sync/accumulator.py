@@ -44,7 +44,7 @@ import numpy as np
 from ..core.problem import DEFAULT_ROTATION_TOL, Edge, Problem, check_transforms
 from .edge_pairs import DatasetEdge
 
-__all__ = ["PairAccumulator", "PairListener"]
+__all__ = ["PairAccumulator", "PairListener", "problem_from_edges"]
 
 #: ``callback(x_name, y_name, A (4, 4), B (4, 4))``, called for every kept pair.
 PairListener = Callable[[str, str, np.ndarray, np.ndarray], None]
@@ -458,40 +458,53 @@ class PairAccumulator:
         ValueError
             If no edge is left.
         """
-        if not _is_int(min_pairs) or min_pairs < 1:
-            raise ValueError(f"min_pairs: expected an integer >= 1, got {min_pairs!r}")
-        data = self.edges()
-        xs = sorted({x for x, _ in data}) if x_names is None else [str(n) for n in x_names]
-        ys = sorted({y for _, y in data}) if y_names is None else [str(n) for n in y_names]
-        x_index = {n: i for i, n in enumerate(xs)}
-        y_index = {n: i for i, n in enumerate(ys)}
-        excluded: dict[tuple[str, str], str] = {}
-        kept: list[DatasetEdge] = []
-        for (x, y), e in data.items():
-            if x not in x_index:
-                excluded[(x, y)] = f"X frame {x!r} not in x_names"
-            elif y not in y_index:
-                excluded[(x, y)] = f"Y frame {y!r} not in y_names"
-            elif e.n < min_pairs:
-                excluded[(x, y)] = f"{e.n} pairs < min_pairs={min_pairs}"
-            else:
-                kept.append(e)
-        if not kept:
-            raise ValueError(
-                f"to_problem: no edge has at least min_pairs={min_pairs} pairs among the "
-                f"requested frames; excluded: {excluded}"
-            )
-        kept.sort(key=lambda e: (x_index[e.x], y_index[e.y]))
-        edges = [
-            Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa,
-                       rotation_tol=self.rotation_tol)
-            for e in kept
-        ]
-        touched = {e.x for e in kept} | {e.y for e in kept}
-        problem = Problem(
-            [n for n in xs if n in touched],
-            [n for n in ys if n in touched],
-            edges,
-            unknown_scale=unknown_scale,
+        return problem_from_edges(self.edges(), x_names, y_names, unknown_scale, min_pairs,
+                                  self.rotation_tol)
+
+
+def problem_from_edges(
+    data: dict[tuple[str, str], DatasetEdge],
+    x_names: Sequence[str] | None = None,
+    y_names: Sequence[str] | None = None,
+    unknown_scale: bool = False,
+    min_pairs: int = 3,
+    rotation_tol: float = DEFAULT_ROTATION_TOL,
+) -> tuple[Problem, dict[tuple[str, str], str]]:
+    """:meth:`PairAccumulator.to_problem` of ``data`` (its :meth:`~PairAccumulator.edges`, e.g.
+    copied under a lock and built outside it); same parameters, returns and errors."""
+    if not _is_int(min_pairs) or min_pairs < 1:
+        raise ValueError(f"min_pairs: expected an integer >= 1, got {min_pairs!r}")
+    xs = sorted({x for x, _ in data}) if x_names is None else [str(n) for n in x_names]
+    ys = sorted({y for _, y in data}) if y_names is None else [str(n) for n in y_names]
+    x_index = {n: i for i, n in enumerate(xs)}
+    y_index = {n: i for i, n in enumerate(ys)}
+    excluded: dict[tuple[str, str], str] = {}
+    kept: list[DatasetEdge] = []
+    for (x, y), e in data.items():
+        if x not in x_index:
+            excluded[(x, y)] = f"X frame {x!r} not in x_names"
+        elif y not in y_index:
+            excluded[(x, y)] = f"Y frame {y!r} not in y_names"
+        elif e.n < min_pairs:
+            excluded[(x, y)] = f"{e.n} pairs < min_pairs={min_pairs}"
+        else:
+            kept.append(e)
+    if not kept:
+        raise ValueError(
+            f"to_problem: no edge has at least min_pairs={min_pairs} pairs among the "
+            f"requested frames; excluded: {excluded}"
         )
-        return problem, excluded
+    kept.sort(key=lambda e: (x_index[e.x], y_index[e.y]))
+    edges = [
+        Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa,
+                   rotation_tol=rotation_tol)
+        for e in kept
+    ]
+    touched = {e.x for e in kept} | {e.y for e in kept}
+    problem = Problem(
+        [n for n in xs if n in touched],
+        [n for n in ys if n in touched],
+        edges,
+        unknown_scale=unknown_scale,
+    )
+    return problem, excluded

@@ -1,0 +1,603 @@
+"""Live convergence: the session re-solved in the background while data arrive.
+
+:class:`LiveSolver` belongs to a :class:`~rwhec_ros.session.CalibrationSession` (its ``live``
+attribute). Whoever drives it calls :meth:`LiveSolver.tick` now and then (the node from a timer
+in its own callback group, ``rwhec-calibrate bag`` from its read loop); ``tick`` only looks at
+the clock and a few counters and, when a re-solve is due, hands it to the solver's own worker
+thread and returns at once. The re-solve copies the kept pairs under the session's lock (array
+copies), then builds the problem, solves it in ``fast`` mode (paper Section 7.3, no SDP
+fallback: a live estimate never waits for the SDP) and computes every frame's uncertainty
+(:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`) outside it. So the sensor path
+(``add_pose``/``add_image``, the detection workers) never waits for a live solve.
+
+A re-solve is due when (1) ``solver.live_period_s`` > 0 (0 = off; read at every tick, so it can
+change while the node runs), (2) new pairs arrived (or the stated noise changed) since the last
+attempt, (3) no live solve is running and none started in the last ``live_period_s`` seconds,
+(4) the last one did not take more than ``max_duty`` of the time since it ended (a large problem
+is re-solved less often, never hogging a core), and (5) no ``calibrate`` is running.
+
+``calibrate`` and the live solve: ``calibrate`` never waits for a live solve and never cancels
+one (the two work on separate copies of the data). No live solve starts while ``calibrate``
+runs (counted ``skipped_calibrating``); a live solve still running when ``calibrate`` starts
+finishes, but its estimate is dropped (counted ``discarded``), so a live estimate is never
+older than the latest calibration; the next tick re-solves. ``reset`` forgets the estimate
+and drops a running solve's result likewise.
+
+A failed live solve (any exception) keeps all data, is counted with its message
+(:attr:`LiveStatus.failures`, :attr:`LiveStatus.last_error`) and never raises into the caller;
+the next one runs when new pairs arrive.
+
+Convergence: every configured frame (camera and tag) has an estimate and, for every frame and
+axis, the standard deviation is at or below ``convergence.max_std_translation_m`` /
+``convergence.max_std_rotation_deg``. The std used is the larger of the prediction from the
+stated noise and that rescaled by the a-posteriori noise ratio ``sqrt(s0^2)`` (the rule of the
+verdict's precision check, :mod:`rwhec_ros.core.verdict.precision`): stated noise that is too
+optimistic cannot make an estimate converge early. An unobservable axis never converges.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..core.problem import Problem
+from ..core.result import CalibrationResult
+from ..core.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
+from ..data.results import FrameNaming, plain, result_document
+from ..sync.accumulator import problem_from_edges
+
+__all__ = [
+    "PairsSnapshot",
+    "Convergence",
+    "LiveEstimate",
+    "LiveStatus",
+    "LiveSolver",
+    "solve_with_uncertainty",
+    "convergence_of",
+    "estimate_document",
+    "LIVE_SOURCE",
+]
+
+#: ``source.type`` of a live estimate document.
+LIVE_SOURCE = "live"
+
+_AXES = ("x", "y", "z")
+#: Diagnostic levels (``diagnostic_msgs/DiagnosticStatus``; as :mod:`rwhec_ros.messages`).
+_OK, _WARN = 0, 1
+
+
+@dataclass(frozen=True)
+class PairsSnapshot:
+    """The kept pairs at one instant (copies), from
+    :meth:`~rwhec_ros.session.CalibrationSession.pairs_snapshot`.
+
+    Attributes
+    ----------
+    version : int
+        The session's data version (grows with every kept pair, noise change and reset).
+    edges : dict of (x, y) to DatasetEdge
+        Kept pairs per edge (:meth:`~rwhec_ros.sync.accumulator.PairAccumulator.edges`).
+    rotation_tol : float
+        Tolerance for building the problem's edges.
+    """
+
+    version: int
+    edges: dict
+    rotation_tol: float
+
+    @property
+    def n_pairs(self) -> int:
+        return int(sum(e.n for e in self.edges.values()))
+
+
+@dataclass(frozen=True)
+class Convergence:
+    """The convergence verdict of one estimate (module docstring).
+
+    Attributes
+    ----------
+    converged : bool
+    worst_translation_m, worst_rotation_deg : float
+        Largest std over the observable axes of all frames [m], [deg] (NaN: none observable).
+    worst_translation_frame, worst_rotation_frame : str
+        Where they are, ``"<frame> <axis>"``.
+    unobservable : tuple of str
+        ``"<frame> translation x"``-style axes the data do not determine.
+    missing : tuple of str
+        Configured frames without an estimate yet.
+    max_std_translation_m, max_std_rotation_deg : float
+        The limits used.
+    noise_ratio : float
+        ``max(1, sqrt(s0^2))``, the factor applied to the predicted stds.
+    """
+
+    converged: bool
+    worst_translation_m: float
+    worst_rotation_deg: float
+    worst_translation_frame: str
+    worst_rotation_frame: str
+    unobservable: tuple[str, ...]
+    missing: tuple[str, ...]
+    max_std_translation_m: float
+    max_std_rotation_deg: float
+    noise_ratio: float
+
+    def words(self) -> str:
+        """One line, e.g. ``converged: largest std 3.1 mm (cam1 z) / 0.12 deg (tag_2 x), limits
+        5.0 mm / 0.25 deg`` or ``not converged: ...; no estimate of cam2; unobservable: ...``."""
+        head = "converged" if self.converged else "not converged"
+        parts = []
+        if math.isfinite(self.worst_translation_m) or math.isfinite(self.worst_rotation_deg):
+            parts.append(
+                f"largest std {1e3 * self.worst_translation_m:.1f} mm "
+                f"({self.worst_translation_frame}) / {self.worst_rotation_deg:.2f} deg "
+                f"({self.worst_rotation_frame}), limits {1e3 * self.max_std_translation_m:.1f} mm"
+                f" / {self.max_std_rotation_deg:.2f} deg")
+        if self.missing:
+            parts.append("no estimate of " + ", ".join(self.missing))
+        if self.unobservable:
+            more = len(self.unobservable) - 4
+            parts.append("unobservable: " + ", ".join(self.unobservable[:4])
+                         + (f" and {more} more" if more > 0 else ""))
+        return head + (": " + "; ".join(parts) if parts else "")
+
+    def to_dict(self) -> dict[str, Any]:
+        return plain({
+            "converged": self.converged,
+            "worst_std_translation_m": _none_nan(self.worst_translation_m),
+            "worst_std_translation_at": self.worst_translation_frame,
+            "worst_std_rotation_deg": _none_nan(self.worst_rotation_deg),
+            "worst_std_rotation_at": self.worst_rotation_frame,
+            "max_std_translation_m": self.max_std_translation_m,
+            "max_std_rotation_deg": self.max_std_rotation_deg,
+            "noise_ratio": _none_nan(self.noise_ratio),
+            "unobservable": list(self.unobservable),
+            "missing": list(self.missing),
+            "words": self.words(),
+        })
+
+
+def _none_nan(x: float) -> float | None:
+    return None if not math.isfinite(x) else float(x)
+
+
+def convergence_of(uncertainty: Uncertainty, expected: tuple[str, ...] | list[str],
+                   max_std_translation_m: float, max_std_rotation_deg: float) -> Convergence:
+    """Whether ``uncertainty`` meets the limits for every frame of ``expected`` (module
+    docstring: the larger of predicted and a-posteriori std, unobservable axes never converge,
+    frames without an estimate never converge)."""
+    s0 = uncertainty.variance_factor
+    ratio = max(1.0, math.sqrt(s0)) if (s0 is not None and math.isfinite(s0)) else 1.0
+    worst_t, worst_r = (float("nan"), ""), (float("nan"), "")
+    unobservable = []
+    for f in uncertainty.frames:
+        for kind, stds, bad in (("translation", f.std_translation_m, f.unobservable_translation),
+                                ("rotation", f.std_rotation_deg, f.unobservable_rotation)):
+            for axis, std, unobs in zip(_AXES, ratio * np.asarray(stds, float), bad,
+                                        strict=True):
+                if unobs or not np.isfinite(std):
+                    unobservable.append(f"{f.name} {kind} {axis}")
+                    continue
+                cur = worst_t if kind == "translation" else worst_r
+                if not (cur[0] >= std):  # NaN start: the first value wins
+                    cur = (float(std), f"{f.name} {axis}")
+                    if kind == "translation":
+                        worst_t = cur
+                    else:
+                        worst_r = cur
+    have = {f.name for f in uncertainty.frames}
+    missing = tuple(n for n in expected if n not in have)
+    if uncertainty.scale_std is not None and not np.isfinite(uncertainty.scale_std):
+        unobservable.append("scale")
+    ok = (not missing and not unobservable and math.isfinite(worst_t[0])
+          and math.isfinite(worst_r[0]) and worst_t[0] <= max_std_translation_m
+          and worst_r[0] <= max_std_rotation_deg)
+    return Convergence(bool(ok), worst_t[0], worst_r[0], worst_t[1], worst_r[1],
+                       tuple(unobservable), missing, float(max_std_translation_m),
+                       float(max_std_rotation_deg), ratio)
+
+
+def solve_with_uncertainty(problem: Problem, config) -> tuple[CalibrationResult, Uncertainty]:
+    """The live re-solve: ``fast`` without SDP fallback or outlier rejection, with the
+    configuration's priors, ``solver.unobservable_std_m`` and ``solver.min_scale``, then
+    :func:`~rwhec_ros.core.uncertainty.frame_uncertainty` with the same gauge options."""
+    from ..core.solve import solve
+    from .solving import solve_options
+
+    c = config.solver
+    options, notes = solve_options(problem, mode="fast", priors=config.priors.entries,
+                                   unobservable_std_m=c.unobservable_std_m,
+                                   min_scale=c.min_scale)
+    options.fallback_to_sdp = False
+    result = solve(problem, options)
+    result.notes.extend(notes)
+    return result, frame_uncertainty(problem, result, UncertaintyOptions(gauge=options.gauge))
+
+
+def estimate_document(result: CalibrationResult, uncertainty: Uncertainty, config,
+                      convergence: Convergence, *,
+                      excluded: Mapping[str, str] | None = None,
+                      live: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The ``~/estimate`` YAML mapping: the result YAML's schema
+    (:func:`rwhec_ros.data.results.result_document`, ``verdict: unknown``: a live estimate is not
+    assessed, ``calibrate`` does that; ``source.type: live``) plus, per frame, the
+    :meth:`~rwhec_ros.core.uncertainty.FrameUncertainty.to_dict` keys (``std_translation_m``
+    [x, y, z], ``std_rotation_deg`` [x, y, z], ``covariance``, ``a_posteriori``,
+    ``unobservable``), the whole-problem ``uncertainty`` (variance factor, notes; without the
+    frames), ``convergence`` (:meth:`Convergence.to_dict`) and ``live`` (pairs, timing)."""
+    doc = result_document(result, FrameNaming.from_config(config), excluded=excluded,
+                          config=config.to_parameters(), source={"type": LIVE_SOURCE})
+    doc["reasons"] = ["a live estimate is not assessed: call calibrate for the verdict"]
+    by_name = {f.name: f.to_dict() for f in uncertainty.frames}
+    for f in doc["frames"]:
+        f.update(by_name.get(f["name"], {}))
+    unc = uncertainty.to_dict()
+    unc.pop("frames", None)
+    doc["uncertainty"] = unc
+    doc["convergence"] = convergence.to_dict()
+    doc["live"] = plain(dict(live or {}))
+    return doc
+
+
+@dataclass(frozen=True)
+class LiveEstimate:
+    """One live re-solve's outcome.
+
+    Attributes
+    ----------
+    result : CalibrationResult
+    uncertainty : Uncertainty
+    convergence : Convergence
+    document : dict
+        :func:`estimate_document` (YAML-safe).
+    version : int
+        The data version solved.
+    n_pairs, n_edges : int
+        Pairs and edges in the solved problem.
+    solve_s : float
+        Wall time of snapshot, solve and uncertainty [s].
+    cpu_s : float
+        CPU time of the worker thread for the same [s] (less sensitive to machine load).
+    finished : float
+        The solver's clock when it finished.
+    sequence : int
+        1 for the first estimate, then counting up (to publish each one once).
+    """
+
+    result: CalibrationResult
+    uncertainty: Uncertainty
+    convergence: Convergence
+    document: dict
+    version: int
+    n_pairs: int
+    n_edges: int
+    solve_s: float
+    cpu_s: float
+    finished: float
+    sequence: int
+
+    @property
+    def converged(self) -> bool:
+        return self.convergence.converged
+
+    def line(self) -> str:
+        """``<n> pairs: <convergence words>``, for a progress line or a log."""
+        return f"{self.n_pairs} pairs: {self.convergence.words()}"
+
+
+@dataclass(frozen=True)
+class LiveStatus:
+    """What the live solver has done (a consistent copy, :meth:`LiveSolver.status`).
+
+    Attributes
+    ----------
+    enabled : bool
+        ``solver.live_period_s > 0``.
+    period_s : float
+    running : bool
+        A re-solve is in flight.
+    solves, failures, discarded, skipped_calibrating, waiting_for_data : int
+        Estimates made, solves that raised, estimates dropped (a ``calibrate`` or ``reset``
+        overlapped), ticks skipped while ``calibrate`` ran, attempts without an edge of
+        ``solver.min_pairs`` pairs.
+    last_error : str
+        The latest failure in words ("" when the latest attempt worked).
+    estimate : LiveEstimate or None
+        The latest estimate.
+    """
+
+    enabled: bool
+    period_s: float
+    running: bool
+    solves: int
+    failures: int
+    discarded: int
+    skipped_calibrating: int
+    waiting_for_data: int
+    last_error: str
+    estimate: LiveEstimate | None
+
+    @property
+    def converged(self) -> bool:
+        return self.estimate is not None and self.estimate.converged
+
+    def line(self) -> str:
+        """One line for a progress display."""
+        if not self.enabled:
+            return "live estimate off (solver.live_period_s = 0)"
+        if self.last_error:
+            return f"live solve failed: {self.last_error}"
+        if self.estimate is None:
+            return "live: no estimate yet" + (
+                " (no edge has solver.min_pairs pairs)" if self.waiting_for_data else "")
+        return "live: " + self.estimate.line()
+
+    def diagnostic_row(self, prefix: str, hardware_id: str = "") -> dict[str, Any]:
+        """A ``/diagnostics`` row as :func:`rwhec_ros.messages.diagnostic_rows` makes them,
+        named ``<prefix>: live estimate``: OK when off or converged, WARN otherwise (not
+        converged yet, no estimate yet, or the latest live solve failed)."""
+        est = self.estimate
+        values = [("enabled", str(self.enabled).lower()), ("period_s", f"{self.period_s:g}"),
+                  ("converged", str(self.converged).lower()), ("live_solves", str(self.solves)),
+                  ("live_failures", str(self.failures)), ("live_discarded", str(self.discarded)),
+                  ("live_skipped_calibrating", str(self.skipped_calibrating))]
+        if est is not None:
+            c = est.convergence
+            values += [("pairs", str(est.n_pairs)), ("edges", str(est.n_edges)),
+                       ("worst_std_translation_m", f"{c.worst_translation_m:.6g}"),
+                       ("worst_std_translation_at", c.worst_translation_frame),
+                       ("worst_std_rotation_deg", f"{c.worst_rotation_deg:.6g}"),
+                       ("worst_std_rotation_at", c.worst_rotation_frame),
+                       ("max_std_translation_m", f"{c.max_std_translation_m:g}"),
+                       ("max_std_rotation_deg", f"{c.max_std_rotation_deg:g}"),
+                       ("certified", str(bool(est.result.certified)).lower()),
+                       ("solve_ms", f"{1e3 * est.solve_s:.1f}")]
+        if self.last_error:
+            values.append(("last_error", self.last_error))
+        level = _OK if (not self.enabled or self.converged) and not self.last_error else _WARN
+        return {"name": f"{prefix}: live estimate", "level": level,
+                "message": self.line().removeprefix("live: "), "hardware_id": hardware_id,
+                "values": values}
+
+
+@dataclass
+class _Job:
+    version: int
+    calibrations: int
+    resets: int
+
+
+@dataclass
+class _State:
+    running: bool = False
+    attempted_version: int = -1
+    last_start: float = -math.inf
+    last_end: float = -math.inf
+    last_duration: float = 0.0
+    solves: int = 0
+    failures: int = 0
+    discarded: int = 0
+    skipped_calibrating: int = 0
+    waiting_for_data: int = 0
+    last_error: str = ""
+    estimate: LiveEstimate | None = None
+    delivered: int = 0
+    job: _Job | None = None
+    stopped: bool = False
+    idle: threading.Event = field(default_factory=threading.Event)
+
+
+class LiveSolver:
+    """Background re-solves of a session (module docstring).
+
+    Parameters
+    ----------
+    session : CalibrationSession
+        Provides ``config``, :meth:`pairs_snapshot` and :meth:`live_counts`.
+    solve_fn : callable(Problem, CalibratorConfig) -> (CalibrationResult, Uncertainty), optional
+        The re-solve (default :func:`solve_with_uncertainty`); injectable for tests.
+    clock : callable returning float, optional
+        Seconds, monotonic (default :func:`time.monotonic`).
+    max_duty : float
+        Largest share of the wall time the re-solves may take (0.25): after a re-solve of ``d``
+        seconds the next starts no earlier than ``d (1 / max_duty - 1)`` after it ended.
+    """
+
+    def __init__(self, session, *, solve_fn: Callable | None = None,
+                 clock: Callable[[], float] | None = None, max_duty: float = 0.25) -> None:
+        if not (isinstance(max_duty, (int, float)) and 0 < max_duty <= 1):
+            raise ValueError(f"max_duty: must be in (0, 1], got {max_duty!r}")
+        self._session = session
+        self._solve_fn = solve_fn if solve_fn is not None else solve_with_uncertainty
+        self._clock = clock if clock is not None else time.monotonic
+        self._max_duty = float(max_duty)
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._s = _State()
+        self._s.idle.set()
+
+    # --- driving -------------------------------------------------------------------------------
+    def tick(self, now: float | None = None) -> str:
+        """Start a re-solve on the worker thread if one is due; never blocks, never raises.
+
+        Returns what happened: ``"started"``, ``"off"``, ``"running"``, ``"waiting"`` (period
+        or duty cycle), ``"no_new_pairs"``, ``"calibrating"`` or ``"stopped"``.
+        """
+        try:
+            return self._tick(self._clock() if now is None else float(now))
+        except Exception as exc:  # noqa: BLE001 - never into a timer callback
+            with self._lock:
+                self._s.failures += 1
+                self._s.last_error = f"{type(exc).__name__}: {exc}"
+            return "failed"
+
+    def _tick(self, now: float) -> str:
+        period = float(self._session.config.solver.live_period_s)
+        s = self._s
+        with self._lock:
+            if s.stopped:
+                return "stopped"
+            if period <= 0:
+                return "off"
+            if s.running:
+                return "running"
+            rest = s.last_duration * (1.0 / self._max_duty - 1.0)
+            if now < s.last_start + period or now < s.last_end + rest:
+                return "waiting"
+        version, calibrations, resets, calibrating = self._session.live_counts()
+        with self._lock:
+            if version == s.attempted_version:
+                return "no_new_pairs"
+            if calibrating:
+                s.skipped_calibrating += 1
+                return "calibrating"
+            if s.running or s.stopped:
+                return "running" if s.running else "stopped"
+            s.running = True
+            s.idle.clear()
+            s.last_start = now
+            s.job = _Job(version, calibrations, resets)
+            self._ensure_thread()
+        self._wake.set()
+        return "started"
+
+    def _ensure_thread(self) -> None:
+        """Start the worker (lock held)."""
+        if self._thread is None or not self._thread.is_alive():
+            self._thread = threading.Thread(target=self._loop, name="rwhec-live-solve",
+                                            daemon=True)
+            self._thread.start()
+
+    def _loop(self) -> None:
+        while True:
+            self._wake.wait()
+            self._wake.clear()
+            with self._lock:
+                job, self._s.job = self._s.job, None
+                if self._s.stopped:
+                    self._s.running = False
+                    self._s.idle.set()
+                    return
+            if job is None:
+                continue
+            try:
+                self._run(job)
+            finally:
+                with self._lock:
+                    self._s.running = False
+                    self._s.idle.set()
+
+    def _run(self, job: _Job) -> None:
+        t0, cpu0 = self._clock(), time.thread_time()
+        c = self._session.config
+        snap = None
+        try:
+            snap = self._session.pairs_snapshot()
+            try:
+                problem, excluded = problem_from_edges(
+                    snap.edges, c.x_names, c.y_names, c.tags.unknown_scale, c.solver.min_pairs,
+                    snap.rotation_tol)
+            except ValueError:
+                with self._lock:
+                    self._s.waiting_for_data += 1
+                    self._s.attempted_version = snap.version
+                    self._s.last_error = ""
+                    self._s.last_end, self._s.last_duration = self._clock(), 0.0
+                return
+            result, unc = self._solve_fn(problem, c)
+            conv = convergence_of(unc, [*c.y_names, *c.x_names],
+                                  c.convergence.max_std_translation_m,
+                                  c.convergence.max_std_rotation_deg)
+            t1 = self._clock()
+            live = {"pairs": problem.n_measurements, "edges": len(problem.edges),
+                    "data_version": snap.version, "solve_s": t1 - t0,
+                    "cpu_s": time.thread_time() - cpu0,
+                    "period_s": c.solver.live_period_s}
+            excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
+            doc = estimate_document(result, unc, c, conv, excluded=excl, live=live)
+        except Exception as exc:  # noqa: BLE001 - a live solve never raises; the data stay
+            with self._lock:
+                self._s.failures += 1
+                self._s.last_error = f"{type(exc).__name__}: {exc}"
+                if snap is not None:
+                    self._s.attempted_version = snap.version
+                self._s.last_end = self._clock()
+                self._s.last_duration = self._s.last_end - t0
+            return
+        _, calibrations, resets, calibrating = self._session.live_counts()
+        with self._lock:
+            s = self._s
+            s.last_end, s.last_duration = self._clock(), self._clock() - t0
+            if calibrating or calibrations != job.calibrations or resets != job.resets:
+                s.discarded += 1  # calibrate or reset overlapped: re-solve at the next tick
+                s.attempted_version = -1
+                return
+            s.attempted_version = snap.version
+            s.last_error = ""
+            s.solves += 1
+            s.estimate = LiveEstimate(result, unc, conv, doc, snap.version, problem.n_measurements,
+                                      len(problem.edges), t1 - t0, live["cpu_s"], t1, s.solves)
+
+    # --- reading -------------------------------------------------------------------------------
+    def status(self) -> LiveStatus:
+        """A consistent copy of what the live solver did (thread-safe)."""
+        c = self._session.config
+        with self._lock:
+            s = self._s
+            return LiveStatus(c.solver.live_period_s > 0, float(c.solver.live_period_s),
+                              s.running, s.solves, s.failures, s.discarded,
+                              s.skipped_calibrating, s.waiting_for_data, s.last_error,
+                              s.estimate)
+
+    @property
+    def estimate(self) -> LiveEstimate | None:
+        """The latest live estimate (None before the first)."""
+        with self._lock:
+            return self._s.estimate
+
+    def take_new(self) -> LiveEstimate | None:
+        """The latest estimate if it was not taken before, else None (to publish each once)."""
+        with self._lock:
+            est = self._s.estimate
+            if est is None or est.sequence <= self._s.delivered:
+                return None
+            self._s.delivered = est.sequence
+            return est
+
+    def wait_idle(self, timeout: float | None = None) -> bool:
+        """Wait until no re-solve is running (True) or ``timeout`` [s] passed (False)."""
+        return self._s.idle.wait(timeout)
+
+    def solve_now(self, timeout: float | None = None) -> LiveEstimate | None:
+        """Re-solve now if new pairs arrived (ignoring the period, not the other rules), wait for
+        it up to ``timeout`` seconds and return the latest estimate (e.g. at the end of a bag)."""
+        self.wait_idle(timeout)
+        with self._lock:
+            self._s.last_start = self._s.last_end = -math.inf
+        if self.tick() == "started":
+            self.wait_idle(timeout)
+        return self.estimate
+
+    # --- session events ------------------------------------------------------------------------
+    def forget(self) -> None:
+        """Drop the estimate and the error (the session was reset)."""
+        with self._lock:
+            self._s.estimate = None
+            self._s.last_error = ""
+            self._s.attempted_version = -1
+
+    def stop(self, timeout: float | None = 5.0) -> None:
+        """Stop the worker thread after its current re-solve (waits up to ``timeout`` s)."""
+        with self._lock:
+            self._s.stopped = True
+            thread = self._thread
+        self._wake.set()
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
