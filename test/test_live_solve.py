@@ -22,7 +22,8 @@ from rwhec_ros.config import CalibratorConfig, read_parameter_file
 from rwhec_ros.core.lie import invert_transform
 from rwhec_ros.core.synthetic import perturb_measurements, random_transforms
 from rwhec_ros.session import CalibrationSession
-from rwhec_ros.session.live_solve import LiveSolver, convergence_of, solve_with_uncertainty
+from rwhec_ros.session.convergence import convergence_of
+from rwhec_ros.session.live_solve import LiveSolver, solve_with_uncertainty
 from rwhec_ros.vision.detection import DetectionResult, TagObservation
 from rwhec_ros.vision.intrinsics import CameraIntrinsics
 

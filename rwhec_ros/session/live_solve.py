@@ -27,12 +27,9 @@ A failed live solve (any exception) keeps all data, is counted with its message
 (:attr:`LiveStatus.failures`, :attr:`LiveStatus.last_error`) and never raises into the caller;
 the next one runs when new pairs arrive.
 
-Convergence: every configured frame (camera and tag) has an estimate and, for every frame and
-axis, the standard deviation is at or below ``convergence.max_std_translation_m`` /
-``convergence.max_std_rotation_deg``. The std used is the larger of the prediction from the
-stated noise and that rescaled by the a-posteriori noise ratio ``sqrt(s0^2)`` (the rule of the
-verdict's precision check, :mod:`rwhec_ros.core.verdict.precision`): stated noise that is too
-optimistic cannot make an estimate converge early. An unobservable axis never converges.
+Each estimate carries its convergence verdict (:mod:`.convergence`: every configured frame
+estimated, every std at or below ``convergence.*``) and the ``~/estimate`` document
+(:func:`~rwhec_ros.session.convergence.estimate_document`).
 """
 
 from __future__ import annotations
@@ -40,36 +37,24 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
-
-import numpy as np
 
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
 from ..core.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
-from ..data.results import FrameNaming, plain, result_document
+from ..messages import LEVEL_OK, LEVEL_WARN
 from ..sync.accumulator import problem_from_edges
+from .convergence import Convergence, convergence_of, estimate_document
 
 __all__ = [
     "PairsSnapshot",
-    "Convergence",
     "LiveEstimate",
     "LiveStatus",
     "LiveSolver",
     "solve_with_uncertainty",
-    "convergence_of",
-    "estimate_document",
-    "LIVE_SOURCE",
 ]
-
-#: ``source.type`` of a live estimate document.
-LIVE_SOURCE = "live"
-
-_AXES = ("x", "y", "z")
-#: Diagnostic levels (``diagnostic_msgs/DiagnosticStatus``; as :mod:`rwhec_ros.messages`).
-_OK, _WARN = 0, 1
 
 
 @dataclass(frozen=True)
@@ -96,113 +81,6 @@ class PairsSnapshot:
         return int(sum(e.n for e in self.edges.values()))
 
 
-@dataclass(frozen=True)
-class Convergence:
-    """The convergence verdict of one estimate (module docstring).
-
-    Attributes
-    ----------
-    converged : bool
-    worst_translation_m, worst_rotation_deg : float
-        Largest std over the observable axes of all frames [m], [deg] (NaN: none observable).
-    worst_translation_frame, worst_rotation_frame : str
-        Where they are, ``"<frame> <axis>"``.
-    unobservable : tuple of str
-        ``"<frame> translation x"``-style axes the data do not determine.
-    missing : tuple of str
-        Configured frames without an estimate yet.
-    max_std_translation_m, max_std_rotation_deg : float
-        The limits used.
-    noise_ratio : float
-        ``max(1, sqrt(s0^2))``, the factor applied to the predicted stds.
-    """
-
-    converged: bool
-    worst_translation_m: float
-    worst_rotation_deg: float
-    worst_translation_frame: str
-    worst_rotation_frame: str
-    unobservable: tuple[str, ...]
-    missing: tuple[str, ...]
-    max_std_translation_m: float
-    max_std_rotation_deg: float
-    noise_ratio: float
-
-    def words(self) -> str:
-        """One line, e.g. ``converged: largest std 3.1 mm (cam1 z) / 0.12 deg (tag_2 x), limits
-        5.0 mm / 0.25 deg`` or ``not converged: ...; no estimate of cam2; unobservable: ...``."""
-        head = "converged" if self.converged else "not converged"
-        parts = []
-        if math.isfinite(self.worst_translation_m) or math.isfinite(self.worst_rotation_deg):
-            parts.append(
-                f"largest std {1e3 * self.worst_translation_m:.1f} mm "
-                f"({self.worst_translation_frame}) / {self.worst_rotation_deg:.2f} deg "
-                f"({self.worst_rotation_frame}), limits {1e3 * self.max_std_translation_m:.1f} mm"
-                f" / {self.max_std_rotation_deg:.2f} deg")
-        if self.missing:
-            parts.append("no estimate of " + ", ".join(self.missing))
-        if self.unobservable:
-            more = len(self.unobservable) - 4
-            parts.append("unobservable: " + ", ".join(self.unobservable[:4])
-                         + (f" and {more} more" if more > 0 else ""))
-        return head + (": " + "; ".join(parts) if parts else "")
-
-    def to_dict(self) -> dict[str, Any]:
-        return plain({
-            "converged": self.converged,
-            "worst_std_translation_m": _none_nan(self.worst_translation_m),
-            "worst_std_translation_at": self.worst_translation_frame,
-            "worst_std_rotation_deg": _none_nan(self.worst_rotation_deg),
-            "worst_std_rotation_at": self.worst_rotation_frame,
-            "max_std_translation_m": self.max_std_translation_m,
-            "max_std_rotation_deg": self.max_std_rotation_deg,
-            "noise_ratio": _none_nan(self.noise_ratio),
-            "unobservable": list(self.unobservable),
-            "missing": list(self.missing),
-            "words": self.words(),
-        })
-
-
-def _none_nan(x: float) -> float | None:
-    return None if not math.isfinite(x) else float(x)
-
-
-def convergence_of(uncertainty: Uncertainty, expected: tuple[str, ...] | list[str],
-                   max_std_translation_m: float, max_std_rotation_deg: float) -> Convergence:
-    """Whether ``uncertainty`` meets the limits for every frame of ``expected`` (module
-    docstring: the larger of predicted and a-posteriori std, unobservable axes never converge,
-    frames without an estimate never converge)."""
-    s0 = uncertainty.variance_factor
-    ratio = max(1.0, math.sqrt(s0)) if (s0 is not None and math.isfinite(s0)) else 1.0
-    worst_t, worst_r = (float("nan"), ""), (float("nan"), "")
-    unobservable = []
-    for f in uncertainty.frames:
-        for kind, stds, bad in (("translation", f.std_translation_m, f.unobservable_translation),
-                                ("rotation", f.std_rotation_deg, f.unobservable_rotation)):
-            for axis, std, unobs in zip(_AXES, ratio * np.asarray(stds, float), bad,
-                                        strict=True):
-                if unobs or not np.isfinite(std):
-                    unobservable.append(f"{f.name} {kind} {axis}")
-                    continue
-                cur = worst_t if kind == "translation" else worst_r
-                if not (cur[0] >= std):  # NaN start: the first value wins
-                    cur = (float(std), f"{f.name} {axis}")
-                    if kind == "translation":
-                        worst_t = cur
-                    else:
-                        worst_r = cur
-    have = {f.name for f in uncertainty.frames}
-    missing = tuple(n for n in expected if n not in have)
-    if uncertainty.scale_std is not None and not np.isfinite(uncertainty.scale_std):
-        unobservable.append("scale")
-    ok = (not missing and not unobservable and math.isfinite(worst_t[0])
-          and math.isfinite(worst_r[0]) and worst_t[0] <= max_std_translation_m
-          and worst_r[0] <= max_std_rotation_deg)
-    return Convergence(bool(ok), worst_t[0], worst_r[0], worst_t[1], worst_r[1],
-                       tuple(unobservable), missing, float(max_std_translation_m),
-                       float(max_std_rotation_deg), ratio)
-
-
 def solve_with_uncertainty(problem: Problem, config) -> tuple[CalibrationResult, Uncertainty]:
     """The live re-solve: ``fast`` without SDP fallback or outlier rejection, with the
     configuration's priors, ``solver.unobservable_std_m`` and ``solver.min_scale``, then
@@ -218,31 +96,6 @@ def solve_with_uncertainty(problem: Problem, config) -> tuple[CalibrationResult,
     result = solve(problem, options)
     result.notes.extend(notes)
     return result, frame_uncertainty(problem, result, UncertaintyOptions(gauge=options.gauge))
-
-
-def estimate_document(result: CalibrationResult, uncertainty: Uncertainty, config,
-                      convergence: Convergence, *,
-                      excluded: Mapping[str, str] | None = None,
-                      live: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The ``~/estimate`` YAML mapping: the result YAML's schema
-    (:func:`rwhec_ros.data.results.result_document`, ``verdict: unknown``: a live estimate is not
-    assessed, ``calibrate`` does that; ``source.type: live``) plus, per frame, the
-    :meth:`~rwhec_ros.core.uncertainty.FrameUncertainty.to_dict` keys (``std_translation_m``
-    [x, y, z], ``std_rotation_deg`` [x, y, z], ``covariance``, ``a_posteriori``,
-    ``unobservable``), the whole-problem ``uncertainty`` (variance factor, notes; without the
-    frames), ``convergence`` (:meth:`Convergence.to_dict`) and ``live`` (pairs, timing)."""
-    doc = result_document(result, FrameNaming.from_config(config), excluded=excluded,
-                          config=config.to_parameters(), source={"type": LIVE_SOURCE})
-    doc["reasons"] = ["a live estimate is not assessed: call calibrate for the verdict"]
-    by_name = {f.name: f.to_dict() for f in uncertainty.frames}
-    for f in doc["frames"]:
-        f.update(by_name.get(f["name"], {}))
-    unc = uncertainty.to_dict()
-    unc.pop("frames", None)
-    doc["uncertainty"] = unc
-    doc["convergence"] = convergence.to_dict()
-    doc["live"] = plain(dict(live or {}))
-    return doc
 
 
 @dataclass(frozen=True)
@@ -360,7 +213,8 @@ class LiveStatus:
                        ("solve_ms", f"{1e3 * est.solve_s:.1f}")]
         if self.last_error:
             values.append(("last_error", self.last_error))
-        level = _OK if (not self.enabled or self.converged) and not self.last_error else _WARN
+        level = (LEVEL_OK if (not self.enabled or self.converged) and not self.last_error
+                 else LEVEL_WARN)
         return {"name": f"{prefix}: live estimate", "level": level,
                 "message": self.line().removeprefix("live: "), "hardware_id": hardware_id,
                 "values": values}
