@@ -383,7 +383,13 @@ class CalibratorNode(Node):
         est = live.take_new()
         if est is None:
             return
-        self._estimate_pub.publish(String(data=yaml.safe_dump(est.document, sort_keys=False)))
+        try:
+            text = yaml.safe_dump(est.document, sort_keys=False)
+        except Exception as exc:  # noqa: BLE001 - never into the executor
+            self._warn_throttled("live_estimate", f"live estimate not published: "
+                                 f"{type(exc).__name__}: {exc}")
+            return
+        self._estimate_pub.publish(String(data=text))
         if est.converged and not self._live_converged:
             self.get_logger().info(f"live estimate {est.line()}; call calibrate to publish it")
         self._live_converged = est.converged

@@ -471,10 +471,11 @@ class CalibrationSession(ImageInput):
     # --- live re-solve (rwhec_ros.session.live_solve) ----------------------------------------
     def pairs_snapshot(self) -> PairsSnapshot:
         """Copies of the kept pairs per edge and the data version, taken under the lock (array
-        copies only: build the problem outside, :func:`~rwhec_ros.sync.accumulator.
-        problem_from_edges`)."""
+        copies only, :meth:`~rwhec_ros.sync.accumulator.PairAccumulator.kept_pairs`: build the
+        problem outside, :func:`~rwhec_ros.sync.accumulator.problem_from_edges`)."""
         with self._lock:
-            return PairsSnapshot(self._data_version, self._acc.edges(), self._acc.rotation_tol)
+            return PairsSnapshot(self._data_version, self._acc.kept_pairs(),
+                                 self._acc.rotation_tol)
 
     def live_counts(self) -> tuple[int, int, int, bool]:
         """``(data version, calibrations started, resets, calibrate running)``: what the live

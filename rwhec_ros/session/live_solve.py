@@ -34,6 +34,7 @@ estimated, every std at or below ``convergence.*``) and the ``~/estimate`` docum
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 import time
@@ -66,8 +67,8 @@ class PairsSnapshot:
     ----------
     version : int
         The session's data version (grows with every kept pair, noise change and reset).
-    edges : dict of (x, y) to DatasetEdge
-        Kept pairs per edge (:meth:`~rwhec_ros.sync.accumulator.PairAccumulator.edges`).
+    edges : dict of (x, y) to KeptPairs
+        Kept pairs per edge (:meth:`~rwhec_ros.sync.accumulator.PairAccumulator.kept_pairs`).
     rotation_tol : float
         Tolerance for building the problem's edges.
     """
@@ -107,8 +108,10 @@ class LiveEstimate:
     result : CalibrationResult
     uncertainty : Uncertainty
     convergence : Convergence
-    document : dict
-        :func:`estimate_document` (YAML-safe).
+    config : CalibratorConfig
+        The configuration of the re-solve.
+    excluded : dict of str to str
+        Edges ``"(x, y)"`` left out (fewer than ``solver.min_pairs`` pairs), and why.
     version : int
         The data version solved.
     n_pairs, n_edges : int
@@ -126,7 +129,8 @@ class LiveEstimate:
     result: CalibrationResult
     uncertainty: Uncertainty
     convergence: Convergence
-    document: dict
+    config: Any
+    excluded: dict
     version: int
     n_pairs: int
     n_edges: int
@@ -142,6 +146,16 @@ class LiveEstimate:
     def line(self) -> str:
         """``<n> pairs: <convergence words>``, for a progress line or a log."""
         return f"{self.n_pairs} pairs: {self.convergence.words()}"
+
+    @functools.cached_property
+    def document(self) -> dict:
+        """The ``~/estimate`` mapping (:func:`~rwhec_ros.session.convergence.estimate_document`,
+        YAML-safe), built on first use: only the node publishes it."""
+        live = {"pairs": self.n_pairs, "edges": self.n_edges, "data_version": self.version,
+                "solve_s": self.solve_s, "cpu_s": self.cpu_s,
+                "period_s": self.config.solver.live_period_s}
+        return estimate_document(self.result, self.uncertainty, self.config, self.convergence,
+                                 excluded=self.excluded, live=live)
 
 
 @dataclass(frozen=True)
@@ -357,7 +371,7 @@ class LiveSolver:
             try:
                 problem, excluded = problem_from_edges(
                     snap.edges, c.x_names, c.y_names, c.tags.unknown_scale, c.solver.min_pairs,
-                    snap.rotation_tol)
+                    snap.rotation_tol, validate=False)  # validated when they were offered
             except ValueError:
                 with self._lock:
                     self._s.waiting_for_data += 1
@@ -369,13 +383,8 @@ class LiveSolver:
             conv = convergence_of(unc, [*c.y_names, *c.x_names],
                                   c.convergence.max_std_translation_m,
                                   c.convergence.max_std_rotation_deg)
-            t1 = self._clock()
-            live = {"pairs": problem.n_measurements, "edges": len(problem.edges),
-                    "data_version": snap.version, "solve_s": t1 - t0,
-                    "cpu_s": time.thread_time() - cpu0,
-                    "period_s": c.solver.live_period_s}
+            t1, cpu = self._clock(), time.thread_time() - cpu0
             excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
-            doc = estimate_document(result, unc, c, conv, excluded=excl, live=live)
         except Exception as exc:  # noqa: BLE001 - a live solve never raises; the data stay
             with self._lock:
                 self._s.failures += 1
@@ -396,8 +405,9 @@ class LiveSolver:
             s.attempted_version = snap.version
             s.last_error = ""
             s.solves += 1
-            s.estimate = LiveEstimate(result, unc, conv, doc, snap.version, problem.n_measurements,
-                                      len(problem.edges), t1 - t0, live["cpu_s"], t1, s.solves)
+            s.estimate = LiveEstimate(result, unc, conv, c, excl, snap.version,
+                                      problem.n_measurements, len(problem.edges), t1 - t0, cpu,
+                                      t1, s.solves)
 
     # --- reading -------------------------------------------------------------------------------
     def status(self) -> LiveStatus:
