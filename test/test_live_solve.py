@@ -116,15 +116,22 @@ class FakeClock:
         return self.t
 
 
-def test_sensor_path_never_waits_for_a_running_live_solve(tmp_path):
-    rig = Rig(np.random.default_rng(0))
-    started, release = threading.Event(), threading.Event()
+class BlockingSolve:
+    """The live re-solve, held until ``release`` is set (``started`` tells it has begun)."""
 
-    def blocking(problem, config):
-        started.set()
-        assert release.wait(30.0)
+    def __init__(self) -> None:
+        self.started, self.release = threading.Event(), threading.Event()
+
+    def __call__(self, problem, config):
+        self.started.set()
+        assert self.release.wait(30.0)
         return solve_with_uncertainty(problem, config)
 
+
+def test_sensor_path_never_waits_for_a_running_live_solve(tmp_path):
+    rig = Rig(np.random.default_rng(0))
+    blocking = BlockingSolve()
+    started, release = blocking.started, blocking.release
     session = make_session(tmp_path, rig, blocking)
     try:
         feed(session, rig, 10)
@@ -328,13 +335,8 @@ def test_unobservable_axes_never_converge(tmp_path):
 
 def test_reset_forgets_the_estimate_and_drops_a_running_one(tmp_path):
     rig = Rig(np.random.default_rng(6))
-    started, release = threading.Event(), threading.Event()
-
-    def blocking(problem, config):
-        started.set()
-        assert release.wait(30.0)
-        return solve_with_uncertainty(problem, config)
-
+    blocking = BlockingSolve()
+    started, release = blocking.started, blocking.release
     session = make_session(tmp_path, rig, blocking)
     try:
         feed(session, rig, 6)
