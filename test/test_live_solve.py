@@ -255,6 +255,13 @@ def test_the_period_and_the_duty_cycle_are_honoured(tmp_path):
         assert session.live.tick() == "started"
         assert session.live.wait_idle(30.0)
         assert starts == [0.0, 2.0, 4.5, 16.5]
+        # new convergence limits: judged again at the next tick, without new pairs
+        clock.t = 30.0
+        session.update_config(make_config(tmp_path, **{"solver.live_period_s": 2.0,
+                                                       "convergence.max_std_rotation_deg": 1.0}))
+        assert session.live.tick() == "started"
+        assert session.live.wait_idle(30.0)
+        assert session.live.estimate.convergence.max_std_rotation_deg == 1.0
         # live_period_s is read at every tick: 0 turns it off at once
         session.update_config(make_config(tmp_path, **{"solver.live_period_s": 0.0}))
         feed(session, rig, 1, start=9)

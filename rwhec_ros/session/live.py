@@ -137,7 +137,9 @@ class CalibrationSession(ImageInput):
         """Use ``config`` from now on; it may differ from the current one in live parameters only
         (:mod:`rwhec_ros.config.live_parameters`), else ``ValueError`` naming them.
 
-        ``solver.*`` and ``output.*`` are read at the next :meth:`calibrate`; new ``noise.sigma``
+        ``solver.*`` and ``output.*`` are read at the next :meth:`calibrate` (``solver.
+        live_period_s`` at the next live tick); new ``convergence.*`` limits make the next live
+        tick re-solve; new ``noise.sigma``
         and ``noise.kappa`` go at once to every kept pair (unless ``noise.from_reprojection``)
         and the identifiability tracker is rebuilt with them; new keyframe thresholds apply to
         the pairs offered from now on. ``output_root`` replaces the output root (default: the
@@ -153,6 +155,8 @@ class CalibrationSession(ImageInput):
                 self.output_root = Path(output_root)
             elif old.output.directory != config.output.directory:
                 self.output_root = plain_output_root(config.output.directory)
+            if old.convergence != config.convergence:
+                self._data_version += 1  # the live re-solve judges again with the new limits
             self._acc.keyframe_rotation_rad = config.keyframe.min_rotation_rad
             self._acc.keyframe_translation_m = config.keyframe.min_translation_m
             noise = config.noise

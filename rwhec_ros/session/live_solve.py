@@ -296,7 +296,8 @@ class LiveSolver:
         """Start a re-solve on the worker thread if one is due; never blocks, never raises.
 
         Returns what happened: ``"started"``, ``"off"``, ``"running"``, ``"waiting"`` (period
-        or duty cycle), ``"no_new_pairs"``, ``"calibrating"`` or ``"stopped"``.
+        or duty cycle), ``"no_new_pairs"``, ``"calibrating"``, ``"stopped"``, or ``"failed"``
+        (an unexpected error, counted as a failure with its message).
         """
         try:
             return self._tick(self._clock() if now is None else float(now))
