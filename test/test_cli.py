@@ -235,6 +235,32 @@ def test_bag_is_calibrated_to_the_truth(recorded, bag, config):
     assert (result.parent / "static_transforms.launch.py").is_file()
 
 
+def test_bag_prints_the_live_convergence(recorded, tmp_path):
+    """As the bag plays the session re-solves in the background and the convergence is shown;
+    at the end, that of the whole recording."""
+    rig, root = recorded
+    flat = demo_parameters(rig, output_directory=str(tmp_path))
+    # re-solve as often as possible; limits every frame meets with these data (1 m, 90 deg)
+    flat.update({"solver.live_period_s": 0.01, "convergence.max_std_translation_m": 1.0,
+                 "convergence.max_std_rotation_deg": 90.0})
+    cfg = tmp_path / "live.yaml"
+    cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+    code, stdout, stderr = run(["bag", root / "poses_sqlite", "--config", cfg, "-o",
+                                tmp_path / "out"])
+    assert code == EXIT_OK, stdout + stderr
+    lines = stderr.splitlines()
+    during = [ln for ln in lines if ln.startswith("live estimate at message ")]
+    assert during, stderr  # the first estimate, printed while the bag was read
+    assert re.match(r"live estimate at message \d+/\d+: \d+ pairs: (not )?converged", during[0])
+    end = [ln for ln in lines if ln.startswith("live estimate at the end of the bag: ")]
+    assert len(end) == 1 and re.search(r": \d+ pairs: converged: largest std ", end[0]), stderr
+    assert re.search(r"^reading bag: \d+ messages in .* s; live: ", stderr, re.M)
+    # -q: nothing shown, and nothing solved for it
+    code, stdout, stderr = run(["bag", root / "poses_sqlite", "--config", cfg, "-o",
+                                tmp_path / "quiet", "--quiet"])
+    assert code == EXIT_OK and "live" not in stderr
+
+
 def test_dataset_round_trip_of_a_session_data_set(recorded, tmp_path):
     """The data set written by the bag run, solved again by ``dataset``: same estimates."""
     rig, root = recorded

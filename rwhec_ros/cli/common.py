@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -119,10 +119,13 @@ class Printer:
 
 
 class Progress:
-    """Progress bar on stderr (a terminal only; elsewhere one line at the end)."""
+    """Progress bar on stderr (a terminal only; elsewhere one line at the end). ``status``, when
+    given, is called for text shown after the bar and on the final line (e.g. the live
+    estimate's convergence)."""
 
-    def __init__(self, err: TextIO, label: str, *, enabled: bool = True) -> None:
-        self.err, self.label = err, label
+    def __init__(self, err: TextIO, label: str, *, enabled: bool = True,
+                 status: Callable[[], str] | None = None) -> None:
+        self.err, self.label, self.status = err, label, status
         self.tty = enabled and hasattr(err, "isatty") and err.isatty()
         self.enabled = enabled
         self.t0 = time.monotonic()
@@ -137,8 +140,9 @@ class Progress:
         self.last = now
         frac = done / total if total else 1.0
         bar = "#" * int(30 * frac)
+        extra = f" | {self.status()}" if self.status is not None else ""
         self.err.write(f"\r{self.label} [{bar:<30}] {100 * frac:5.1f}% {done}/{total} messages, "
-                       f"{now - self.t0:.1f} s")
+                       f"{now - self.t0:.1f} s{extra}\x1b[K")
         self.err.flush()
 
     def close(self) -> None:
@@ -146,8 +150,9 @@ class Progress:
             return
         if self.tty:
             self.err.write("\n")
+        extra = f"; {self.status()}" if self.status is not None else ""
         self.err.write(f"{self.label}: {self.done} messages in {time.monotonic() - self.t0:.1f} s"
-                       "\n")
+                       f"{extra}\n")
         self.err.flush()
 
 

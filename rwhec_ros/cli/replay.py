@@ -24,8 +24,10 @@ from .common import (
     solver_overrides,
 )
 
-__all__ = ["cmd_bag", "cmd_demo", "demo_parameters"]
+__all__ = ["cmd_bag", "cmd_demo", "demo_parameters", "LiveWatch"]
 
+#: Seconds ``bag`` waits for the live re-solve of the whole recording before calibrating.
+LIVE_FINAL_TIMEOUT_S = 60.0
 #: Prefixes of the parameters that describe the simulated rig itself (kept by ``demo --config``).
 RIG_PARAMETER_PREFIXES = ("camera_carrier.", "tag_carrier.", "pose_source.", "cameras.", "tags.")
 
@@ -79,8 +81,14 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     handlers = MessageHandlers(session)
     try:
         tf_failure, errors = _replay(args, say, session, handlers, routes, TfTree)
+        # the whole recording's convergence (only shown, so not with --quiet)
+        final = None if args.quiet else session.live.solve_now(LIVE_FINAL_TIMEOUT_S)
     except KeyboardInterrupt:
+        session.close()
         raise Interrupted(_save_so_far(session, paths, say)) from None
+    session.close()
+    if final is not None:
+        say.progress(f"live estimate at the end of the bag: {final.line()}")
     for exc in errors[:3]:
         say.warning("bag", f"detection thread error: {type(exc).__name__}: {exc}")
     counters = session.counters()
@@ -135,9 +143,16 @@ def _replay(args, say: Printer, session, handlers, routes,
         feeder.image(cam, msg, compressed=compressed, T_parent_child=T)
 
     waiting = CameraInfoWait()  # images a few ms ahead of their camera's first CameraInfo
-    progress = Progress(say.err, "reading bag", enabled=not args.quiet)
+    progress = Progress(say.err, "reading bag", enabled=not args.quiet,
+                        status=lambda: session.live.status().line())
+    watch = LiveWatch(session.live, say, enabled=not args.quiet, lines=not progress.tty)
+
+    def on_progress(done: int, total: int) -> None:
+        watch(done, total)
+        progress(done, total)
+
     try:
-        for m in read_messages(args.bag, list(routes), on_progress=progress):
+        for m in read_messages(args.bag, list(routes), on_progress=on_progress):
             kind, cam, _ = routes[m.topic]
             if kind == "pose":
                 feeder.pose(m.msg)
@@ -167,6 +182,28 @@ def _replay(args, say: Printer, session, handlers, routes,
     finally:
         progress.close()
     return failure, feeder.errors
+
+
+class LiveWatch:
+    """Drives the session's live re-solve from the read loop (``LiveSolver.tick``, which never
+    blocks; not at all unless ``enabled``: ``--quiet`` shows nothing, so nothing is solved) and,
+    where no progress bar shows it (``lines``: not a terminal), prints a line with the first
+    live estimate and whenever its convergence verdict changes."""
+
+    def __init__(self, live, say: Printer, *, enabled: bool, lines: bool) -> None:
+        self.live, self.say, self.enabled, self.lines = live, say, enabled, lines
+        self.shown = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        self.live.tick()
+        if not self.lines:
+            return
+        est = self.live.estimate
+        if est is not None and est.converged != self.shown:
+            self.shown = est.converged
+            self.say.progress(f"live estimate at message {done}/{total}: {est.line()}")
 
 
 def _save_so_far(session, paths, say: Printer) -> str:

@@ -15,6 +15,7 @@ from .sections import (
     AccuracyConfig,
     CameraConfig,
     CarrierConfig,
+    ConvergenceConfig,
     DetectionConfig,
     KeyframeConfig,
     NoiseConfig,
@@ -65,6 +66,7 @@ class CalibratorConfig:
     parameters: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
     priors: PriorsConfig = field(default_factory=PriorsConfig)
     accuracy: AccuracyConfig = field(default_factory=AccuracyConfig)
+    convergence: ConvergenceConfig = field(default_factory=ConvergenceConfig)
 
     # --- names ------------------------------------------------------------------------------
     @property
@@ -258,6 +260,11 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         reject_outliers=v["solver.reject_outliers"],
         unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
         min_scale=check_positive(v, "solver.min_scale"),
+        live_period_s=check_positive(v, "solver.live_period_s", allow_zero=True),
+    )
+    convergence = ConvergenceConfig(
+        max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),
+        max_std_rotation_deg=check_positive(v, "convergence.max_std_rotation_deg"),
     )
     priors = _build_priors(v, names, tags)
     output = OutputConfig(
@@ -295,6 +302,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         parameters=plain,
         priors=priors,
         accuracy=accuracy,
+        convergence=convergence,
     )
 
 

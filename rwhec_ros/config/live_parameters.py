@@ -18,7 +18,9 @@ What a live change does (the text also goes into the callback's answer and the l
   so the next ``calibrate``, ``save_dataset`` and ``/diagnostics`` use them;
 * ``keyframe.min_rotation_rad``, ``keyframe.min_translation_m`` -- used for the pairs offered
   from now on (pairs already kept stay);
-* ``output.*`` -- used by the next ``calibrate`` / ``save_dataset``.
+* ``output.*`` -- used by the next ``calibrate`` / ``save_dataset``;
+* ``solver.live_period_s`` (0 turns the live re-solve off), ``convergence.*`` -- used by the next
+  live re-solve (:mod:`rwhec_ros.session.live_solve`).
 
 Everything else is read once at start-up (subscriptions, queues, worker threads, detectors, the
 frames of the problem) and needs a restart. A new parameter is restart-only until it is added to
@@ -51,6 +53,8 @@ _NEXT_SOLVE = "used by the next calibrate"
 #: Live parameter (exact name, or a section prefix ending in ``.``) -> what a change does.
 LIVE_PARAMETERS: dict[str, str] = {
     "solver.": _NEXT_SOLVE,
+    "solver.live_period_s": "used at once by the live re-solve (0 turns it off)",
+    "convergence.": "used by the next live re-solve",
     "noise.sigma": "given to every kept pair now (unless noise.from_reprojection), so the next "
                    "calibrate uses it",
     "noise.kappa": "given to every kept pair now (unless noise.from_reprojection), so the next "

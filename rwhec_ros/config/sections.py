@@ -14,6 +14,7 @@ __all__ = [
     "KeyframeConfig",
     "DetectionConfig",
     "SolverConfig",
+    "ConvergenceConfig",
     "OutputConfig",
     "RosConfig",
     "AccuracyConfig",
@@ -141,6 +142,17 @@ class SolverConfig:
     reject_outliers: bool
     unobservable_std_m: float = 1.0
     min_scale: float = 0.01
+    live_period_s: float = 2.0
+
+
+@dataclass(frozen=True)
+class ConvergenceConfig:
+    """When the live estimate (:mod:`rwhec_ros.session.live_solve`) counts as converged: every
+    configured frame estimated and its standard deviations at or below these (translation [m]
+    per axis, rotation [deg] per axis; the larger of predicted and a posteriori)."""
+
+    max_std_translation_m: float = 0.005
+    max_std_rotation_deg: float = 0.25
 
 
 @dataclass(frozen=True)

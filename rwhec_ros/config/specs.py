@@ -156,6 +156,15 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "priors.* or the default and the result says so"),
     ParamSpec("solver.min_scale", "double", 0.01,
               doc="unknown scale: an estimate at or below this floor is never certified"),
+    ParamSpec("solver.live_period_s", "double", 2.0,
+              doc="re-solve in the background ('fast', no SDP fallback) at most this often [s] "
+                  "while new pairs arrive, for the running estimate and its convergence "
+                  "(node: ~/estimate, /diagnostics; bag: the progress line); 0 = off"),
+    ParamSpec("convergence.max_std_translation_m", "double", 0.005,
+              doc="the live estimate has converged when every frame's translation std (the "
+                  "larger of predicted and a posteriori) is at or below this [m] ..."),
+    ParamSpec("convergence.max_std_rotation_deg", "double", 0.25,
+              doc="... and every frame's rotation std at or below this [deg]"),
     ParamSpec("priors.frames", "string_array", (),
               doc="frames (camera names or tag frames) with a known translation component, "
                   "parallel to priors.axes and priors.values_m"),

@@ -21,9 +21,13 @@ Interfaces (relative names, so the node can be namespaced):
   the configuration; only the frames the verdict finds usable unless ``output.publish_unusable``,
   the others named in the ``calibrate`` response and the log), ``~/suboptimality_bound``
   (``std_msgs/Float64``) and ``~/result``
-  (``std_msgs/String``, the result YAML), both transient local, and
-  ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (session, one row per camera:
-  received / dropped / skipped / searched and transport loss, one row per edge).
+  (``std_msgs/String``, the result YAML), both transient local, ``~/estimate``
+  (``std_msgs/String``, transient local: the running estimate of the live re-solve with every
+  frame's uncertainty and the convergence verdict, the result YAML's schema; see
+  :mod:`rwhec_ros.session.live_solve`), and
+  ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (session, live estimate (converged or
+  not), one row per camera: received / dropped / skipped / searched and transport loss, one row
+  per edge).
 
 Outputs go under ``$ROS_HOME/rwhec_ros`` (``~/.ros/rwhec_ros``) unless ``output.directory``
 says otherwise (:mod:`rwhec_ros.session.paths`); the start-up log and every service answer name
@@ -38,8 +42,10 @@ tag detection runs on ``sync.detection_threads`` worker threads fed by a
 :class:`~rwhec_ros.session.FairImageQueue` (one bounded drop-oldest queue per camera, served
 round-robin, one image per camera at a time, each held until the pose at its stamp has arrived);
 the services have their own mutually exclusive group, so ``calibrate`` answers while data keep
-flowing under a ``MultiThreadedExecutor``. Everything else is delegated to
-:class:`~rwhec_ros.session.CalibrationSession` through
+flowing under a ``MultiThreadedExecutor``. The live re-solve runs on the session's own worker
+thread; a timer in a separate mutually exclusive group (every :data:`LIVE_TICK_S`) only asks it
+to start one when due (``solver.live_period_s``) and publishes each new estimate once.
+Everything else is delegated to :class:`~rwhec_ros.session.CalibrationSession` through
 :class:`~rwhec_ros.session.handlers.MessageHandlers`.
 """
 
@@ -50,6 +56,7 @@ import threading
 import time
 
 import tf2_ros
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -93,6 +100,9 @@ __all__ = ["CalibratorNode", "main"]
 
 #: Seconds between two log lines of the same warning key.
 WARN_THROTTLE_S = 5.0
+#: Period [s] of the live timer: it starts a due re-solve (``solver.live_period_s``, a live
+#: parameter, is checked at every tick) and publishes a finished one on ``~/estimate``.
+LIVE_TICK_S = 0.25
 
 
 class CalibratorNode(Node):
@@ -126,11 +136,13 @@ class CalibratorNode(Node):
         self._warn_lock = threading.Lock()
         self._warn_last: dict[str, float] = {}
         self._warn_suppressed: dict[str, int] = {}
+        self._live_converged = False
         self.handlers = MessageHandlers(self.session, on_warning=self._warn_throttled)
 
         self._sensor_group = ReentrantCallbackGroup()
         self._service_group = MutuallyExclusiveCallbackGroup()
         self._timer_group = MutuallyExclusiveCallbackGroup()
+        self._live_group = MutuallyExclusiveCallbackGroup()
 
         # --- detection off the executor: per-camera drop-oldest queues + worker threads -------
         # Images wait in the queue (undecoded) until the session has the pose at their stamp.
@@ -191,11 +203,14 @@ class CalibratorNode(Node):
                              reliability=ReliabilityPolicy.RELIABLE)
         self._bound_pub = self.create_publisher(Float64, "~/suboptimality_bound", latched)
         self._result_pub = self.create_publisher(String, "~/result", latched)
+        self._estimate_pub = self.create_publisher(String, "~/estimate", latched)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._static_tf = tf2_ros.StaticTransformBroadcaster(self)
         self._diag_timer = self.create_timer(cfg.ros.diagnostics_period_s,
                                              self._publish_diagnostics,
                                              callback_group=self._timer_group)
+        self._live_timer = self.create_timer(LIVE_TICK_S, self._on_live_tick,
+                                             callback_group=self._live_group)
 
         # --- run-time parameter changes (after every declaration: declaring calls these too) --
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -360,6 +375,25 @@ class CalibratorNode(Node):
         self.get_logger().info(f"save_dataset: {response.message}")
         return response
 
+    # --- live estimate ------------------------------------------------------------------------
+    def _on_live_tick(self) -> None:
+        """Start a due live re-solve (returns at once) and publish a new estimate once."""
+        live = self.session.live
+        live.tick()
+        est = live.take_new()
+        if est is None:
+            return
+        try:
+            text = yaml.safe_dump(est.document, sort_keys=False)
+        except Exception as exc:  # noqa: BLE001 - never into the executor
+            self._warn_throttled("live_estimate", f"live estimate not published: "
+                                 f"{type(exc).__name__}: {exc}")
+            return
+        self._estimate_pub.publish(String(data=text))
+        if est.converged and not self._live_converged:
+            self.get_logger().info(f"live estimate {est.line()}; call calibrate to publish it")
+        self._live_converged = est.converged
+
     # --- diagnostics --------------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
         counters = self.session.counters()
@@ -378,7 +412,8 @@ class CalibratorNode(Node):
             verdict="" if report is None else str(report.verdict), calibration=calibration,
             accuracy=accuracy,
         )
-        rows[1:1] = self._camera_diagnostics.rows(
+        rows[1:1] = [self.session.live.status().diagnostic_row(self.get_name())]
+        rows[2:2] = self._camera_diagnostics.rows(
             self.session.camera_counters(), self._queue.stats(), prefix=self.get_name())
         msg = DiagnosticArray()
         fill_message(msg.header, {"stamp": ns_to_stamp_fields(self.get_clock().now().nanoseconds)})
@@ -395,13 +430,17 @@ class CalibratorNode(Node):
         self._diag_pub.publish(msg)
 
     def stop_activity(self) -> None:
-        """Stop the diagnostics timer and the detection workers (before the executor and the
-        node go away)."""
-        timer = getattr(self, "_diag_timer", None)
-        if timer is not None:
-            timer.cancel()
+        """Stop the timers, the detection workers and the live re-solve (before the executor
+        and the node go away)."""
+        for name in ("_diag_timer", "_live_timer"):
+            timer = getattr(self, name, None)
+            if timer is not None:
+                timer.cancel()
         for worker in getattr(self, "_workers", ()):
             worker.stop()
+        session = getattr(self, "session", None)
+        if session is not None:
+            session.close()
 
     def destroy_node(self) -> None:
         self.stop_activity()

@@ -32,6 +32,9 @@ data set and output files), :mod:`.rejections` (data rejected wholesale, in word
 (:class:`ImageQueue`, :class:`FairImageQueue`, :class:`QueueWorker`), :mod:`.camera_monitor`
 (transport loss from the stamps' spacing, per-camera ``/diagnostics`` rows), :mod:`.replay`
 (recorded messages into a session on several threads, for ``rwhec-calibrate bag``),
+:mod:`.live_solve` (:class:`~rwhec_ros.session.live_solve.LiveSolver`, the session's ``live``:
+background re-solves while data arrive, off the sensor path and never blocking ``calibrate``),
+:mod:`.convergence` (its convergence verdict and the ``~/estimate`` document),
 :mod:`.paths` (the output root), :mod:`.responses` (the service answers) and :mod:`.handlers`
 (:class:`MessageHandlers`: one ROS message, rclpy's or rosbags', into the session).
 """

@@ -70,7 +70,8 @@ class ImageInput:
     """Mixin of :class:`~rwhec_ros.session.CalibrationSession`: the image path (see the module
     docstring). It uses the session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
     ``_pending``, ``_counters``, ``_camera_counts``, ``_rejections``, ``_intrinsics``,
-    ``_tag_names``, ``_local``, ``_detector_config``, ``config`` and ``_pose_to_A``."""
+    ``_data_version``, ``_tag_names``, ``_local``, ``_detector_config``, ``config`` and
+    ``_pose_to_A``."""
 
     # --- public --------------------------------------------------------------------------------
     def add_image(
@@ -287,6 +288,8 @@ class ImageInput:
                     except ValueError:
                         self._count("identifiability_rejected_pair")
         self._count("pairs_kept", kept)
+        if kept:
+            self._data_version += 1
         return kept
 
     # --- helpers -------------------------------------------------------------------------------

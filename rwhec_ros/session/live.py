@@ -29,6 +29,7 @@ from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .accuracy import AccuracyOptions
 from .image_input import CAMERA_COUNTERS, ImageInput
+from .live_solve import LiveSolver, PairsSnapshot
 from .outcomes import SolveOutcome, edge_rows
 from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
@@ -57,6 +58,15 @@ class CalibrationSession(ImageInput):
         Directory under which :meth:`calibrate` and :meth:`save_dataset` create their output
         directories (the node passes :func:`~rwhec_ros.session.paths.node_output_root`);
         default :func:`~rwhec_ros.session.paths.plain_output_root` of ``output.directory``.
+    live_solve : callable, optional
+        The live re-solve of :attr:`live` (default
+        :func:`~rwhec_ros.session.live_solve.solve_with_uncertainty`); injectable for tests.
+
+    Attributes
+    ----------
+    live : LiveSolver
+        The background re-solve and convergence verdict (:mod:`rwhec_ros.session.live_solve`);
+        driven by its ``tick()`` (the node's timer, the bag replay), stopped by :meth:`close`.
 
     Notes
     -----
@@ -71,6 +81,7 @@ class CalibrationSession(ImageInput):
         *,
         now: Callable[[], _dt.datetime] | None = None,
         output_root: str | Path | None = None,
+        live_solve: Callable | None = None,
     ) -> None:
         self.config = config
         self.output_root = (Path(output_root) if output_root is not None
@@ -94,7 +105,12 @@ class CalibrationSession(ImageInput):
         self._tag_names = {t: config.tags.frame_name(t) for t in config.tags.ids}
         self._intrinsics: dict[str, CameraIntrinsics] = {}
         self._last_outcome: SolveOutcome | None = None
+        # never reset: the live solver compares them across resets
+        self._data_version = 0
+        self._calibrations = 0
+        self._resets = 0
         self._init_data()
+        self.live = LiveSolver(self, solve_fn=live_solve)
 
     # --- state -------------------------------------------------------------------------------
     def _init_data(self) -> None:
@@ -123,7 +139,9 @@ class CalibrationSession(ImageInput):
         """Use ``config`` from now on; it may differ from the current one in live parameters only
         (:mod:`rwhec_ros.config.live_parameters`), else ``ValueError`` naming them.
 
-        ``solver.*`` and ``output.*`` are read at the next :meth:`calibrate`; new ``noise.sigma``
+        ``solver.*`` and ``output.*`` are read at the next :meth:`calibrate` (``solver.
+        live_period_s`` at the next live tick); new ``convergence.*`` limits make the next live
+        tick re-solve; new ``noise.sigma``
         and ``noise.kappa`` go at once to every kept pair (unless ``noise.from_reprojection``)
         and the identifiability tracker is rebuilt with them; new keyframe thresholds apply to
         the pairs offered from now on. ``output_root`` replaces the output root (default: the
@@ -139,12 +157,15 @@ class CalibrationSession(ImageInput):
                 self.output_root = Path(output_root)
             elif old.output.directory != config.output.directory:
                 self.output_root = plain_output_root(config.output.directory)
+            if old.convergence != config.convergence:
+                self._data_version += 1  # the live re-solve judges again with the new limits
             self._acc.keyframe_rotation_rad = config.keyframe.min_rotation_rad
             self._acc.keyframe_translation_m = config.keyframe.min_translation_m
             noise = config.noise
             if not noise.from_reprojection and (noise.sigma, noise.kappa) != (
                     old.noise.sigma, old.noise.kappa):
                 self._acc.set_precisions(noise.sigma, noise.kappa)
+                self._data_version += 1
                 self._tracker = make_tracker(config.tags.unknown_scale)
                 for e in self._acc.edges().values():
                     try:
@@ -282,6 +303,8 @@ class CalibrationSession(ImageInput):
                   force: bool = False) -> SolveOutcome:
         """Solve with the data so far and write the outputs; never discards data.
 
+        Never waits for a live re-solve (:attr:`live`); one that overlaps it is dropped.
+
         Parameters
         ----------
         output_dir : str or Path, optional
@@ -298,6 +321,8 @@ class CalibrationSession(ImageInput):
             raised; otherwise the result, a short summary and the written files.
         """
         with self._solve_lock:
+            with self._lock:
+                self._calibrations += 1
             outcome = self._calibrate(output_dir, force)
         with self._lock:
             self._last_outcome = outcome
@@ -449,6 +474,32 @@ class CalibrationSession(ImageInput):
         return str(saved if saved is not None else target)
 
     def reset(self) -> None:
-        """Forget poses, pairs, pending images and counters (intrinsics are kept)."""
+        """Forget poses, pairs, pending images, counters and the live estimate (intrinsics are
+        kept)."""
         with self._lock:
             self._init_data()
+            self._data_version += 1
+            self._resets += 1
+        self.live.forget()
+
+    def close(self, timeout: float | None = 1.0) -> None:
+        """Stop the live re-solve's worker thread, waiting up to ``timeout`` s for a running
+        re-solve (a daemon thread: it never keeps the process alive); the data stay and
+        :meth:`calibrate` still works."""
+        self.live.stop(timeout)
+
+    # --- live re-solve (rwhec_ros.session.live_solve) ----------------------------------------
+    def pairs_snapshot(self) -> PairsSnapshot:
+        """Copies of the kept pairs per edge and the data version, taken under the lock (array
+        copies only, :meth:`~rwhec_ros.sync.accumulator.PairAccumulator.kept_pairs`: build the
+        problem outside, :func:`~rwhec_ros.sync.accumulator.problem_from_edges`)."""
+        with self._lock:
+            return PairsSnapshot(self._data_version, self._acc.kept_pairs(),
+                                 self._acc.rotation_tol)
+
+    def live_counts(self) -> tuple[int, int, int, bool]:
+        """``(data version, calibrations started, resets, calibrate running)``: what the live
+        solver needs to decide whether a re-solve is due or its result still holds."""
+        with self._lock:
+            return (self._data_version, self._calibrations, self._resets,
+                    self._solve_lock.locked())

@@ -38,13 +38,14 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.problem import DEFAULT_ROTATION_TOL, Edge, Problem, check_transforms
 from .edge_pairs import DatasetEdge
 
-__all__ = ["PairAccumulator", "PairListener"]
+__all__ = ["PairAccumulator", "PairListener", "KeptPairs", "problem_from_edges"]
 
 #: ``callback(x_name, y_name, A (4, 4), B (4, 4))``, called for every kept pair.
 PairListener = Callable[[str, str, np.ndarray, np.ndarray], None]
@@ -133,6 +134,13 @@ class _EdgeStore:
         rot = _rotation_angles(stored[:, :3, :3], A[:3, :3]) / rot_scale
         trans = np.linalg.norm(stored[:, :3, 3] - A[:3, 3], axis=-1) / trans_scale
         return np.maximum(rot, trans)
+
+    def copy(self) -> KeptPairs:
+        """The kept pairs sorted by stamp, as plain copies (no re-validation)."""
+        order = np.argsort(self.stamps[: self.n], kind="stable")
+        return KeptPairs(self.x, self.y, self.stamps[: self.n][order], self.A[: self.n][order],
+                         self.B[: self.n][order], self.sigma[: self.n][order],
+                         self.kappa[: self.n][order])
 
     def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float,
               corners=None) -> None:
@@ -410,6 +418,13 @@ class PairAccumulator:
         return {key: store.data(self.rotation_tol) for key, store in self._edges.items()
                 if store.n}
 
+    def kept_pairs(self) -> dict[tuple[str, str], KeptPairs]:
+        """Kept pairs per edge ``(x, y)`` like :meth:`edges`, but as plain array copies without
+        the validation of a data-set record (every pair was validated when offered): the
+        cheapest snapshot to take under a lock (the live re-solve's,
+        :meth:`~rwhec_ros.session.CalibrationSession.pairs_snapshot`)."""
+        return {key: store.copy() for key, store in self._edges.items() if store.n}
+
     def counts(self) -> dict[tuple[str, str], int]:
         """Number of kept pairs per edge ``(x, y)``."""
         return {key: store.n for key, store in self._edges.items() if store.n}
@@ -479,40 +494,75 @@ class PairAccumulator:
         ValueError
             If no edge is left.
         """
-        if not _is_int(min_pairs) or min_pairs < 1:
-            raise ValueError(f"min_pairs: expected an integer >= 1, got {min_pairs!r}")
-        data = self.edges()
-        xs = sorted({x for x, _ in data}) if x_names is None else [str(n) for n in x_names]
-        ys = sorted({y for _, y in data}) if y_names is None else [str(n) for n in y_names]
-        x_index = {n: i for i, n in enumerate(xs)}
-        y_index = {n: i for i, n in enumerate(ys)}
-        excluded: dict[tuple[str, str], str] = {}
-        kept: list[DatasetEdge] = []
-        for (x, y), e in data.items():
-            if x not in x_index:
-                excluded[(x, y)] = f"X frame {x!r} not in x_names"
-            elif y not in y_index:
-                excluded[(x, y)] = f"Y frame {y!r} not in y_names"
-            elif e.n < min_pairs:
-                excluded[(x, y)] = f"{e.n} pairs < min_pairs={min_pairs}"
-            else:
-                kept.append(e)
-        if not kept:
-            raise ValueError(
-                f"to_problem: no edge has at least min_pairs={min_pairs} pairs among the "
-                f"requested frames; excluded: {excluded}"
-            )
-        kept.sort(key=lambda e: (x_index[e.x], y_index[e.y]))
-        edges = [
-            Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa,
-                       rotation_tol=self.rotation_tol)
-            for e in kept
-        ]
-        touched = {e.x for e in kept} | {e.y for e in kept}
-        problem = Problem(
-            [n for n in xs if n in touched],
-            [n for n in ys if n in touched],
-            edges,
-            unknown_scale=unknown_scale,
+        return problem_from_edges(self.edges(), x_names, y_names, unknown_scale, min_pairs,
+                                  self.rotation_tol)
+
+
+@dataclass(frozen=True)
+class KeptPairs:
+    """One edge's kept pairs, sorted by stamp (:meth:`PairAccumulator.kept_pairs`): ``stamps_ns``
+    (N,), ``A``, ``B`` (N, 4, 4), ``sigma``, ``kappa`` (N,), copies of the stored arrays."""
+
+    x: str
+    y: str
+    stamps_ns: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    sigma: np.ndarray
+    kappa: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.stamps_ns.shape[0])
+
+
+def problem_from_edges(
+    data: dict[tuple[str, str], DatasetEdge | KeptPairs],
+    x_names: Sequence[str] | None = None,
+    y_names: Sequence[str] | None = None,
+    unknown_scale: bool = False,
+    min_pairs: int = 3,
+    rotation_tol: float = DEFAULT_ROTATION_TOL,
+    *,
+    validate: bool = True,
+) -> tuple[Problem, dict[tuple[str, str], str]]:
+    """:meth:`PairAccumulator.to_problem` of ``data`` (its :meth:`~PairAccumulator.edges` or
+    :meth:`~PairAccumulator.kept_pairs`, e.g. copied under a lock and built outside it); same
+    parameters, returns and errors. ``validate=False`` skips re-checking the transforms and
+    precisions of :meth:`~PairAccumulator.kept_pairs` (checked when offered)."""
+    if not _is_int(min_pairs) or min_pairs < 1:
+        raise ValueError(f"min_pairs: expected an integer >= 1, got {min_pairs!r}")
+    xs = sorted({x for x, _ in data}) if x_names is None else [str(n) for n in x_names]
+    ys = sorted({y for _, y in data}) if y_names is None else [str(n) for n in y_names]
+    x_index = {n: i for i, n in enumerate(xs)}
+    y_index = {n: i for i, n in enumerate(ys)}
+    excluded: dict[tuple[str, str], str] = {}
+    kept: list[DatasetEdge] = []
+    for (x, y), e in data.items():
+        if x not in x_index:
+            excluded[(x, y)] = f"X frame {x!r} not in x_names"
+        elif y not in y_index:
+            excluded[(x, y)] = f"Y frame {y!r} not in y_names"
+        elif e.n < min_pairs:
+            excluded[(x, y)] = f"{e.n} pairs < min_pairs={min_pairs}"
+        else:
+            kept.append(e)
+    if not kept:
+        raise ValueError(
+            f"to_problem: no edge has at least min_pairs={min_pairs} pairs among the "
+            f"requested frames; excluded: {excluded}"
         )
-        return problem, excluded
+    kept.sort(key=lambda e: (x_index[e.x], y_index[e.y]))
+    if validate:
+        edges = [Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa,
+                            rotation_tol=rotation_tol) for e in kept]
+    else:
+        edges = [Edge(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa) for e in kept]
+    touched = {e.x for e in kept} | {e.y for e in kept}
+    problem = Problem(
+        [n for n in xs if n in touched],
+        [n for n in ys if n in touched],
+        edges,
+        unknown_scale=unknown_scale,
+    )
+    return problem, excluded

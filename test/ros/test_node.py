@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 rclpy = pytest.importorskip("rclpy")
 pytest.importorskip("tf2_ros")
@@ -231,7 +232,7 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                  for c in rig.cameras}
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                          reliability=ReliabilityPolicy.RELIABLE)
-    received = {"tf": [], "bound": [], "result": [], "diag": []}
+    received = {"tf": [], "bound": [], "result": [], "diag": [], "estimate": []}
     helper.create_subscription(TFMessage, "/tf_static", lambda m: received["tf"].append(m),
                                QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                                           reliability=ReliabilityPolicy.RELIABLE))
@@ -239,6 +240,8 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                                lambda m: received["bound"].append(m), latched)
     helper.create_subscription(String, "/calibrator/result",
                                lambda m: received["result"].append(m), latched)
+    helper.create_subscription(String, "/calibrator/estimate",
+                               lambda m: received["estimate"].append(m), latched)
     helper.create_subscription(DiagnosticArray, "/diagnostics",
                                lambda m: received["diag"].append(m), 10)
     assert wait_for(lambda: pose_pub.get_subscription_count() > 0
@@ -260,6 +263,18 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                 gray, stamp, f"{cam}_optical")))
         time.sleep(0.03)  # let the detection worker keep up with the bounded queue
     assert wait_for(lambda: node.session.counters().get("pairs_kept", 0) > 60, timeout=30.0)
+
+    # the live re-solve (solver.live_period_s 2 s by default) publishes the running estimate
+    # with every frame's stds, in the result YAML's schema, and its row on /diagnostics
+    assert wait_for(lambda: received["estimate"], timeout=30.0)
+    estimate = yaml.safe_load(received["estimate"][-1].data)
+    assert estimate["source"]["type"] == "live" and "converged" in estimate["convergence"]
+    assert all(len(f["std_translation_m"]) == 3 and len(f["std_rotation_deg"]) == 3
+               for f in estimate["frames"])
+    assert wait_for(lambda: any(st.name == "calibrator: live estimate"
+                                for st in received["diag"][-1].status) if received["diag"]
+                    else False)
+    assert not any(Path(node.config.output.directory).rglob("result.yaml"))  # nothing written
 
     response = call(helper, "/calibrate")
     assert response.success, response.message  # success: a usable verdict (good or caution)

@@ -8,7 +8,7 @@ import pytest
 
 from rwhec_ros.core.lie import invert_transform, make_transform, rotation_distance, so3_exp
 from rwhec_ros.core.synthetic import perturb_measurements, random_transforms
-from rwhec_ros.sync.accumulator import PairAccumulator
+from rwhec_ros.sync.accumulator import PairAccumulator, problem_from_edges
 
 MS = 1_000_000
 DEG = np.pi / 180.0
@@ -253,6 +253,19 @@ def test_to_problem_excludes_and_orders():
         acc.to_problem(min_pairs=6)
     with pytest.raises(ValueError, match="min_pairs"):
         acc.to_problem(min_pairs=0)
+
+    # the live re-solve's snapshot: plain copies, the same problem without re-validation
+    kept = acc.kept_pairs()
+    assert {k: v.n for k, v in kept.items()} == acc.counts()
+    kept[("tag_2", "cam_1")].A[0] = 0.0  # a copy: the accumulator is untouched
+    assert np.all(acc.kept_pairs()[("tag_2", "cam_1")].A[0][3] == [0, 0, 0, 1])
+    reference, excl_ref = acc.to_problem(min_pairs=3)
+    problem, excluded = problem_from_edges(acc.kept_pairs(), min_pairs=3, validate=False)
+    assert excluded == excl_ref and problem.frame_names == reference.frame_names
+    for a, b in zip(problem.edges, reference.edges, strict=True):
+        assert (a.x, a.y) == (b.x, b.y)
+        for name in ("A", "B", "sigma", "kappa"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
 
 
 def test_edges_are_dataset_records_with_the_accumulator_tolerance():

@@ -1,0 +1,371 @@
+"""The session's live re-solve (:mod:`rwhec_ros.session.live_solve`): off the sensor path, never
+blocking ``calibrate``, failures keep the data, the period is honoured, convergence flips.
+
+The session is fed through its real sensor path (``add_pose``, ``add_image``: lock, motion
+gate, keyframes, accumulator, identifiability tracker); only the tag detector is replaced by one
+that returns the simulated measurement ``B = Y_k^-1 A X_j`` with the paper's noise model
+(:func:`rwhec_ros.core.synthetic.perturb_measurements`), so hundreds of images take
+milliseconds instead of rendering.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rwhec_ros.config import CalibratorConfig, read_parameter_file
+from rwhec_ros.core.lie import invert_transform
+from rwhec_ros.core.synthetic import perturb_measurements, random_transforms
+from rwhec_ros.session import CalibrationSession
+from rwhec_ros.session.convergence import convergence_of
+from rwhec_ros.session.live_solve import LiveSolver, solve_with_uncertainty
+from rwhec_ros.vision.detection import DetectionResult, TagObservation
+from rwhec_ros.vision.intrinsics import CameraIntrinsics
+
+DEMO_YAML = Path(__file__).resolve().parents[1] / "config" / "demo.yaml"
+NS = 1_000_000_000
+CAMERAS = ("cam0", "cam1")
+TAGS = (0, 1)
+SIGMA, KAPPA = 0.005, 400.0  # config/demo.yaml's stated noise; the simulation uses the same
+SIZE = 16  # pixels of the stand-in images (the fake detector never looks at them)
+
+
+def make_config(tmp: Path, **overrides) -> CalibratorConfig:
+    flat = {k: v for k, v in read_parameter_file(DEMO_YAML).items()
+            if not k.startswith("cameras.")}
+    flat.update({"output.directory": str(tmp), "cameras.names": list(CAMERAS),
+                 "tags.ids": list(TAGS), "noise.sigma": SIGMA, "noise.kappa": KAPPA})
+    for cam in CAMERAS:
+        flat[f"cameras.{cam}.image_topic"] = f"/{cam}/image_raw"
+        flat[f"cameras.{cam}.camera_info_topic"] = f"/{cam}/camera_info"
+    flat.update(overrides)
+    return CalibratorConfig.from_parameters(flat)
+
+
+class Rig:
+    """Truth (X_j = T_world_tag_j, Y_k = T_rig_cam_k), random poses A = T_rig_world, and a
+    detector that returns the noisy B of every tag for the image being examined."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+        self.X = {t: T for t, T in zip(TAGS, random_transforms(rng, len(TAGS), 1.0),
+                                       strict=True)}
+        self.Y = {c: T for c, T in zip(CAMERAS, random_transforms(rng, len(CAMERAS), 0.3),
+                                       strict=True)}
+        self.local = threading.local()
+        self.lock = threading.Lock()
+        self.visible = set(CAMERAS)
+
+    # --- the detector --------------------------------------------------------------------------
+    def image(self, camera: str, A: np.ndarray):
+        """The lazy image of ``camera`` at ``A`` (remembers what the detector should see)."""
+        def load():
+            self.local.current = (camera, A)
+            return np.zeros((SIZE, SIZE), np.uint8)
+        return load
+
+    def detect(self, gray, intrinsics, only_ids=None) -> DetectionResult:
+        camera, A = self.local.current
+        if camera not in self.visible:
+            return DetectionResult()
+        obs = []
+        for t in TAGS:
+            if only_ids is not None and t not in only_ids:
+                continue
+            B = invert_transform(self.Y[camera]) @ A @ self.X[t]
+            with self.lock:  # one generator, several feeding threads
+                B = perturb_measurements(self.rng, B[None], SIGMA, KAPPA)[0]
+            obs.append(TagObservation(t, B, 0.1, 50.0, 10.0, np.zeros((4, 2)), None, None, 0.25))
+        return DetectionResult(observations=obs)
+
+
+def make_session(tmp: Path, rig: Rig, solve_fn=None, **overrides) -> CalibrationSession:
+    session = CalibrationSession(make_config(tmp, **overrides), live_solve=solve_fn)
+    K = np.array([[10.0, 0, SIZE / 2], [0, 10.0, SIZE / 2], [0, 0, 1]])
+    for cam in CAMERAS:
+        assert session.set_camera_info(cam, CameraIntrinsics(SIZE, SIZE, K, np.zeros(5)))
+    session._detector = lambda: rig  # the only stand-in: detection itself
+    return session
+
+
+def feed(session: CalibrationSession, rig: Rig, n: int, start: int = 0) -> list[float]:
+    """``n`` poses and one image per camera at each; returns each image call's duration [s]."""
+    durations = []
+    for i in range(start, start + n):
+        stamp = (10 + i) * NS // 10
+        A = random_transforms(rig.rng, 1, 0.5)[0]  # large motion: every pair is a keyframe
+        T_world_rig = invert_transform(A)  # pose_source world -> rig: A = T_world_rig^-1
+        session.add_pose(stamp, T_world_rig)
+        for cam in CAMERAS:
+            t0 = time.perf_counter()
+            session.add_image(cam, stamp, rig.image(cam, A), T_parent_child=T_world_rig)
+            durations.append(time.perf_counter() - t0)
+    return durations
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class BlockingSolve:
+    """The live re-solve, held until ``release`` is set (``started`` tells it has begun)."""
+
+    def __init__(self) -> None:
+        self.started, self.release = threading.Event(), threading.Event()
+
+    def __call__(self, problem, config):
+        self.started.set()
+        assert self.release.wait(30.0)
+        return solve_with_uncertainty(problem, config)
+
+
+def test_sensor_path_never_waits_for_a_running_live_solve(tmp_path):
+    rig = Rig(np.random.default_rng(0))
+    blocking = BlockingSolve()
+    started, release = blocking.started, blocking.release
+    session = make_session(tmp_path, rig, blocking)
+    try:
+        feed(session, rig, 10)
+        assert session.live.tick() == "started"
+        assert started.wait(10.0)
+        solving_pairs = session.counters()["pairs_kept"]
+        # full rate while the solve is stuck: every image goes through the lock, the gate, the
+        # accumulator and the tracker at once
+        durations = feed(session, rig, 150, start=10)
+        counters = session.counters()
+        assert counters["pairs_kept"] == solving_pairs + 150 * len(CAMERAS) * len(TAGS)
+        assert counters["poses"] == 160
+        # 0.5 s: far above an image's cost here (~1 ms), far below the 30 s the solve waits
+        assert max(durations) < 0.5
+        assert session.live.tick() == "running"  # one live solve at a time
+        # calibrate does not wait for it either, and succeeds on all the data
+        outcome = session.calibrate()
+        assert outcome.success, outcome.message
+        assert session.live.status().running
+        release.set()
+        assert session.live.wait_idle(30.0)
+        status = session.live.status()
+        # its estimate overlapped calibrate: dropped, never older than the calibration
+        assert status.discarded == 1 and status.estimate is None and status.solves == 0
+        # the next re-solve (here at once, without waiting out the period) uses all the data
+        est = session.live.solve_now(30.0)
+        assert est is not None and est.n_pairs == counters["pairs_kept"]
+    finally:
+        release.set()
+        session.close()
+
+
+def test_no_live_solve_starts_while_calibrate_runs(tmp_path):
+    rig = Rig(np.random.default_rng(1))
+    session = make_session(tmp_path, rig)
+    try:
+        feed(session, rig, 8)
+        with session._solve_lock:  # what calibrate holds while it solves
+            assert session.live.tick() == "calibrating"
+        assert session.live.status().skipped_calibrating == 1
+        assert session.live.tick() == "started"
+        assert session.live.wait_idle(30.0)
+        assert session.live.estimate is not None
+    finally:
+        session.close()
+
+
+def test_failed_live_solve_keeps_data_reports_and_the_next_works(tmp_path):
+    rig = Rig(np.random.default_rng(2))
+    calls = []
+
+    def fails_once(problem, config):
+        calls.append(problem.n_measurements)
+        if len(calls) == 1:
+            raise RuntimeError("solver exploded")
+        return solve_with_uncertainty(problem, config)
+
+    session = make_session(tmp_path, rig, fails_once)
+    clock = FakeClock()
+    session.live = LiveSolver(session, solve_fn=fails_once, clock=clock)
+    try:
+        feed(session, rig, 8)
+        before = session.pairs_snapshot()
+        assert session.live.tick() == "started"
+        assert session.live.wait_idle(30.0)
+        status = session.live.status()
+        assert status.failures == 1 and "RuntimeError: solver exploded" in status.last_error
+        assert status.estimate is None
+        row = status.diagnostic_row("calibrator")
+        assert row["level"] == 1 and "solver exploded" in row["message"]
+        after = session.pairs_snapshot()  # all data kept
+        assert after.version == before.version and after.n_pairs == before.n_pairs == 32
+        clock.t = 10.0
+        assert session.live.tick() == "no_new_pairs"  # the same data would fail the same way
+        feed(session, rig, 2, start=8)
+        assert session.live.tick() == "started"
+        assert session.live.wait_idle(30.0)
+        status = session.live.status()
+        assert status.last_error == "" and status.solves == 1 and calls == [32, 40]
+        assert status.estimate.n_pairs == 40
+        assert session.calibrate().success  # calibrate unaffected
+    finally:
+        session.close()
+
+
+def test_the_period_and_the_duty_cycle_are_honoured(tmp_path):
+    rig = Rig(np.random.default_rng(3))
+    clock = FakeClock()
+    starts = []
+
+    def timed(problem, config):
+        starts.append(clock.t)
+        out = solve_with_uncertainty(problem, config)
+        clock.t += duration[0]  # the solve "takes" this long on the fake clock
+        return out
+
+    duration = [0.0]
+    session = make_session(tmp_path, rig, **{"solver.live_period_s": 2.0})
+    session.live = LiveSolver(session, solve_fn=timed, clock=clock, max_duty=0.25)
+    try:
+        feed(session, rig, 6)
+        assert session.live.tick() == "started"
+        assert session.live.wait_idle(30.0)
+        feed(session, rig, 1, start=6)
+        clock.t = 1.99
+        assert session.live.tick() == "waiting"  # within the period of the last start
+        clock.t = 2.0
+        assert session.live.tick() == "started"
+        assert session.live.wait_idle(30.0)
+        clock.t = 4.5
+        assert session.live.tick() == "no_new_pairs"  # due, but nothing new to solve
+        # a slow solve (3 s): the next waits 3 x 3 s after it ended (duty cycle 25 %)
+        duration[0] = 3.0
+        feed(session, rig, 1, start=7)
+        assert session.live.tick() == "started"  # at 4.5, ends at 7.5
+        assert session.live.wait_idle(30.0)
+        feed(session, rig, 1, start=8)
+        clock.t = 16.4
+        assert session.live.tick() == "waiting"
+        clock.t = 16.5
+        assert session.live.tick() == "started"
+        assert session.live.wait_idle(30.0)
+        assert starts == [0.0, 2.0, 4.5, 16.5]
+        # new convergence limits: judged again at the next tick, without new pairs
+        clock.t = 30.0
+        session.update_config(make_config(tmp_path, **{"solver.live_period_s": 2.0,
+                                                       "convergence.max_std_rotation_deg": 1.0}))
+        assert session.live.tick() == "started"
+        assert session.live.wait_idle(30.0)
+        assert session.live.estimate.convergence.max_std_rotation_deg == 1.0
+        # live_period_s is read at every tick: 0 turns it off at once
+        session.update_config(make_config(tmp_path, **{"solver.live_period_s": 0.0}))
+        feed(session, rig, 1, start=9)
+        clock.t = 100.0
+        assert session.live.tick() == "off"
+        assert session.live.status().line().startswith("live estimate off")
+    finally:
+        session.close()
+
+
+def test_converged_flips_when_the_stds_go_below_the_limits(tmp_path):
+    rig = Rig(np.random.default_rng(4))
+    # 1 mm / 0.3 deg: between the stds after 56 pairs (about 1.2 mm / 0.39 deg with this seed)
+    # and after 136 pairs (0.7 mm / 0.25 deg); they fall about as 1/sqrt(pairs)
+    limits = {"convergence.max_std_translation_m": 0.001,
+              "convergence.max_std_rotation_deg": 0.3}
+    session = make_session(tmp_path, rig, **limits)
+    clock = FakeClock()
+    session.live = LiveSolver(session, clock=clock)
+    rows, start = [], 0
+    try:
+        rig.visible = {"cam0"}  # cam1 sees nothing yet: it cannot be converged
+        for n in (4, 3, 3, 6, 20, 60):
+            feed(session, rig, n, start=start)
+            start += n
+            clock.t += 10.0
+            assert session.live.tick() == "started"
+            assert session.live.wait_idle(60.0)
+            rows.append(session.live.estimate)
+            rig.visible = set(CAMERAS)
+        first, est = rows[0], rows[-1]
+        assert not first.converged and first.convergence.missing == ("cam1",)
+        verdicts = [e.converged for e in rows]
+        assert verdicts == [False, False, False, False, True, True], verdicts
+        for e in rows:
+            c = e.convergence
+            # the verdict is exactly the rule, and it uses the stds of frame_uncertainty
+            assert c.converged == (not c.missing and not c.unobservable
+                                   and c.worst_translation_m <= 0.001
+                                   and c.worst_rotation_deg <= 0.3)
+            stds = [f.std_translation_m.max() for f in e.uncertainty.frames]
+            assert c.worst_translation_m == pytest.approx(max(stds) * c.noise_ratio)
+        # the stds shrink as pairs arrive (about 1/sqrt(n): 20 -> 376 pairs in all)
+        assert est.convergence.worst_translation_m < 0.5 * rows[1].convergence.worst_translation_m
+        row = session.live.status().diagnostic_row("calibrator")
+        assert row["level"] == 0 and row["message"].startswith("376 pairs: converged")
+        assert dict(row["values"])["converged"] == "true"
+        # the estimate document: the result YAML's schema plus the stds per frame
+        doc = yaml.safe_load(yaml.safe_dump(est.document, sort_keys=False))
+        assert doc["source"]["type"] == "live" and doc["verdict"] == "unknown"
+        assert doc["convergence"]["converged"] is True
+        frames = {f["name"]: f for f in doc["frames"]}
+        assert set(frames) == {"cam0", "cam1", "tag_0", "tag_1"}
+        for f in frames.values():
+            assert len(f["std_translation_m"]) == 3 and len(f["std_rotation_deg"]) == 3
+            assert {"parent", "child", "translation", "quaternion_xyzw"} <= set(f)
+        assert doc["uncertainty"]["dof"] > 0 and doc["live"]["pairs"] == est.n_pairs
+        # the estimate is right: within 4 sigma of the truth on every axis (sigma: its std)
+        cam1 = est.result.transform("cam1")
+        err = np.abs(cam1[:3, 3] - rig.Y["cam1"][:3, 3])
+        assert np.all(err < 4 * est.uncertainty.frame("cam1").std_translation_m)
+    finally:
+        session.close()
+
+
+def test_unobservable_axes_never_converge(tmp_path):
+    # one camera, one tag, rotation about one axis only: a translation direction is undetermined
+    from rwhec_ros.core.synthetic import planar_instance
+
+    problem, _ = planar_instance(np.random.default_rng(5), 1, 1, 30, sigma=0.001, kappa=2000.0)
+    config = make_config(tmp_path)
+    result, unc = solve_with_uncertainty(problem, config)
+    assert unc.unobservable
+    c = convergence_of(unc, [*problem.y_names, *problem.x_names], 10.0, 90.0)  # huge limits
+    assert not c.converged and c.unobservable and "unobservable" in c.words()
+    assert all("translation" in u for u in c.unobservable)  # the heights, not the rotations
+
+
+def test_reset_forgets_the_estimate_and_drops_a_running_one(tmp_path):
+    rig = Rig(np.random.default_rng(6))
+    blocking = BlockingSolve()
+    started, release = blocking.started, blocking.release
+    session = make_session(tmp_path, rig, blocking)
+    try:
+        feed(session, rig, 6)
+        assert session.live.tick() == "started" and started.wait(10.0)
+        session.reset()
+        release.set()
+        assert session.live.wait_idle(30.0)
+        assert session.live.estimate is None and session.live.status().discarded == 1
+    finally:
+        release.set()
+        session.close()
+
+
+def test_take_new_hands_out_each_estimate_once(tmp_path):
+    rig = Rig(np.random.default_rng(7))
+    session = make_session(tmp_path, rig)
+    try:
+        assert session.live.take_new() is None
+        feed(session, rig, 5)
+        est = session.live.solve_now(30.0)
+        assert est is not None and est.sequence == 1
+        assert session.live.take_new() is est and session.live.take_new() is None
+        assert session.live.solve_now(30.0) is est  # nothing new: no re-solve
+    finally:
+        session.close()
