@@ -125,7 +125,13 @@ class ExactReduction:
 def certificate_matrix(Qs: np.ndarray, constraints: ConstraintSet, lam: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
     """``Z = Q' - K(lambda)`` (symmetrised, eq. (51)) and the row sums of an entrywise bound on
-    its rounding error (forming ``K = C lambda``, the subtraction, the symmetrisation)."""
+    its rounding error (forming ``K = C lambda``, the subtraction, the symmetrisation).
+
+    The bound, row ``i``: ``gamma_{t+1} sum_j (|C| |lambda|)_ij + gamma_3 sum_j (|Q'_ij| +
+    |K_ij|)`` with ``t`` the largest number of constraints touching one entry (a dot product of
+    ``t`` terms is accurate to ``gamma_t`` times the sum of its absolute terms; one more rounding
+    for the product with ``lambda``; three for the subtraction, the sum and the halving of the
+    symmetrisation)."""
     d = constraints.d
     K = constraints.apply(lam)
     K_abs = np.asarray(abs(constraints.C) @ np.abs(lam)).reshape(d, d, order="F")

@@ -245,6 +245,68 @@ def test_symmetrisation_and_subtraction_of_certificate_matrix():
     assert np.all(err >= 0) and err.max() < 1e-12 * np.abs(Qs).max() * D
 
 
+def _constraint_case(seed: int):
+    """Q' and multipliers of mixed sign spanning ten orders of magnitude, for two rotations."""
+    rng = np.random.default_rng(seed)
+    n = 2
+    cons = so3_constraint_matrices(np.arange(n) * 9, D, D - 1)
+    A = rng.standard_normal((D, D)) * 10.0 ** rng.uniform(-3, 3, (D, 1))
+    Qs = A @ A.T
+    lam = rng.standard_normal(cons.m) * 10.0 ** rng.uniform(-5, 5, cons.m)
+    return Qs, cons, lam
+
+
+def test_certificate_matrix_rounding_bound_holds_in_exact_arithmetic():
+    """The entrywise rounding of Z (row sums) is below the bound of certificate_matrix, with Z
+    computed exactly in rational arithmetic from the same float inputs."""
+    from fractions import Fraction
+
+    for seed in range(3):
+        Qs, cons, lam = _constraint_case(seed)
+        Z, err = certificate_matrix(Qs, cons, lam)
+        C = cons.C.tocoo()
+        K = [[Fraction(0)] * D for _ in range(D)]
+        for r, c, v in zip(C.row, C.col, C.data, strict=True):
+            i, j = r % D, r // D  # vec() is column-major
+            K[i][j] += Fraction(float(v)) * Fraction(float(lam[c]))
+        for i in range(D):
+            row_err = sum(abs(Fraction(float(Z[i, j])) - (Fraction(float(Qs[i, j])) - K[i][j]))
+                          for j in range(D))
+            assert row_err <= Fraction(float(err[i])), (seed, i)
+
+
+def test_certificate_matrix_rounding_bound_is_the_documented_formula():
+    """err_rows = gamma_{t+1} rows(|C||lambda|) + gamma_3 rows(|Q'| + |K|), t the most
+    constraints on one entry of Z (counted here from the dense constraint matrices)."""
+    from rwhec_ros.core.verified import gamma
+
+    Qs, cons, lam = _constraint_case(7)
+    Z, err = certificate_matrix(Qs, cons, lam)
+    Cd = cons.C.toarray()
+    t = int((Cd != 0).sum(axis=1).max())
+    assert t >= 2  # the s-s entry carries every rotation's constant term
+    K = (Cd @ lam).reshape(D, D, order="F")
+    K_abs = (np.abs(Cd) @ np.abs(lam)).reshape(D, D, order="F")
+    expected = gamma(t + 1) * K_abs.sum(axis=1) + gamma(3) * (np.abs(Qs).sum(axis=1)
+                                                             + np.abs(K).sum(axis=1))
+    np.testing.assert_allclose(err, expected, rtol=1e-12)
+
+
+def test_certificate_options_defaults_and_bounds():
+    """Documented defaults (6 eigenvalues reported) and the smallest accepted count (2: the
+    certificate needs the gap after the null direction); a reduction is an immutable value."""
+    import dataclasses
+
+    c = _cert(_spectrum(0.0))
+    assert len(c.eigenvalues) == 6
+    assert len(_cert(_spectrum(0.0), options=CertificateOptions(n_eigenvalues=2)).eigenvalues) == 2
+    assert len(_cert(_spectrum(0.0), options=CertificateOptions(n_eigenvalues=3)).eigenvalues) == 3
+    with pytest.raises(ValueError, match="n_eigenvalues"):
+        CertificateOptions(n_eigenvalues=1)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        ExactReduction(D).block_lower = 0.0  # type: ignore[misc]
+
+
 def test_certify_with_real_reduction_matches_certify_from_z():
     rng = np.random.default_rng(6)
     problem, gt = random_instance(rng, 1, 2, n_per_edge=15, sigma=0.01, kappa=200)
