@@ -289,11 +289,15 @@ def main(argv: list[str] | None = None) -> int:
     mutants = [m for f in files for m in generate(f, TARGETS[f])]
     if args.limit:
         mutants = mutants[: args.limit]
-    earlier: dict[tuple[str, int, str, str], str] = {}
+    # keyed without the line number (edits above a line move it); a key that survived once is
+    # run again
+    earlier: dict[tuple[str, str, str], str] = {}
     if args.rerun_survivors:
         for line in args.rerun_survivors.read_text().splitlines():
             r = json.loads(line)
-            earlier[(r["file"], r["lineno"], r["source"], r["description"])] = r["outcome"]
+            key = (r["file"], r["source"], r["description"])
+            if not earlier.get(key, "").startswith("survived"):
+                earlier[key] = r["outcome"]
     if args.list:
         for m in mutants:
             print(f"{m.file}:{m.lineno}: {m.description}    | {m.source}")
@@ -314,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def task(i: int):
         m = mutants[i]
-        before = earlier.get((m.file, m.lineno, m.source, m.description))
+        before = earlier.get((m.file, m.source, m.description))
         if before is not None and before.startswith("killed"):
             results[i] = (m, before + " (earlier run)", 0.0)
             return
