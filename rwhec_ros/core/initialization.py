@@ -92,7 +92,7 @@ def closed_form_estimate(
         w, V = np.linalg.eigh(L)
         v = V[:, 0]
     elif d <= 1000 or not sp.issparse(L):
-        L = np.asarray(L)
+        L = L.toarray() if sp.issparse(L) else np.asarray(L)  # a sparse cost above DENSE_MAX_SIZE
         w, V = scipy.linalg.eigh(L, subset_by_index=[0, 0], driver="evr")
         v = V[:, 0]
     else:

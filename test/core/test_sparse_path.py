@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from test_gauge import _planar_rig
 
 from rwhec_ros.core import gauge as gauge_module
-from rwhec_ros.core.cost import StateLayout, build_cost_matrices, reduce_cost
+from rwhec_ros.core.cost import DENSE_MAX_SIZE, StateLayout, build_cost_matrices, reduce_cost
 from rwhec_ros.core.gauge import (
     GaugeOptions,
     TranslationPrior,
@@ -128,12 +128,19 @@ def test_full_form_reproduces_the_reduced_cost_with_the_penalty_tree(unknown_sca
         dense.alpha, rel=1e-12)
 
 
-@pytest.mark.parametrize("case", ["star", "unknown_scale", "graph"])
+@pytest.mark.parametrize("case", ["star", "star_sparse_build", "unknown_scale", "graph"])
 def test_sparse_and_dense_paths_agree(case):
-    """Same optimum, both certified, p the direct cost on both (mid-size problems)."""
+    """Same optimum, both certified, p the direct cost on both (mid-size problems).
+    ``star_sparse_build``: 61 frames, so the cost matrices are built sparse (above
+    DENSE_MAX_SIZE) while the dense path's closed form still takes its dense eigensolver (the
+    rotation block is below 1000): a sparse matrix there once crashed the dense path."""
     rng = np.random.default_rng(5)
     if case == "star":
         problem, _ = random_instance(rng, 1, 45, n_per_edge=10, sigma=0.02, kappa=100)
+    elif case == "star_sparse_build":
+        problem, _ = random_instance(rng, 1, 60, n_per_edge=10, sigma=0.02, kappa=100)
+        layout = StateLayout(problem.M, problem.P)
+        assert layout.size > DENSE_MAX_SIZE and 200 < layout.size - layout.r0 <= 1000
     elif case == "unknown_scale":
         problem, _ = random_instance(rng, 2, 20, n_per_edge=10, sigma=0.02, kappa=100,
                                      unknown_scale=True, alpha=0.8)
