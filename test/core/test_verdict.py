@@ -184,6 +184,37 @@ def test_wrong_tag_sizes_show_as_a_scale(factor, level, words):
         assert "~20 % too small (true size = configured / 0.800)" in top.message
 
 
+def test_scale_check_std_does_not_grow_with_a_cautiously_stated_noise():
+    """The scale check's std is the a-posteriori one: stating the noise 10x looser than the data
+    scatter (a cautious user) leaves it as it is (with max(1, s_t) it grew 10x and hid tag sizes
+    a few % off); a 5 % scale is then still reported, and consistent data stated loosely get no
+    scale reason."""
+
+    def stated(p: Problem, factor: float) -> Problem:
+        return p.with_edges([Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma * factor,
+                                        kappa=e.kappa / factor**2) for e in p.edges])
+
+    problem, _ = good_problem(6, sigma=0.002, kappa=2000.0)
+    exact = check_scale(problem)
+    loose = check_scale(stated(problem, 10.0))
+    assert loose.noise_ratio_translation < 0.2  # the data fit far better than stated
+    # scale_std grows 10x with the stated sigma, s_t shrinks 10x: the same std (rounding of the
+    # solve and of the fit's dof correction aside)
+    assert loose.std == pytest.approx(exact.std, rel=0.05)
+
+    def scaled(e):
+        B = e.B.copy()
+        B[:, :3, 3] *= 1.05
+        return e.A, B
+
+    broken = stated(with_edges(problem, scaled), 10.0)
+    verdict = assess(solve(broken), broken)
+    assert any(r.code == "scale" and "1.050 times" in r.message for r in verdict.reasons)
+    fine = stated(problem, 10.0)
+    verdict = assess(solve(fine), fine)
+    assert not any(r.code == "scale" for r in verdict.reasons), verdict.messages()
+
+
 def test_scale_check_of_consistent_data_is_one():
     problem, _ = good_problem(7)
     sc = check_scale(problem)
