@@ -80,6 +80,11 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "rotation's constant term, so the maximum is >= 2 (asserted in test_certificate)",
     (_CERT, _TERMS, "1 -> 0"):
         "as above: the maximum over a non-empty constraint set is >= 2",
+    (_CERT, "err_rows = (gamma(terms + 1) * K_abs.sum(axis=1)", "1 -> 0"):
+        "K_abs = |C| |lambda| is symmetric (every constraint matrix is): its column sums are its "
+        "row sums (up to the summation order's rounding, far below gamma)",
+    (_CERT, "+ gamma(3) * (np.abs(Qs).sum(axis=1) + np.abs(K).sum(axis=1)))", "1 -> 0"):
+        "|Q'| and |K| are symmetric: column sums = row sums (as above)",
 }
 
 

@@ -15,6 +15,7 @@ from rwhec_ros.core.certificate import (
     certificate_matrix,
     certify,
     certify_from_Z,
+    rigorous_dual_bound,
 )
 from rwhec_ros.core.cost import StateLayout, build_cost_matrices, reduce_cost
 from rwhec_ros.core.local_solver import (
@@ -294,7 +295,8 @@ def test_certificate_matrix_rounding_bound_is_the_documented_formula():
 
 def test_certificate_options_defaults_and_bounds():
     """Documented defaults (6 eigenvalues reported) and the smallest accepted count (2: the
-    certificate needs the gap after the null direction); a reduction is an immutable value."""
+    certificate needs the gap after the null direction); a reduction and a bound are immutable
+    values."""
     import dataclasses
 
     c = _cert(_spectrum(0.0))
@@ -305,6 +307,10 @@ def test_certificate_options_defaults_and_bounds():
         CertificateOptions(n_eigenvalues=1)
     with pytest.raises(dataclasses.FrozenInstanceError):
         ExactReduction(D).block_lower = 0.0  # type: ignore[misc]
+    bound = rigorous_dual_bound(_crafted(_spectrum(0.0)), np.zeros(D), 1.0, ExactReduction(D),
+                                1.0, N_ROT, 0.0)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        bound.value = 0.0  # type: ignore[misc]
 
 
 def test_certify_with_real_reduction_matches_certify_from_z():
