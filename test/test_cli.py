@@ -612,9 +612,12 @@ def test_demo_of_3_seconds_is_unusable(tmp_path):
     assert code == EXIT_UNUSABLE, stdout + stderr
     lines = stdout.splitlines()
     assert lines[1].startswith("UNUSABLE: ")  # after the "demo: ..." line
-    # cam2 saw a tag twice at most (edge below min_pairs): not calibrated, with the reason
+    # cam2 saw a tag twice at most: not calibrated, and a reason names it (which one depends on
+    # the detections of the OpenCV version: an edge below min_pairs, or a rotation of cam2 the
+    # few pairs do not determine, as with OpenCV 4.11 on the numpy-1.26 line)
     assert "rig->cam2_optical_calibrated: NOT CALIBRATED (" in stdout
-    assert any("cam2: not calibrated" in line for line in lines)
+    reasons = [line for line in lines if line.lstrip().startswith(("UNUSABLE: ", "CAUTION: "))]
+    assert any("cam2" in line and "not" in line for line in reasons), reasons
     doc = yaml.safe_load((out / "result.yaml").read_text())
     assert doc["verdict"] == "unusable"
 
