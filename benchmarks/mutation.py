@@ -4,16 +4,25 @@ A small AST mutator (no third-party tool): each mutant changes ONE thing in one 
 modules -- an arithmetic or comparison operator, a boolean connective, a ``not``, a numeric
 constant (x100, /100, +-1, 0 <-> 1), ``min`` <-> ``max``, an ``abs`` dropped, a unary minus
 dropped, ``True`` <-> ``False`` -- in a private copy of the repository, and runs the tests that
-reach the certificate (``pytest -x -q`` on the files in ``TESTS``). A mutant is *killed* when a
-test fails (or the run exceeds the timeout), *survives* otherwise. Survivors are listed, each
-either killed later by a new test or argued equivalent in ``EQUIVALENT`` (one line each).
+reach the mutated code. A mutant is *killed* when a test fails (or the run exceeds the
+timeout), *survives* otherwise. Survivors are listed, each either killed later by a new test or
+argued equivalent in ``EQUIVALENT`` (one line each).
+
+Which tests (``--select coverage``, the default): the suite runs once under ``coverage`` with one
+context per test (a small pytest plugin written into the private copy), which gives, for every
+line of the targets, the tests that execute it and each test's duration. A mutant then runs
+``pytest -x`` on the tests that execute its line(s), fastest first, within ``--budget`` seconds;
+a mutant at module or class level (a default value, run at import) runs the tests of the
+target's ``TESTS`` files instead; a mutant on a line no test executes survives without a run.
+``--select files`` runs every test of the ``TESTS`` files (slow: minutes per surviving mutant).
 
 Targets (``TARGETS``): ``rwhec_ros/core/certificate.py``, ``rwhec_ros/core/verified.py`` and
 the large-rig path's ``rwhec_ros/core/sparse_certificate.py`` (every line but docstrings), and
 the status decisions of ``rwhec_ros/core/solve.py`` and ``rwhec_ros/core/sparse_fast.py`` (the
 functions named there).
 
-Usage (from the repository root; prints Markdown, ~1-2 h on 2 cores)::
+Usage (from the repository root; prints Markdown; the coverage run of the suite takes ~5-10 min,
+the mutants ~3-5 s each on 2 cores)::
 
     python benchmarks/mutation.py --jobs 2 --log run1.jsonl > benchmarks/mutation.md
     python benchmarks/mutation.py --list             # the mutants only, no test runs
@@ -95,6 +104,8 @@ class Mutant:
     source: str
     description: str
     text: str  # the mutated module
+    lines: tuple[int, ...] = ()  # every source line the mutated node spans
+    in_function: bool = True  # False: module or class level (runs at import time)
 
 
 class _Sites(ast.NodeVisitor):
@@ -104,33 +115,48 @@ class _Sites(ast.NodeVisitor):
         self.functions = functions
         self.docstrings = docstrings
         self.stack: list[str] = []
-        self.sites: list[tuple[ast.AST, str]] = []
+        self.kinds: list[str] = []  # "def" or "class", parallel to ``stack``
+        self.sites: list[tuple[ast.AST, str, bool]] = []  # (node, kind, inside a function)
+
+    def _in_function(self, node: ast.AST) -> bool:
+        """Inside a function body (runs when called), not a default or decorator argument."""
+        return "def" in self.kinds and not getattr(node, "_in_signature", False)
 
     def _active(self) -> bool:
         return self.functions is None or any(f in self.functions for f in self.stack)
 
     def visit_FunctionDef(self, node):
+        # defaults and decorators are evaluated once, when the module is imported
+        at_def = node.args.defaults + [d for d in node.args.kw_defaults if d is not None] + \
+            node.decorator_list
+        for sub in at_def:
+            for n in ast.walk(sub):
+                n._in_signature = True
         self.stack.append(node.name)
+        self.kinds.append("def")
         self.generic_visit(node)
         self.stack.pop()
+        self.kinds.pop()
 
     visit_AsyncFunctionDef = visit_FunctionDef
 
     def visit_ClassDef(self, node):
         self.stack.append(node.name)
+        self.kinds.append("class")
         self.generic_visit(node)
         self.stack.pop()
+        self.kinds.pop()
 
     def generic_visit(self, node):
         if self._active() and id(node) not in self.docstrings:
             if isinstance(node, (ast.BinOp, ast.Compare, ast.BoolOp, ast.UnaryOp)):
-                self.sites.append((node, type(node).__name__))
+                self.sites.append((node, type(node).__name__, self._in_function(node)))
             elif isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and \
                     not isinstance(node.value, str):
-                self.sites.append((node, "Constant"))
+                self.sites.append((node, "Constant", self._in_function(node)))
             elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
                     node.func.id in ("min", "max", "abs"):
-                self.sites.append((node, "Call"))
+                self.sites.append((node, "Call", self._in_function(node)))
         super().generic_visit(node)
 
 
@@ -217,7 +243,7 @@ def generate(file: str, functions: set[str] | None) -> list[Mutant]:
     visitor = _Sites(functions, _docstring_ids(tree))
     visitor.visit(tree)
     mutants = []
-    for node, kind in visitor.sites:
+    for node, kind, in_function in visitor.sites:
         for desc, how in _variants(node, kind):
             tree2 = copy.deepcopy(tree)
             # find the corresponding node in the copy by walking in the same order
@@ -230,7 +256,8 @@ def generate(file: str, functions: set[str] | None) -> list[Mutant]:
             if text == ast.unparse(tree):
                 continue
             line = lines[node.lineno - 1].strip()
-            mutants.append(Mutant(file, node.lineno, line, desc, text))
+            span = tuple(range(node.lineno, (node.end_lineno or node.lineno) + 1))
+            mutants.append(Mutant(file, node.lineno, line, desc, text, span, in_function))
     return mutants
 
 
@@ -247,7 +274,100 @@ def _prepare_copy(dst: Path) -> None:
             pass
 
 
-def run_mutant(m: Mutant, workdir: Path, timeout: float) -> tuple[str, float]:
+_PLUGIN = r'''
+"""pytest plugin written by benchmarks/mutation.py: which test executes which target line."""
+import json
+import os
+import time
+
+import coverage
+import pytest
+
+_cov = coverage.Coverage(data_file=os.environ["RWHEC_MUTCOV_DATA"],
+                         include=json.loads(os.environ["RWHEC_MUTCOV_INCLUDE"]))
+_cov.start()
+_cov.switch_context("import")
+_durations = {}
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    _cov.switch_context(item.nodeid)
+    t0 = time.perf_counter()
+    yield
+    _durations[item.nodeid] = time.perf_counter() - t0
+    _cov.switch_context("between tests")
+
+
+def pytest_sessionfinish(session, exitstatus):
+    _cov.stop()
+    _cov.save()
+    with open(os.environ["RWHEC_MUTCOV_DATA"] + ".durations.json", "w") as fh:
+        json.dump({"durations": _durations, "exitstatus": int(exitstatus)}, fh)
+'''
+
+_NOT_A_TEST = {"", "import", "between tests"}
+
+
+@dataclass
+class CoverageMap:
+    """Which tests execute which line of each target, and how long each test took."""
+
+    lines: dict[str, dict[int, set[str]]]  # target file -> line -> pytest node ids
+    durations: dict[str, float]  # node id -> seconds (measured under coverage: an upper bound)
+    seconds: float  # wall time of the coverage run
+
+    def select(self, m: Mutant, budget: float) -> list[str]:
+        """The tests to run against ``m``: those that execute its line(s), fastest first, until
+        their summed duration reaches ``budget`` seconds (at least one). A line at module or class
+        level (a default, a constant) runs at import: the tests of ``TESTS[m.file]`` instead.
+        Empty: no test executes the mutated code."""
+        if m.in_function:
+            ids: set[str] = set()
+            for line in m.lines:
+                ids |= self.lines.get(m.file, {}).get(line, set())
+            ids -= _NOT_A_TEST
+        else:
+            ids = {n for n in self.durations if n.split("::")[0] in TESTS[m.file]}
+        picked, total = [], 0.0
+        for nid in sorted(ids, key=lambda n: (self.durations.get(n, 0.0), n)):
+            d = self.durations.get(nid, 0.0)
+            if picked and total + d > budget:
+                break
+            picked.append(nid)
+            total += d
+        return picked
+
+
+def coverage_map(workdir: Path, files: list[str], tests: list[str]) -> CoverageMap:
+    """Run ``tests`` once under coverage with one context per test (the plugin above)."""
+    import coverage
+
+    data_file = workdir.parent / "mutcov.data"
+    (workdir / "_rwhec_mutcov.py").write_text(_PLUGIN)
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", OMP_NUM_THREADS="1",
+               OPENBLAS_NUM_THREADS="1", RWHEC_MUTCOV_DATA=str(data_file),
+               RWHEC_MUTCOV_INCLUDE=json.dumps([str(workdir / f) for f in files]))
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                           "-p", "_rwhec_mutcov", *tests], cwd=workdir, env=env,
+                          capture_output=True)
+    seconds = time.perf_counter() - t0
+    info = json.loads(Path(str(data_file) + ".durations.json").read_text())
+    if proc.returncode != 0:
+        sys.exit("the unmutated tests fail under coverage:\n" + proc.stdout.decode()[-3000:])
+    data = coverage.CoverageData(basename=str(data_file))
+    data.read()
+    lines: dict[str, dict[int, set[str]]] = {}
+    for f in files:
+        by_line = data.contexts_by_lineno(str(workdir / f))
+        lines[f] = {int(k): set(v) for k, v in by_line.items()}
+    return CoverageMap(lines, info["durations"], seconds)
+
+
+def run_mutant(m: Mutant, workdir: Path, timeout: float,
+               tests: list[str] | None = None) -> tuple[str, float]:
+    """Run ``tests`` (default: the files of ``TESTS[m.file]``) with ``pytest -x`` on the mutant."""
     target = workdir / m.file
     original = (ROOT / m.file).read_text()
     target.write_text(m.text)
@@ -256,9 +376,11 @@ def run_mutant(m: Mutant, workdir: Path, timeout: float) -> tuple[str, float]:
     t0 = time.perf_counter()
     try:
         proc = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
-                               *TESTS[m.file]], cwd=workdir, env=env, capture_output=True,
-                              timeout=timeout)
+                               *(tests if tests else TESTS[m.file])], cwd=workdir, env=env,
+                              capture_output=True, timeout=timeout)
         outcome = "survived" if proc.returncode == 0 else "killed"
+        if proc.returncode in (3, 4, 5):  # internal error, usage error, no tests: not a kill
+            outcome = f"error (pytest exit {proc.returncode})"
     except subprocess.TimeoutExpired:
         outcome = "killed (timeout)"
     finally:
@@ -267,7 +389,7 @@ def run_mutant(m: Mutant, workdir: Path, timeout: float) -> tuple[str, float]:
 
 
 def baseline(workdir: Path, files: list[str]) -> dict[str, float]:
-    """Seconds of the unmutated test run of each target (it must pass)."""
+    """Seconds of the unmutated test run of each target's ``TESTS`` files (they must pass)."""
     times = {}
     for f in files:
         t0 = time.perf_counter()
@@ -289,6 +411,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rerun-survivors", type=Path, metavar="LOG",
                     help="take the outcomes of an earlier run's --log and run only its survivors "
                          "again (after new tests); the report covers every mutant")
+    ap.add_argument("--select", choices=("coverage", "files"), default="coverage",
+                    help="coverage (default): per mutant, the tests that execute its line, "
+                         "fastest first within --budget; files: every test of the TESTS files")
+    ap.add_argument("--budget", type=float, default=30.0,
+                    help="coverage selection: summed duration of the tests run per mutant, in "
+                         "seconds as measured under coverage (default 30)")
+    ap.add_argument("--coverage-tests", nargs="+", default=["test"],
+                    help="coverage selection: the tests run once under coverage (default: the "
+                         "whole suite)")
     args = ap.parse_args(argv)
     files = args.file or list(TARGETS)
     mutants = [m for f in files for m in generate(f, TARGETS[f])]
@@ -315,9 +446,17 @@ def main(argv: list[str] | None = None) -> int:
         w.parent.mkdir(parents=True)
         _prepare_copy(w)
         workdirs.append(w)
-    t_base = baseline(workdirs[0], files)
-    timeout = max(120.0, 5 * max(t_base.values()))
-    results: list[tuple[Mutant, str, float]] = [None] * len(mutants)  # type: ignore[list-item]
+    cover = None
+    if args.select == "coverage":
+        cover = coverage_map(workdirs[0], files, args.coverage_tests)
+        print(f"coverage run: {cover.seconds:.0f} s, {len(cover.durations)} tests",
+              file=sys.stderr)
+        t_base = {}
+        timeout = max(120.0, 4 * args.budget)
+    else:
+        t_base = baseline(workdirs[0], files)
+        timeout = max(120.0, 5 * max(t_base.values()))
+    results: list[tuple] = [None] * len(mutants)
     free = list(range(len(workdirs)))
     log_lock = threading.Lock()
 
@@ -325,68 +464,93 @@ def main(argv: list[str] | None = None) -> int:
         m = mutants[i]
         before = earlier.get((m.file, m.source, m.description))
         if before is not None and before.startswith("killed"):
-            results[i] = (m, before + " (earlier run)", 0.0)
+            results[i] = (m, before + " (earlier run)", 0.0, 0)
             return
-        w = free.pop()
-        try:
-            outcome, dt = run_mutant(mutants[i], workdirs[w], timeout)
-        finally:
-            free.append(w)
+        tests = cover.select(m, args.budget) if cover is not None else None
+        if cover is not None and not tests:
+            outcome, dt = "survived (no test executes it)", 0.0
+        else:
+            w = free.pop()
+            try:
+                outcome, dt = run_mutant(m, workdirs[w], timeout, tests)
+            finally:
+                free.append(w)
         if before is not None:
             outcome = outcome + " (re-run)"
-        results[i] = (mutants[i], outcome, dt)
+        n_tests = len(tests) if tests is not None else -1
+        results[i] = (m, outcome, dt, n_tests)
         if args.log:
             with log_lock, args.log.open("a") as fh:
                 fh.write(json.dumps({"file": m.file, "lineno": m.lineno, "source": m.source,
                                      "description": m.description, "outcome": outcome,
-                                     "seconds": round(dt, 1)}) + "\n")
+                                     "seconds": round(dt, 1), "tests": n_tests}) + "\n")
         done = sum(r is not None for r in results)
-        print(f"[{done}/{len(mutants)}] {mutants[i].file}:{mutants[i].lineno} "
-              f"{mutants[i].description}: {outcome} ({dt:.0f} s)", file=sys.stderr)
+        print(f"[{done}/{len(mutants)}] {m.file}:{m.lineno} {m.description}: {outcome} "
+              f"({dt:.0f} s, {n_tests} tests)", file=sys.stderr)
 
     t0 = time.perf_counter()
     with ThreadPoolExecutor(max_workers=len(workdirs)) as ex:
         list(ex.map(task, range(len(mutants))))
     total = time.perf_counter() - t0
     shutil.rmtree(tmp, ignore_errors=True)
-    report(results, t_base, total)
+    report(results, t_base, total, cover, args)
     return 0
 
 
-def report(results, t_base: dict[str, float], total: float) -> None:
+def report(results, t_base: dict[str, float], total: float, cover: CoverageMap | None,
+           args) -> None:
     print("# Mutation testing of the certification logic\n")
-    print("Generated by `python benchmarks/mutation.py` (see its docstring for the mutation "
-          f"operators). Whole run: {total / 60:.0f} min. Tests run per mutant (`pytest -x`), and "
-          "the time of the unmutated run here:\n")
-    for f, t in t_base.items():
-        print(f"- `{f}`: " + ", ".join(f"`{x}`" for x in TESTS[f]) + f" ({t:.0f} s)")
-    print()
+    cmd = " ".join(sys.argv[1:])
+    print("Generated by `python benchmarks/mutation.py " + cmd + "` (see its docstring for the "
+          f"mutation operators) on {time.strftime('%Y-%m-%d')}, {os.cpu_count()} CPUs. Whole run: "
+          f"{total / 60:.0f} min.\n")
+    if cover is not None:
+        print(f"Tests per mutant: the suite ran once under coverage ({cover.seconds:.0f} s, "
+              f"{len(cover.durations)} tests, one coverage context per test); each mutant then "
+              "runs `pytest -x` on the tests that execute its line(s), fastest first, until their "
+              f"durations under coverage add up to {args.budget:.0f} s (at least one test). A "
+              "constant at module or class level (a default) runs at import: its mutants run the "
+              "tests of the target's `TESTS` files within the same budget. A mutant on a line no "
+              "test executes survives without a run.\n")
+    else:
+        print("Tests per mutant (`pytest -x`), and the time of the unmutated run here:\n")
+        for f, t in t_base.items():
+            print(f"- `{f}`: " + ", ".join(f"`{x}`" for x in TESTS[f]) + f" ({t:.0f} s)")
+        print()
+    ran = sorted(dt for _, o, dt, _ in results if "earlier run" not in o and dt > 0)
+    if ran:
+        q = lambda p: ran[min(len(ran) - 1, int(p * len(ran)))]
+        print(f"Wall time of the tests per mutant (pytest start-up included, {len(ran)} runs, "
+              f"{args.jobs} in parallel on {os.cpu_count()} CPUs): median {q(0.5):.1f} s, "
+              f"90th percentile {q(0.9):.1f} s, largest {ran[-1]:.1f} s; "
+              f"{sum(d < 60 for d in ran)} of {len(ran)} under a minute.\n")
     print("| module | mutants | killed | survived | argued equivalent | score (killed / "
           "non-equivalent) |")
     print("|---|---|---|---|---|---|")
     by_file: dict[str, list] = {}
-    for m, outcome, _ in results:
+    for m, outcome, _, _ in results:
         by_file.setdefault(m.file, []).append((m, outcome))
-    all_k = all_n = 0
+    all_k = all_n = all_eq = 0
     for f, rs in by_file.items():
         killed = sum(o.startswith("killed") for _, o in rs)
-        surv = [(m, o) for m, o in rs if o.startswith("survived")]
+        surv = [(m, o) for m, o in rs if not o.startswith("killed")]
         eq = sum((m.file, m.source, m.description) in EQUIVALENT for m, _ in surv)
         non_eq = len(rs) - eq
         all_k += killed
         all_n += non_eq
+        all_eq += eq
         print(f"| `{f}` | {len(rs)} | {killed} | {len(surv)} | {eq} | "
               f"{100 * killed / max(non_eq, 1):.1f} % |")
-    print(f"| **all** | {len(results)} | {all_k} | {len(results) - all_k} | "
-          f"{len(results) - all_k - (all_n - all_k)} | **{100 * all_k / max(all_n, 1):.1f} %** |")
+    print(f"| **all** | {len(results)} | {all_k} | {len(results) - all_k} | {all_eq} | "
+          f"**{100 * all_k / max(all_n, 1):.1f} %** |")
     print("\n## Surviving mutants\n")
-    print("| location | mutation | source line | equivalent because |")
-    print("|---|---|---|---|")
-    for m, outcome, _ in results:
-        if outcome.startswith("survived"):
+    print("| location | mutation | source line | outcome | equivalent because |")
+    print("|---|---|---|---|---|")
+    for m, outcome, _, _ in results:
+        if not outcome.startswith("killed"):
             why = EQUIVALENT.get((m.file, m.source, m.description), "**not argued: a gap**")
             src = m.source.replace("|", "\\|")
-            print(f"| `{m.file}:{m.lineno}` | {m.description} | `{src}` | {why} |")
+            print(f"| `{m.file}:{m.lineno}` | {m.description} | `{src}` | {outcome} | {why} |")
 
 
 if __name__ == "__main__":
