@@ -262,10 +262,13 @@ def generate(file: str, functions: set[str] | None) -> list[Mutant]:
 
 
 def _prepare_copy(dst: Path) -> None:
-    shutil.copytree(ROOT / "rwhec_ros", dst / "rwhec_ros",
-                    ignore=shutil.ignore_patterns("__pycache__"))
-    shutil.copytree(ROOT / "test", dst / "test", ignore=shutil.ignore_patterns("__pycache__"))
-    shutil.copy(ROOT / "pyproject.toml", dst / "pyproject.toml")
+    """The repository's tracked files (tests read benchmarks/, config/, launch/, README.md)."""
+    listed = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=True)
+    for rel in filter(None, listed.stdout.decode().split("\0")):
+        src = ROOT / rel
+        if src.is_file():
+            (dst / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dst / rel)
     shared = ROOT.parent / "shared"
     if shared.exists() and not (dst.parent / "shared").exists():
         try:
