@@ -11,7 +11,9 @@ argued equivalent in ``EQUIVALENT`` (one line each).
 Which tests (``--select coverage``, the default): the suite runs once under ``coverage`` with one
 context per test (a small pytest plugin written into the private copy), which gives, for every
 line of the targets, the tests that execute it and each test's duration. A mutant then runs
-``pytest -x`` on the tests that execute its line(s), fastest first, within ``--budget`` seconds;
+``pytest -x`` on the tests that execute its line(s), from at most ``--max-files`` test files (the
+target's own ``TESTS`` files first: every file costs its imports), fastest first, within
+``--budget`` seconds;
 a mutant at module or class level (a default value, run at import) runs the tests of the
 target's ``TESTS`` files instead; a mutant on a line no test executes survives without a run.
 ``--select files`` runs every test of the ``TESTS`` files (slow: minutes per surviving mutant).
@@ -24,7 +26,8 @@ functions named there).
 Usage (from the repository root; prints Markdown; the coverage run of the suite takes ~5-10 min,
 the mutants ~3-5 s each on 2 cores)::
 
-    python benchmarks/mutation.py --jobs 2 --log run1.jsonl > benchmarks/mutation.md
+    python benchmarks/mutation.py --jobs 2 --log run1.jsonl --coverage-map cov.json \
+        > benchmarks/mutation.md
     python benchmarks/mutation.py --list             # the mutants only, no test runs
     # after adding tests: run only the survivors of run1 again, report on every mutant
     python benchmarks/mutation.py --jobs 2 --rerun-survivors run1.jsonl --log run2.jsonl \
@@ -320,11 +323,13 @@ class CoverageMap:
     durations: dict[str, float]  # node id -> seconds (measured under coverage: an upper bound)
     seconds: float  # wall time of the coverage run
 
-    def select(self, m: Mutant, budget: float) -> list[str]:
-        """The tests to run against ``m``: those that execute its line(s), fastest first, until
-        their summed duration reaches ``budget`` seconds (at least one). A line at module or class
-        level (a default, a constant) runs at import: the tests of ``TESTS[m.file]`` instead.
-        Empty: no test executes the mutated code."""
+    def select(self, m: Mutant, budget: float, max_files: int) -> list[str]:
+        """The tests to run against ``m``: those that execute its line(s), from at most
+        ``max_files`` test files (the target's own ``TESTS`` files first, then the files with the
+        fastest such test: each file costs its imports at start-up), fastest first, until their
+        summed duration reaches ``budget`` seconds (at least one). A line at module or class level
+        (a default, a constant) runs at import: the tests of ``TESTS[m.file]`` instead. Empty: no
+        test executes the mutated code."""
         if m.in_function:
             ids: set[str] = set()
             for line in m.lines:
@@ -332,14 +337,32 @@ class CoverageMap:
             ids -= _NOT_A_TEST
         else:
             ids = {n for n in self.durations if n.split("::")[0] in TESTS[m.file]}
+        dur = lambda n: self.durations.get(n, 0.0)
+        fastest: dict[str, float] = {}
+        for n in ids:
+            f = n.split("::")[0]
+            fastest[f] = min(fastest.get(f, float("inf")), dur(n))
+        own = TESTS[m.file]
+        files = sorted(fastest, key=lambda f: (f not in own, own.index(f) if f in own else 0,
+                                               fastest[f], f))[:max_files]
         picked, total = [], 0.0
-        for nid in sorted(ids, key=lambda n: (self.durations.get(n, 0.0), n)):
-            d = self.durations.get(nid, 0.0)
-            if picked and total + d > budget:
+        for nid in sorted((n for n in ids if n.split("::")[0] in files), key=lambda n: (dur(n), n)):
+            if picked and total + dur(nid) > budget:
                 break
             picked.append(nid)
-            total += d
+            total += dur(nid)
         return picked
+
+    def save(self, path: Path) -> None:
+        path.write_text(json.dumps({"lines": {f: {str(k): sorted(v) for k, v in by.items()}
+                                              for f, by in self.lines.items()},
+                                    "durations": self.durations, "seconds": self.seconds}))
+
+    @classmethod
+    def load(cls, path: Path) -> CoverageMap:
+        d = json.loads(path.read_text())
+        return cls({f: {int(k): set(v) for k, v in by.items()} for f, by in d["lines"].items()},
+                   d["durations"], d["seconds"])
 
 
 def coverage_map(workdir: Path, files: list[str], tests: list[str]) -> CoverageMap:
@@ -420,6 +443,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--budget", type=float, default=30.0,
                     help="coverage selection: summed duration of the tests run per mutant, in "
                          "seconds as measured under coverage (default 30)")
+    ap.add_argument("--max-files", type=int, default=3,
+                    help="coverage selection: tests from at most this many test files per mutant "
+                         "(default 3)")
+    ap.add_argument("--coverage-map", type=Path,
+                    help="coverage selection: reuse this map of an earlier coverage run if the "
+                         "file exists, else save the new one there (valid while the targets and "
+                         "tests are unchanged)")
     ap.add_argument("--coverage-tests", nargs="+", default=["test"],
                     help="coverage selection: the tests run once under coverage (default: the "
                          "whole suite)")
@@ -451,7 +481,12 @@ def main(argv: list[str] | None = None) -> int:
         workdirs.append(w)
     cover = None
     if args.select == "coverage":
-        cover = coverage_map(workdirs[0], files, args.coverage_tests)
+        if args.coverage_map is not None and args.coverage_map.exists():
+            cover = CoverageMap.load(args.coverage_map)
+        else:
+            cover = coverage_map(workdirs[0], files, args.coverage_tests)
+            if args.coverage_map is not None:
+                cover.save(args.coverage_map)
         print(f"coverage run: {cover.seconds:.0f} s, {len(cover.durations)} tests",
               file=sys.stderr)
         t_base = {}
@@ -469,7 +504,7 @@ def main(argv: list[str] | None = None) -> int:
         if before is not None and before.startswith("killed"):
             results[i] = (m, before + " (earlier run)", 0.0, 0)
             return
-        tests = cover.select(m, args.budget) if cover is not None else None
+        tests = cover.select(m, args.budget, args.max_files) if cover is not None else None
         if cover is not None and not tests:
             outcome, dt = "survived (no test executes it)", 0.0
         else:
@@ -510,8 +545,10 @@ def report(results, t_base: dict[str, float], total: float, cover: CoverageMap |
     if cover is not None:
         print(f"Tests per mutant: the suite ran once under coverage ({cover.seconds:.0f} s, "
               f"{len(cover.durations)} tests, one coverage context per test); each mutant then "
-              "runs `pytest -x` on the tests that execute its line(s), fastest first, until their "
-              f"durations under coverage add up to {args.budget:.0f} s (at least one test). A "
+              "runs `pytest -x` on the tests that execute its line(s) from at most "
+              f"{args.max_files} test files (the target's own test files first), fastest first, "
+              f"until their durations under coverage add up to {args.budget:.0f} s (at least one "
+              "test). A "
               "constant at module or class level (a default) runs at import: its mutants run the "
               "tests of the target's `TESTS` files within the same budget. A mutant on a line no "
               "test executes survives without a run.\n")
