@@ -246,17 +246,17 @@ def generate(file: str, functions: set[str] | None) -> list[Mutant]:
     visitor = _Sites(functions, _docstring_ids(tree))
     visitor.visit(tree)
     mutants = []
+    # the copy's nodes, walked in the same order, correspond to the original's by position
+    position = {id(n): i for i, n in enumerate(ast.walk(tree))}
+    unmutated = ast.unparse(tree)
     for node, kind, in_function in visitor.sites:
         for desc, how in _variants(node, kind):
             tree2 = copy.deepcopy(tree)
-            # find the corresponding node in the copy by walking in the same order
-            nodes1 = list(ast.walk(tree))
-            nodes2 = list(ast.walk(tree2))
-            target = nodes2[nodes1.index(node)]
+            target = next(n for i, n in enumerate(ast.walk(tree2)) if i == position[id(node)])
             tree2 = _Replace(0, [target], how).visit(tree2)
             ast.fix_missing_locations(tree2)
             text = ast.unparse(tree2)
-            if text == ast.unparse(tree):
+            if text == unmutated:
                 continue
             line = lines[node.lineno - 1].strip()
             span = tuple(range(node.lineno, (node.end_lineno or node.lineno) + 1))
@@ -311,6 +311,77 @@ def pytest_sessionfinish(session, exitstatus):
     with open(os.environ["RWHEC_MUTCOV_DATA"] + ".durations.json", "w") as fh:
         json.dump({"durations": _durations, "exitstatus": int(exitstatus)}, fh)
 '''
+
+_SERVER = r'''
+"""Fork server written by benchmarks/mutation.py: imports the heavy third-party modules once, then
+runs each request's pytest in a forked child (which imports rwhec_ros afresh from the mutated
+copy, so each mutant costs the package's import, not numpy's, scipy's, cvxpy's and OpenCV's)."""
+import json
+import os
+import signal
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import cv2  # noqa: E402,F401
+import cvxpy  # noqa: E402,F401
+import matplotlib.pyplot  # noqa: E402,F401
+import numpy  # noqa: E402,F401
+import pytest  # noqa: E402
+import scipy.linalg  # noqa: E402,F401
+import scipy.optimize  # noqa: E402,F401
+import scipy.sparse.linalg  # noqa: E402,F401
+import scipy.spatial.transform  # noqa: E402,F401
+import yaml  # noqa: E402,F401
+
+assert not any(m.startswith("rwhec_ros") for m in sys.modules)
+print("ready", flush=True)
+for line in sys.stdin:
+    req = json.loads(line)
+    pid = os.fork()
+    if pid == 0:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        signal.alarm(max(1, int(req["timeout"])))
+        try:
+            code = int(pytest.main(req["args"]))
+        except BaseException:
+            code = 98
+        os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        out = "timeout" if sig == signal.SIGALRM else f"signal {sig}"
+    else:
+        out = os.WEXITSTATUS(status)
+    print(json.dumps({"code": out}), flush=True)
+'''
+
+
+class _Server:
+    """One fork server per private copy (see ``_SERVER``)."""
+
+    def __init__(self, workdir: Path):
+        (workdir / "_rwhec_mutserver.py").write_text(_SERVER)
+        env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", OMP_NUM_THREADS="1",
+                   OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
+        self.proc = subprocess.Popen([sys.executable, "_rwhec_mutserver.py"], cwd=workdir,
+                                     env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     text=True)
+        if self.proc.stdout.readline().strip() != "ready":
+            sys.exit("the mutation fork server did not start")
+
+    def run(self, args: list[str], timeout: float):
+        self.proc.stdin.write(json.dumps({"args": args, "timeout": timeout}) + "\n")
+        self.proc.stdin.flush()
+        return json.loads(self.proc.stdout.readline())["code"]
+
+    def close(self):
+        self.proc.stdin.close()
+        self.proc.wait()
+
 
 _NOT_A_TEST = {"", "import", "between tests"}
 
@@ -391,26 +462,37 @@ def coverage_map(workdir: Path, files: list[str], tests: list[str]) -> CoverageM
     return CoverageMap(lines, info["durations"], seconds)
 
 
-def run_mutant(m: Mutant, workdir: Path, timeout: float,
-               tests: list[str] | None = None) -> tuple[str, float]:
-    """Run ``tests`` (default: the files of ``TESTS[m.file]``) with ``pytest -x`` on the mutant."""
+def run_mutant(m: Mutant, workdir: Path, timeout: float, tests: list[str] | None = None,
+               server: _Server | None = None) -> tuple[str, float]:
+    """Run ``tests`` (default: the files of ``TESTS[m.file]``) with ``pytest -x`` on the mutant,
+    in a forked child of ``server`` if given, else in a new interpreter."""
     target = workdir / m.file
     original = (ROOT / m.file).read_text()
     target.write_text(m.text)
+    args = ["-x", "-q", "-p", "no:cacheprovider", *(tests if tests else TESTS[m.file])]
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1")
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
-                               *(tests if tests else TESTS[m.file])], cwd=workdir, env=env,
-                              capture_output=True, timeout=timeout)
-        outcome = "survived" if proc.returncode == 0 else "killed"
-        if proc.returncode in (3, 4, 5):  # internal error, usage error, no tests: not a kill
-            outcome = f"error (pytest exit {proc.returncode})"
-    except subprocess.TimeoutExpired:
-        outcome = "killed (timeout)"
+        if server is not None:
+            code = server.run(args, timeout)
+        else:
+            try:
+                code = subprocess.run([sys.executable, "-m", "pytest", *args], cwd=workdir,
+                                      env=env, capture_output=True, timeout=timeout).returncode
+            except subprocess.TimeoutExpired:
+                code = "timeout"
     finally:
         target.write_text(original)
+    if code == "timeout":
+        outcome = "killed (timeout)"
+    elif code == 0:
+        outcome = "survived"
+    elif code in (3, 4, 5, 98) or isinstance(code, str):
+        # internal error, usage error, no tests collected, a crash of pytest: not a kill
+        outcome = f"error (pytest exit {code})"
+    else:
+        outcome = "killed"
     return outcome, time.perf_counter() - t0
 
 
@@ -443,6 +525,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--budget", type=float, default=30.0,
                     help="coverage selection: summed duration of the tests run per mutant, in "
                          "seconds as measured under coverage (default 30)")
+    ap.add_argument("--no-fork", dest="fork", action="store_false",
+                    help="start a new interpreter per mutant instead of forking a server that "
+                         "has imported numpy, scipy, cvxpy and OpenCV once")
     ap.add_argument("--max-files", type=int, default=3,
                     help="coverage selection: tests from at most this many test files per mutant "
                          "(default 3)")
@@ -458,15 +543,13 @@ def main(argv: list[str] | None = None) -> int:
     mutants = [m for f in files for m in generate(f, TARGETS[f])]
     if args.limit:
         mutants = mutants[: args.limit]
-    # keyed without the line number (edits above a line move it); a key that survived once is
-    # run again
+    # keyed without the line number (edits above a line move it); the latest record of a key
+    # wins (logs of successive runs may be concatenated); only killed mutants are skipped
     earlier: dict[tuple[str, str, str], str] = {}
     if args.rerun_survivors:
         for line in args.rerun_survivors.read_text().splitlines():
             r = json.loads(line)
-            key = (r["file"], r["source"], r["description"])
-            if not earlier.get(key, "").startswith("survived"):
-                earlier[key] = r["outcome"]
+            earlier[(r["file"], r["source"], r["description"])] = r["outcome"]
     if args.list:
         for m in mutants:
             print(f"{m.file}:{m.lineno}: {m.description}    | {m.source}")
@@ -494,6 +577,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         t_base = baseline(workdirs[0], files)
         timeout = max(120.0, 5 * max(t_base.values()))
+    servers = [_Server(w) for w in workdirs] if args.fork else [None] * len(workdirs)
     results: list[tuple] = [None] * len(mutants)
     free = list(range(len(workdirs)))
     log_lock = threading.Lock()
@@ -501,19 +585,18 @@ def main(argv: list[str] | None = None) -> int:
     def task(i: int):
         m = mutants[i]
         before = earlier.get((m.file, m.source, m.description))
+        tests = None
         if before is not None and before.startswith("killed"):
-            results[i] = (m, before + " (earlier run)", 0.0, 0)
-            return
-        tests = cover.select(m, args.budget, args.max_files) if cover is not None else None
-        if cover is not None and not tests:
+            outcome, dt = "killed (earlier run)", 0.0
+        elif cover is not None and not (tests := cover.select(m, args.budget, args.max_files)):
             outcome, dt = "survived (no test executes it)", 0.0
         else:
             w = free.pop()
             try:
-                outcome, dt = run_mutant(m, workdirs[w], timeout, tests)
+                outcome, dt = run_mutant(m, workdirs[w], timeout, tests, servers[w])
             finally:
                 free.append(w)
-        if before is not None:
+        if before is not None and not outcome.startswith("killed (earlier"):
             outcome = outcome + " (re-run)"
         n_tests = len(tests) if tests is not None else -1
         results[i] = (m, outcome, dt, n_tests)
@@ -530,6 +613,9 @@ def main(argv: list[str] | None = None) -> int:
     with ThreadPoolExecutor(max_workers=len(workdirs)) as ex:
         list(ex.map(task, range(len(mutants))))
     total = time.perf_counter() - t0
+    for srv in servers:
+        if srv is not None:
+            srv.close()
     shutil.rmtree(tmp, ignore_errors=True)
     report(results, t_base, total, cover, args)
     return 0

@@ -332,3 +332,73 @@ def test_certify_with_real_reduction_matches_certify_from_z():
     assert c.certified, c.message
     # the margins are tiny on well-conditioned data
     assert sum(c.margins.values()) < 1e-8 * lam[-1] * scale
+
+
+class _Reduction:
+    """A reduction with non-zero rounding rows (as a ReducedCost after eliminating translations)."""
+
+    def __init__(self, err_rows, block_lower=2.0, residual_norm=0.0):
+        self.err_rows = np.asarray(err_rows, float)
+        self.verified = True
+        self.block_lower = block_lower
+        self.residual_norm = residual_norm
+
+
+def _documented_rounding(Z, z_err_rows, red_rows, scale, ny):
+    """The rounding term of the module docstring's bound, written out independently:
+    rows = ((e_red / scale)(1 + gamma_2) + u sum_j |Z_ij| + e_Z)(1 + gamma_3), then
+    min(sum(rows), ny max(rows)) (1 + gamma_size), with gamma_k = k u / (1 - k u)."""
+    u = np.finfo(float).eps / 2
+    g = lambda k: k * u / (1 - k * u)
+    rows = (red_rows / scale) * (1.0 + g(2)) + u * np.abs(Z).sum(axis=1)
+    rows = (rows + z_err_rows) * (1.0 + g(3))
+    return float(min(rows.sum(), ny * rows.max()) * (1.0 + g(rows.size))), rows
+
+
+@pytest.mark.parametrize("spread", ["uniform", "one_row"])
+def test_rounding_term_is_the_documented_formula_bit_for_bit(spread):
+    """Every factor of the rounding term (the (1 + gamma_k) inflations, the division by the
+    scale, the min of the two sums) is pinned exactly: each is a few ulps, so only an exact
+    comparison sees a wrong one. ``uniform`` rows make ``ny max`` the smaller of the two sums
+    (the size 19 exceeds ny = 7), ``one_row`` makes the sum the smaller one."""
+    Z = _crafted(_spectrum(0.0))
+    rng = np.random.default_rng(3)
+    if spread == "uniform":
+        z_rows = np.full(D, 3e-9)
+        red_rows = np.full(D, 5e-9)
+    else:
+        z_rows = np.zeros(D)
+        z_rows[4] = 2e-8
+        red_rows = np.zeros(D)
+        red_rows[4] = rng.uniform(1e-9, 2e-9)
+    scale, ny = 4.0, 3 * N_ROT + 1
+    b = rigorous_dual_bound(Z, z_rows, 1.0, _Reduction(red_rows), scale, N_ROT, 0.0)
+    expected, rows = _documented_rounding(Z, z_rows, red_rows, scale, ny)
+    # the case exercises the branch of the min it is named for
+    assert (rows.sum() < ny * rows.max()) == (spread == "one_row")
+    assert b.rounding_term == expected
+    # the bound subtracts exactly the rounding, the eigenvalue and the Schur terms from lambda_s
+    assert b.value == float(1.0 - b.eigenvalue_term - b.rounding_term - b.schur_term)
+
+
+def test_schur_term_uses_block_lower_and_scale():
+    """schur = ny ||F||^2 / (l_e scale): a residual 1e-3, l_e = 2, scale 4 -> 7e-6 / 8."""
+    Z = _crafted(_spectrum(0.0))
+    red = _Reduction(np.zeros(D), block_lower=2.0, residual_norm=1e-3)
+    b = rigorous_dual_bound(Z, np.zeros(D), 1.0, red, 4.0, N_ROT, 0.0)
+    assert b.schur_term == pytest.approx(7 * 1e-6 / 8, rel=1e-12)
+
+
+@pytest.mark.parametrize("where", ["Z", "lambda_s"])
+def test_non_finite_z_or_lambda_s_is_named(where):
+    """A NaN in Z alone (finite lambda_s), or in lambda_s alone, is "non-finite multipliers"
+    (not an eigensolver failure), and the certificate says solver failure."""
+    Z = _crafted(_spectrum(0.0))
+    lam_s = 1.0
+    if where == "Z":
+        Z[2, 5] = Z[5, 2] = np.nan
+    else:
+        lam_s = np.nan
+    b = rigorous_dual_bound(Z, np.zeros(D), lam_s, ExactReduction(D), 1.0, N_ROT, 0.0)
+    assert b.value == float("-inf")
+    assert b.reason == "non-finite multipliers"
