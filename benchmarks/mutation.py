@@ -97,6 +97,14 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "row sums (up to the summation order's rounding, far below gamma)",
     (_CERT, "+ gamma(3) * (np.abs(Qs).sum(axis=1) + np.abs(K).sum(axis=1)))", "1 -> 0"):
         "|Q'| and |K| are symmetric: column sums = row sums (as above)",
+    (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> 1"):
+        "Z is square (the eigensolver refuses anything else): shape[1] = shape[0]",
+    (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> -1"):
+        "Z is square: shape[-1] = shape[0]",
+    (_CERT, "z_err_rows = np.zeros(Z.shape[0])", "0 -> 1"):
+        "Z is square: shape[1] = shape[0]",
+    (_CERT, "z_err_rows = np.zeros(Z.shape[0])", "0 -> -1"):
+        "Z is square: shape[-1] = shape[0]",
 }
 
 

@@ -53,6 +53,7 @@ def _cert(w, p=1.0, lambda_s=1.0, **kw):
 def test_clear_gap_is_certified():
     c = _cert(_spectrum(0.0))
     assert c.status is Status.CERTIFIED_OPTIMAL, c.message
+    assert "sign of s" not in c.message  # a known-scale problem has no free sign of s
     assert c.null_space_dim == 1
     assert abs(c.suboptimality_bound) < 1e-12
 
@@ -138,6 +139,9 @@ def test_solver_status_other_than_optimal_is_inaccurate(status):
 def test_nan_multipliers_are_solver_failed():
     c = certify_from_Z(_crafted(_spectrum(0.0)), float("nan"), 1.0, 1.0, N_ROT)
     assert c.status is Status.SOLVER_FAILED
+    # no eigenvalues were computed: none reported, and the null-space dimension is the -1 flag
+    assert c.eigenvalues.size == 0 and c.null_space_dim == -1
+    assert c.tolerance == CertificateOptions().rho_tol
     Z = _crafted(_spectrum(0.0))
     Z[0, 1] = Z[1, 0] = np.inf
     assert certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT).status is Status.SOLVER_FAILED
@@ -402,3 +406,65 @@ def test_non_finite_z_or_lambda_s_is_named(where):
     b = rigorous_dual_bound(Z, np.zeros(D), lam_s, ExactReduction(D), 1.0, N_ROT, 0.0)
     assert b.value == float("-inf")
     assert b.reason == "non-finite multipliers"
+
+
+def test_eigenvalue_equal_to_null_tol_counts_as_null():
+    """The null-space test is inclusive (``w <= null_tol``): a diagonal Z (exact eigenvalues)
+    whose second eigenvalue is exactly ``null_tol`` has a two-dimensional null space."""
+    w = _spectrum(0.0, CertificateOptions().null_tol)
+    c = certify_from_Z(np.diag(w), 1.0, 1.0, 1.0, N_ROT)
+    assert c.eigenvalues[1] == CertificateOptions().null_tol  # exact for a diagonal matrix
+    assert c.null_space_dim == 2 and not c.certified
+
+
+def _homogeneous_z(corner=0.0, column=None):
+    """Unknown scale: a rotation block with one null direction, the s row/column zero except
+    ``Z[-1, -1] = corner`` and the off-diagonal entries ``column`` (dict row -> value)."""
+    Z = np.zeros((D, D))
+    Z[:-1, :-1] = _crafted(_spectrum(0.0)[:-1])
+    Z[-1, -1] = corner
+    for i, v in (column or {}).items():
+        Z[i, -1] = Z[-1, i] = v
+    return Z
+
+
+def test_homogeneous_is_off_by_default():
+    """Without ``homogeneous=True`` a zero s row/column is a second null direction."""
+    c = certify_from_Z(_homogeneous_z(), 1.0, 1.0, 1.0, N_ROT)
+    assert c.null_space_dim == 2 and not c.certified
+
+
+def test_homogeneous_with_a_positive_s_entry_is_judged_on_the_whole_z():
+    """e_s is set aside only when its whole row/column is (numerically) zero: with Z[s, s] = 1
+    the full Z has one null direction, certified without the sign-of-s remark."""
+    c = certify_from_Z(_homogeneous_z(corner=1.0), 1.0, 1.0, 1.0, N_ROT, homogeneous=True)
+    assert c.certified, c.message
+    assert "sign of s" not in c.message
+
+
+def test_homogeneous_with_a_negative_s_entry_is_not_trivial():
+    """Z[s, s] = -1e-3 is a negative eigenvalue, not a zero: two eigenvalues <= null_tol."""
+    c = certify_from_Z(_homogeneous_z(corner=-1e-3), 1.0, 1.0, 1.0, N_ROT, homogeneous=True)
+    assert not c.certified
+    assert "2 eigenvalues" in c.message
+
+
+@pytest.mark.parametrize("row", [0, D - 2])
+def test_homogeneous_with_s_coupled_to_a_rotation_is_judged_on_the_whole_z(row):
+    """A coupling of s to the first or the last rotation entry (1e-3 > null_tol), with Z[s, s]
+    large enough to keep Z PSD: judged on the whole Z (one null direction), no sign-of-s remark."""
+    Z = _homogeneous_z(corner=1.0, column={row: 1e-3})
+    assert np.linalg.eigvalsh(Z)[1] > 1e-3  # still one null direction
+    c = certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT, homogeneous=True)
+    assert "sign of s" not in c.message
+
+
+@pytest.mark.parametrize("where", ["column", "corner"])
+def test_homogeneous_s_entries_equal_to_null_tol_are_zero(where):
+    """The trivial-e_s test is inclusive: a coupling of norm exactly null_tol, or Z[s, s]
+    exactly null_tol, still sets e_s aside (the certificate is judged on the rotations)."""
+    tol = CertificateOptions().null_tol
+    Z = _homogeneous_z(column={0: tol}) if where == "column" else _homogeneous_z(corner=tol)
+    c = certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT, homogeneous=True)
+    assert c.certified, c.message
+    assert "sign of s" in c.message
