@@ -12,6 +12,7 @@ import yaml
 from rwhec_ros.config import (
     CAMERA_SPECS,
     GLOBAL_SPECS,
+    TARGET_SPECS,
     CalibratorConfig,
     ParamSpec,
     flatten_parameters,
@@ -314,7 +315,9 @@ def test_readme_parameter_table_matches_the_specs():
     table = {re.match(r"^\| `([^`]+)`", ln).group(1): ln for ln in lines[start:end]}
     specs = list(GLOBAL_SPECS) + [
         ParamSpec(f"cameras.<name>.{s.name}", s.kind, s.default, s.required, s.doc)
-        for s in CAMERA_SPECS]
+        for s in CAMERA_SPECS] + [
+        ParamSpec(f"targets.<name>.{s.name}", s.kind, s.default, s.required, s.doc)
+        for s in TARGET_SPECS]
     for spec in specs:
         doc = spec.doc.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
         want = f"| `{spec.name}` | {_KINDS[spec.kind]} | {_readme_default(spec)} | {doc} |"

@@ -26,7 +26,9 @@ from .sections import (
     SolverConfig,
     SyncConfig,
     TagsConfig,
+    TargetsConfig,
 )
+from .targets import build_targets
 from .specs import GLOBAL_SPECS, IMAGE_QOS, IMAGE_TRANSPORTS, POSE_SOURCE_TYPES, SOLVER_MODES
 from .validation import (
     check_choice,
@@ -67,6 +69,7 @@ class CalibratorConfig:
     priors: PriorsConfig = field(default_factory=PriorsConfig)
     accuracy: AccuracyConfig = field(default_factory=AccuracyConfig)
     convergence: ConvergenceConfig = field(default_factory=ConvergenceConfig)
+    targets: TargetsConfig = field(default_factory=TargetsConfig)
 
     # --- names ------------------------------------------------------------------------------
     @property
@@ -81,8 +84,19 @@ class CalibratorConfig:
 
     @property
     def x_names(self) -> tuple[str, ...]:
-        """X-variable names (tags) in configuration order."""
-        return tuple(self.tags.frame_name(i) for i in self.tags.ids)
+        """X-variable names in configuration order: the frames of ``tags.ids``, then the named
+        targets (``targets.names``)."""
+        return tuple(self.tags.frame_name(i) for i in self.tags.ids) + self.targets.names
+
+    def target_specs(self) -> tuple:
+        """Every target as a :class:`~rwhec_ros.vision.targets.TargetSpec`, in :attr:`x_names`
+        order: one per tag of ``tags.ids`` (frame ``<tags.frame_prefix><id>``, its size), then
+        the named targets (boards and tags)."""
+        from ..vision.targets import TargetSpec
+
+        singles = tuple(TargetSpec(self.tags.frame_name(i), tag_id=i, tag_size=self.tags.sizes[i])
+                        for i in self.tags.ids)
+        return singles + self.targets.specs
 
     @property
     def y_names(self) -> tuple[str, ...]:
@@ -93,7 +107,7 @@ class CalibratorConfig:
         """Variable name -> (parent frame, child frame) under which its estimate is published.
 
         Cameras: ``(camera carrier, calibrated_frame)``; tags: ``(tag carrier,
-        <tag frame><output.frame_suffix>)``.
+        <tag frame><output.frame_suffix>)``, the same for the named targets.
         """
         out = {c.name: (self.camera_carrier.frame, c.calibrated_frame) for c in self.cameras}
         for name in self.x_names:
@@ -201,15 +215,24 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         )
 
     tags = _build_tags(v)
-    # X names (tags), Y names (cameras) and published frames must not collide.
-    var_names = [tags.frame_name(i) for i in tags.ids] + list(names)
+    targets = TargetsConfig(build_targets(v, tags.family, tags.ids))
+    if not tags.ids and not targets.specs:
+        raise ValueError("tags.ids: at least one target is required: a tag id in tags.ids or a "
+                         "named target in targets.names, got none")
+    # X names (tags, targets), Y names (cameras) and published frames must not collide.
+    tag_frames = [tags.frame_name(i) for i in tags.ids]
+    for n in targets.names:
+        if n in tag_frames or n in names:
+            raise ValueError(f"targets.names: target {n!r} has the name of a "
+                             f"{'tag frame' if n in tag_frames else 'camera'}")
+    var_names = tag_frames + list(names)
     dup = sorted({n for n in var_names if var_names.count(n) > 1})
     if dup:
         raise ValueError(
             f"tags.frame_prefix: tag frame names {dup} collide with camera names {list(names)}"
         )
     published = [c.calibrated_frame for c in cameras] + [
-        tags.frame_name(i) + v["output.frame_suffix"] for i in tags.ids
+        x + v["output.frame_suffix"] for x in tag_frames + list(targets.names)
     ]
     dup = sorted({n for n in published if published.count(n) > 1})
     if dup:
@@ -266,7 +289,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),
         max_std_rotation_deg=check_positive(v, "convergence.max_std_rotation_deg"),
     )
-    priors = _build_priors(v, names, tags)
+    priors = _build_priors(v, names, tag_frames + list(targets.names))
     output = OutputConfig(
         directory=v["output.directory"],
         frame_suffix=v["output.frame_suffix"],
@@ -303,10 +326,11 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         priors=priors,
         accuracy=accuracy,
         convergence=convergence,
+        targets=targets,
     )
 
 
-def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], tags: TagsConfig
+def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], x_names: list[str]
                   ) -> PriorsConfig:
     """``priors.frames/axes/values_m``: parallel arrays of the same length, axes x/y/z, frames
     among the cameras and the tag frames, finite values."""
@@ -315,7 +339,7 @@ def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], tags: TagsCo
         raise ValueError(
             f"priors.axes: priors.frames, priors.axes and priors.values_m must have the same "
             f"length, got {len(frames)}, {len(axes)} and {len(values)}")
-    known = list(camera_names) + [tags.frame_name(t) for t in tags.ids]
+    known = list(camera_names) + list(x_names)
     entries = []
     for i, (f, a, x) in enumerate(zip(frames, axes, values, strict=True)):
         if f not in known:
@@ -363,8 +387,6 @@ def _build_verdict(v: dict[str, Any]) -> dict[str, Any]:
 
 def _build_tags(v: dict[str, Any]) -> TagsConfig:
     ids = v["tags.ids"]
-    if len(ids) == 0:
-        raise ValueError("tags.ids: at least one tag id is required, got []")
     for i, t in enumerate(ids):
         if t < 0:
             raise ValueError(f"tags.ids[{i}]: tag ids are >= 0, got {t}")

@@ -74,6 +74,7 @@ RESTART_REASONS: dict[str, str] = {
     "camera_carrier.": "the frames of the problem are fixed at start-up",
     "tag_carrier.": "the frames of the problem are fixed at start-up",
     "tags.": "the tag detector and the tag frames are set up at start-up",
+    "targets.": "the target detector and the target frames are set up at start-up",
     "detection.": "the tag detectors are built at start-up",
     "sync.": "the pose buffer, the image queue and the worker threads are created at start-up",
     "keyframe.max_pairs_per_edge": "the pair store is sized at start-up",

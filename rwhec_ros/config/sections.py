@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 __all__ = [
     "CarrierConfig",
     "PoseSourceConfig",
     "CameraConfig",
     "TagsConfig",
+    "TargetsConfig",
     "NoiseConfig",
     "SyncConfig",
     "KeyframeConfig",
@@ -82,6 +84,19 @@ class TagsConfig:
     def frame_name(self, tag_id: int) -> str:
         """Name of tag ``tag_id``'s frame, ``<frame_prefix><id>`` (the X-variable name)."""
         return f"{self.frame_prefix}{int(tag_id)}"
+
+
+@dataclass(frozen=True)
+class TargetsConfig:
+    """The named targets (``targets.names``, :mod:`rwhec_ros.config.targets`): boards and
+    single tags with their own frame names, as
+    :class:`~rwhec_ros.vision.targets.TargetSpec` (``name`` = frame = X variable)."""
+
+    specs: tuple[Any, ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(t.name for t in self.specs)
 
 
 @dataclass(frozen=True)

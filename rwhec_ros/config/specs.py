@@ -14,6 +14,8 @@ __all__ = [
     "ParamSpec",
     "GLOBAL_SPECS",
     "CAMERA_SPECS",
+    "TARGET_SPECS",
+    "TARGET_TYPES",
     "parameter_specs",
     "global_spec",
     "is_valid_name",
@@ -46,6 +48,9 @@ SOLVER_MODES = ("fast", "sdp", "local")
 POSE_SOURCE_TYPES = ("topic", "tf")
 IMAGE_QOS = ("sensor_data", "reliable")
 IMAGE_TRANSPORTS = ("raw", "compressed")
+#: ``targets.<name>.type`` values: one tag of ``tags.family`` with its own frame name, a
+#: Kalibr-style AprilGrid, a ChArUco board (:mod:`rwhec_ros.vision.boards`).
+TARGET_TYPES = ("tag", "aprilgrid", "charuco")
 
 
 @dataclass(frozen=True)
@@ -93,8 +98,9 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("cameras.names", "string_array", required=True,
               doc="camera names; each needs cameras.<name>.* parameters"),
     ParamSpec("tags.family", "string", "tag36h11", doc="AprilTag family"),
-    ParamSpec("tags.ids", "int_array", required=True,
-              doc="ids of the tags to calibrate; any other id is ignored (and counted)"),
+    ParamSpec("tags.ids", "int_array", (),
+              doc="ids of the single tags to calibrate (frames <tags.frame_prefix><id>); any "
+                  "other id is ignored (and counted); may be empty when targets.names is not"),
     ParamSpec("tags.default_size", "double", None,
               doc="edge length [m] (black square) of every tag not in tags.sizes.ids"),
     ParamSpec("tags.sizes.ids", "int_array", (), doc="ids with an individual size"),
@@ -103,6 +109,10 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("tags.frame_prefix", "string", "tag_", doc="tag frame names are <prefix><id>"),
     ParamSpec("tags.unknown_scale", "bool", False,
               doc="estimate a common scale (monocular, paper Problem 3): sizes may be nominal"),
+    ParamSpec("targets.names", "string_array", (),
+              doc="named targets, each its own frame (X variable): a board (AprilGrid, ChArUco: "
+                  "one pose from all its corners) or a single tag; each needs "
+                  "targets.<name>.* parameters"),
     ParamSpec("noise.sigma", "double", 0.01,
               doc="translation standard deviation of B [m] (paper sigma, eq. (14))"),
     ParamSpec("noise.kappa", "double", 125.0,
@@ -250,18 +260,59 @@ CAMERA_SPECS: tuple[ParamSpec, ...] = (
               doc="published child frame (default: <frame><output.frame_suffix>)"),
 )
 
+#: Per-target parameters ``targets.<name>.<key>``. Layout keys have no schema default (unset):
+#: the default of the target's type applies, and a key of another type is refused by name.
+TARGET_SPECS: tuple[ParamSpec, ...] = (
+    ParamSpec("type", "string", required=True,
+              doc="'aprilgrid' (Kalibr-style grid of AprilTags), 'charuco' (OpenCV ChArUco "
+                  "board) or 'tag' (one tag of tags.family)"),
+    ParamSpec("min_corners", "int", None,
+              doc="boards: fewest detected corners for a pose (>= 4; default 8, or all corners "
+                  "of a smaller board); a partly seen board gives a pose from the corners seen"),
+    ParamSpec("tag_id", "int", None, doc="tag: id in tags.family"),
+    ParamSpec("tag_size", "double", None,
+              doc="tag, aprilgrid: edge of a tag's black square [m]"),
+    ParamSpec("rows", "int", None, doc="aprilgrid: rows of tags (Kalibr tagRows)"),
+    ParamSpec("cols", "int", None, doc="aprilgrid: columns of tags (Kalibr tagCols)"),
+    ParamSpec("spacing", "double", None,
+              doc="aprilgrid: gap between tags as a fraction of tag_size (Kalibr tagSpacing; "
+                  "default 0.3)"),
+    ParamSpec("border_bits", "int", None,
+              doc="aprilgrid: black border of each tag in cells (default 2 as Kalibr prints; "
+                  "1 for tags printed from the AprilTag images)"),
+    ParamSpec("family", "string", None,
+              doc="aprilgrid: AprilTag family of the grid (default tag36h11)"),
+    ParamSpec("first_id", "int", None,
+              doc="aprilgrid: id of the bottom-left tag; charuco: id of marker 0 (default 0)"),
+    ParamSpec("squares_x", "int", None, doc="charuco: chessboard squares along x (>= 2)"),
+    ParamSpec("squares_y", "int", None, doc="charuco: chessboard squares along y (>= 2)"),
+    ParamSpec("square_size", "double", None, doc="charuco: edge of a chessboard square [m]"),
+    ParamSpec("marker_size", "double", None,
+              doc="charuco: edge of a marker's black square [m] (< square_size)"),
+    ParamSpec("dictionary", "string", None,
+              doc="charuco: ArUco dictionary, e.g. DICT_5X5_100 (default), or an AprilTag "
+                  "family"),
+    ParamSpec("legacy_pattern", "bool", None,
+              doc="charuco: board made by OpenCV < 4.6 with an even number of rows"),
+)
+
 
 def is_valid_name(name: str) -> bool:
     """True for a camera name usable in parameter names (letter, then letters, digits, ``_``)."""
     return bool(_NAME_RE.match(str(name)))
 
 
-def parameter_specs(camera_names: tuple[str, ...] | list[str] = ()) -> list[ParamSpec]:
-    """The full schema with per-camera specs expanded to ``cameras.<name>.<key>``."""
+def parameter_specs(camera_names: tuple[str, ...] | list[str] = (),
+                    target_names: tuple[str, ...] | list[str] = ()) -> list[ParamSpec]:
+    """The full schema with per-camera specs expanded to ``cameras.<name>.<key>`` and
+    per-target specs to ``targets.<name>.<key>``."""
     out = list(GLOBAL_SPECS)
-    for name in camera_names:
-        for s in CAMERA_SPECS:
-            out.append(ParamSpec(f"cameras.{name}.{s.name}", s.kind, s.default, s.required, s.doc))
+    for prefix, names, specs in (("cameras", camera_names, CAMERA_SPECS),
+                                 ("targets", target_names, TARGET_SPECS)):
+        for name in names:
+            for s in specs:
+                out.append(ParamSpec(f"{prefix}.{name}.{s.name}", s.kind, s.default, s.required,
+                                     s.doc))
     return out
 
 

@@ -56,30 +56,40 @@ def typed_parameters(flat: Mapping[str, Any]) -> tuple[dict[str, Any], tuple[str
         and not str(k).startswith(ROS_MANAGED_PREFIXES)
     }
     reader = _Reader(params)
-    names = reader.get(global_spec("cameras.names"))
+    names = _names(reader, "cameras.names")
     if len(names) == 0:
         raise ValueError("cameras.names: at least one camera is required, got []")
-    for i, n in enumerate(names):
-        if not is_valid_name(n):
-            raise ValueError(
-                f"cameras.names[{i}]: {n!r} is not a valid name (letter, then letters, "
-                "digits or '_')"
-            )
-    if len(set(names)) != len(names):
-        dup = sorted({n for n in names if names.count(n) > 1})
-        raise ValueError(f"cameras.names: duplicated names {dup} in {list(names)}")
-    specs = {s.name: s for s in parameter_specs(names)}
+    targets = _names(reader, "targets.names")
+    specs = {s.name: s for s in parameter_specs(names, targets)}
     unknown = sorted(k for k in params if k not in specs)
     if unknown:
         k = unknown[0]
         hint = difflib.get_close_matches(k, list(specs), n=3)
         more = f" (also unknown: {unknown[1:]})" if len(unknown) > 1 else ""
         hint_s = f"; did you mean {hint}?" if hint else ""
-        if k.startswith("cameras.") and k.split(".")[1] not in names:
-            hint_s += f"; camera {k.split('.')[1]!r} is not in cameras.names {list(names)}"
+        for section, listed, what in (("cameras", names, "camera"),
+                                      ("targets", targets, "target")):
+            if k.startswith(section + ".") and k.split(".")[1] not in listed:
+                hint_s += (f"; {what} {k.split('.')[1]!r} is not in {section}.names "
+                           f"{list(listed)}")
         raise ValueError(f"{k}: unknown parameter (value {params[k]!r}){hint_s}{more}")
     v = {name: reader.get(s) for name, s in specs.items()}
     return v, names
+
+
+def _names(reader: _Reader, param: str) -> tuple[str, ...]:
+    """The names of ``cameras.names`` / ``targets.names``: valid parameter-name parts, unique."""
+    names = tuple(reader.get(global_spec(param)))
+    for i, n in enumerate(names):
+        if not is_valid_name(n):
+            raise ValueError(
+                f"{param}[{i}]: {n!r} is not a valid name (letter, then letters, "
+                "digits or '_')"
+            )
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise ValueError(f"{param}: duplicated names {dup} in {list(names)}")
+    return names
 
 
 _ARRAY_TYPES = (list, tuple, array.array, np.ndarray)

@@ -12,7 +12,8 @@ the node's parameter callback accepts the live ones and refuses the others with 
 empty arrays, ``tags.default_size``) are declared by type only (``Parameter.Type.*``): their value
 stays unset (``None``), which the configuration reads as "absent".
 
-Per-camera parameters (``cameras.<name>.*``) are declared after ``cameras.names`` is known.
+Per-camera parameters (``cameras.<name>.*``) and per-target parameters (``targets.<name>.*``)
+are declared after ``cameras.names`` and ``targets.names`` are known.
 Only :func:`declare_parameters` and :func:`config_from_node` touch rclpy (imported lazily); the
 planning function :func:`declaration_plan` is plain Python and tested without ROS.
 """
@@ -47,7 +48,7 @@ ROS_TYPE_NAMES = {
 
 
 def declaration_plan(
-    camera_names: Sequence[str], declared: Collection[str]
+    camera_names: Sequence[str], declared: Collection[str], target_names: Sequence[str] = ()
 ) -> list[tuple[str, str, Any, str]]:
     """Parameters still to declare: ``(name, ros_type_name, default_or_None, description)``.
 
@@ -55,7 +56,7 @@ def declaration_plan(
     array, or a required parameter); otherwise a plain Python value of the right type.
     """
     plan = []
-    for spec in parameter_specs(tuple(camera_names)):
+    for spec in parameter_specs(tuple(camera_names), tuple(target_names)):
         if spec.name in declared:
             continue
         default = spec.default
@@ -87,13 +88,16 @@ def declare_parameters(node: Any) -> dict[str, Any]:
     """Declare the schema on ``node`` (see the module docstring) and return every parameter's
     value by name (``None`` for parameters declared by type only)."""
     declared = set(node.get_parameters_by_prefix("").keys())
-    _declare(node, [p for p in declaration_plan((), declared) if p[0] == "cameras.names"])
-    names_param = node.get_parameters_by_prefix("").get("cameras.names")
-    value = None if names_param is None else names_param.value
-    names = [str(n) for n in value] if isinstance(value, (list, tuple)) else []
+    lists = ("cameras.names", "targets.names")
+    _declare(node, [p for p in declaration_plan((), declared) if p[0] in lists])
+    valid = []
+    for list_name in lists:
+        param = node.get_parameters_by_prefix("").get(list_name)
+        value = None if param is None else param.value
+        names = [str(n) for n in value] if isinstance(value, (list, tuple)) else []
+        valid.append([n for n in names if is_valid_name(n)])  # invalid: reported by the config
     declared = set(node.get_parameters_by_prefix("").keys())
-    valid = [n for n in names if is_valid_name(n)]  # invalid names: reported by the config
-    _declare(node, declaration_plan(valid, declared))
+    _declare(node, declaration_plan(valid[0], declared, valid[1]))
     return {name: p.value for name, p in node.get_parameters_by_prefix("").items()}
 
 

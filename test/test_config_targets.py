@@ -1,0 +1,131 @@
+"""Named targets in the configuration (``targets.names``): boards and single tags, validation."""
+
+from __future__ import annotations
+
+import pytest
+
+from rwhec_ros.config import CalibratorConfig
+from rwhec_ros.vision.boards import AprilGridSpec, CharucoSpec
+
+from test_config import minimal
+
+
+def with_targets(**targets) -> dict:
+    """``minimal()`` (tags 0, 1, 2 of tag36h11) plus named targets given as flat key dicts."""
+    p = minimal()
+    p["targets.names"] = list(targets)
+    for name, keys in targets.items():
+        p.update({f"targets.{name}.{k}": v for k, v in keys.items()})
+    return p
+
+
+GRID = {"type": "aprilgrid", "rows": 3, "cols": 4, "tag_size": 0.06, "first_id": 100}
+CHARUCO = {"type": "charuco", "squares_x": 5, "squares_y": 4, "square_size": 0.08,
+           "marker_size": 0.06, "dictionary": "DICT_4X4_250"}
+
+
+def test_existing_configurations_have_no_named_targets():
+    c = CalibratorConfig.from_parameters(minimal())
+    assert c.targets.specs == ()
+    assert c.x_names == ("tag_0", "tag_1", "tag_2")
+    assert [t.name for t in c.target_specs()] == list(c.x_names)
+    assert all(t.kind == "tag" and t.tag_size == 0.16 for t in c.target_specs())
+
+
+def test_boards_and_tags_mixed_with_defaults():
+    c = CalibratorConfig.from_parameters(with_targets(
+        grid=GRID, board=CHARUCO, plate={"type": "tag", "tag_id": 7, "tag_size": 0.2}))
+    assert c.x_names == ("tag_0", "tag_1", "tag_2", "grid", "board", "plate")
+    grid, board, plate = c.targets.specs
+    assert grid.board == AprilGridSpec(3, 4, tag_size=0.06, tag_spacing=0.3, first_id=100,
+                                       family="tag36h11", border_bits=2)
+    assert board.board == CharucoSpec(5, 4, square_size=0.08, marker_size=0.06,
+                                      dictionary="DICT_4X4_250")
+    assert (plate.tag_id, plate.tag_size, plate.board) == (7, 0.2, None)
+    assert grid.min_corners == board.min_corners == 8  # the default
+    assert c.published_frames()["grid"] == ("world", "grid_calibrated")
+    # round trip through the flat parameters
+    assert CalibratorConfig.from_parameters(c.to_parameters()) == c
+
+
+def test_only_boards_needs_no_tag_ids():
+    p = with_targets(board=CHARUCO)
+    del p["tags.ids"], p["tags.default_size"]
+    c = CalibratorConfig.from_parameters(p)
+    assert c.x_names == ("board",)
+    p["targets.names"] = []
+    for key in [k for k in p if k.startswith("targets.board.")]:
+        del p[key]
+    with pytest.raises(ValueError, match=r"^tags.ids: at least one target"):
+        CalibratorConfig.from_parameters(p)
+
+
+def test_min_corners_default_is_capped_by_a_small_board():
+    small = dict(CHARUCO, squares_x=3, squares_y=3)  # 4 chessboard corners
+    c = CalibratorConfig.from_parameters(with_targets(b=small))
+    assert c.targets.specs[0].min_corners == 4
+    c = CalibratorConfig.from_parameters(with_targets(b=dict(CHARUCO, min_corners=6)))
+    assert c.targets.specs[0].min_corners == 6
+
+
+@pytest.mark.parametrize("targets, param, words", [
+    # layouts
+    ({"g": dict(GRID, rows=0)}, "targets.g.rows", "must be >= 1, got 0"),
+    ({"g": dict(GRID, tag_size=-0.06)}, "targets.g.tag_size", "> 0, got -0.06"),
+    ({"g": dict(GRID, spacing=0.01)}, "targets.g.spacing", "invalid aprilgrid layout"),
+    ({"g": dict(GRID, border_bits=0)}, "targets.g.border_bits", ">= 1, got 0"),
+    ({"g": dict(GRID, first_id=580)}, "targets.g.first_id", "exceeds the 587 markers"),
+    ({"c": dict(CHARUCO, squares_x=1)}, "targets.c.squares_x", ">= 2, got 1"),
+    ({"c": dict(CHARUCO, marker_size=0.09)}, "targets.c.marker_size",
+     "must be smaller than square_size"),
+    ({"c": dict(CHARUCO, min_corners=3)}, "targets.c.min_corners", ">= 4, got 3"),
+    ({"c": dict(CHARUCO, min_corners=13)}, "targets.c.min_corners", "exceeds the 12 corners"),
+    # unknown dictionary / family / type
+    ({"c": dict(CHARUCO, dictionary="DICT_9X9_50")}, "targets.c.dictionary",
+     "unknown dictionary 'DICT_9X9_50'"),
+    ({"g": dict(GRID, family="tag99h1")}, "targets.g.family", "unknown family 'tag99h1'"),
+    ({"g": dict(GRID, type="checkerboard")}, "targets.g.type", "'checkerboard'"),
+    # keys of another type, missing keys
+    ({"g": dict(GRID, squares_x=4)}, "targets.g.squares_x", "not a parameter of a 'aprilgrid'"),
+    ({"c": dict(CHARUCO, rows=4)}, "targets.c.rows", "not a parameter of a 'charuco'"),
+    ({"g": {"type": "aprilgrid", "rows": 2, "cols": 2}}, "targets.g.tag_size", "missing"),
+    ({"t": {"type": "tag", "tag_id": 9}}, "targets.t.tag_size", "missing"),
+    # ids: a board over the single tags (tags.ids 0..2 of tag36h11), two boards, a tag target
+    ({"g": dict(GRID, first_id=0)}, "targets.g.first_id",
+     r"marker ids \[0, 1, 2\] of tag36h11 are used by tags.ids"),
+    ({"g": GRID, "h": dict(GRID, first_id=110)}, "targets.h.first_id",
+     r"marker ids \[110, 111\] of tag36h11 are used by target 'g'"),
+    ({"t": {"type": "tag", "tag_id": 2, "tag_size": 0.1}}, "targets.t.tag_id",
+     r"\[2\] of tag36h11 are used by tags.ids too"),
+    ({"a": CHARUCO, "b": dict(CHARUCO, first_id=5)}, "targets.b.first_id",
+     r"used by target 'a'"),
+    ({"t": {"type": "tag", "tag_id": 600, "tag_size": 0.1}}, "targets.t.tag_id",
+     "not in tag36h11"),
+    # names
+    ({"tag_1": CHARUCO}, "targets.names", "name of a tag frame"),
+    ({"cam0": CHARUCO}, "targets.names", "name of a camera"),
+    ({"9x": CHARUCO}, r"targets.names\[0\]", "not a valid name"),
+])
+def test_bad_targets_name_the_parameter_and_value(targets, param, words):
+    with pytest.raises(ValueError, match=rf"^{param}: .*{words}"):
+        CalibratorConfig.from_parameters(with_targets(**targets))
+
+
+def test_boards_in_another_dictionary_may_reuse_ids():
+    # ChArUco markers 0.. of DICT_4X4_250 do not collide with AprilTags 0..2 of tag36h11
+    c = CalibratorConfig.from_parameters(with_targets(board=dict(CHARUCO, first_id=0)))
+    assert c.targets.specs[0].marker_ids()[:3] == (0, 1, 2)
+
+
+def test_parameters_of_an_unlisted_target_are_unknown():
+    p = with_targets(board=CHARUCO)
+    p["targets.other.type"] = "charuco"
+    with pytest.raises(ValueError, match=r"^targets.other.type: unknown parameter.*"
+                                         r"target 'other' is not in targets.names"):
+        CalibratorConfig.from_parameters(p)
+
+
+def test_priors_may_name_a_board():
+    p = with_targets(board=CHARUCO)
+    p.update({"priors.frames": ["board"], "priors.axes": ["z"], "priors.values_m": [1.0]})
+    assert CalibratorConfig.from_parameters(p).priors.entries == (("board", "z", 1.0),)
