@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import pytest
+from test_config import minimal
 
 from rwhec_ros.config import CalibratorConfig
 from rwhec_ros.vision.boards import AprilGridSpec, CharucoSpec
-
-from test_config import minimal
 
 
 def with_targets(**targets) -> dict:

@@ -28,8 +28,8 @@ from .sections import (
     TagsConfig,
     TargetsConfig,
 )
-from .targets import build_targets
 from .specs import GLOBAL_SPECS, IMAGE_QOS, IMAGE_TRANSPORTS, POSE_SOURCE_TYPES, SOLVER_MODES
+from .targets import build_targets
 from .validation import (
     check_choice,
     check_frame,
