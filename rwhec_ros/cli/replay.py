@@ -9,7 +9,9 @@ from typing import Any
 
 import numpy as np
 
+from ..config.targets import target_parameters
 from ..errors import describe_os_error
+from ..vision.targets import TargetSpec
 from .common import (
     BadInput,
     Interrupted,
@@ -29,7 +31,8 @@ __all__ = ["cmd_bag", "cmd_demo", "demo_parameters", "LiveWatch"]
 #: Seconds ``bag`` waits for the live re-solve of the whole recording before calibrating.
 LIVE_FINAL_TIMEOUT_S = 60.0
 #: Prefixes of the parameters that describe the simulated rig itself (kept by ``demo --config``).
-RIG_PARAMETER_PREFIXES = ("camera_carrier.", "tag_carrier.", "pose_source.", "cameras.", "tags.")
+RIG_PARAMETER_PREFIXES = ("camera_carrier.", "tag_carrier.", "pose_source.", "cameras.", "tags.",
+                          "targets.")
 
 
 def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
@@ -234,7 +237,7 @@ def _transport_hint(cam, topics) -> str:
 
 def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> dict[str, Any]:
     """Flat calibrator parameters for a simulated rig (the values of ``config/demo.yaml``, with
-    the rig's cameras and tags): motion-capture ``PoseStamped`` ``world -> rig``, cameras on
+    the rig's cameras, tags and boards, :meth:`SimulatedRig.target_names`): motion-capture ``PoseStamped`` ``world -> rig``, cameras on
     ``rig``, tags in ``world``; ``output_directory`` as ``output.directory`` (``""``: the
     default of :mod:`rwhec_ros.session.paths`)."""
     from ..simulation import DEMO_POSE_TOPIC, DEMO_RIG_FRAME, DEMO_WORLD_FRAME, demo_camera_topics
@@ -245,7 +248,7 @@ def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> d
         "pose_source.type": "topic", "pose_source.topic": DEMO_POSE_TOPIC,
         "pose_source.parent": DEMO_WORLD_FRAME, "pose_source.child": DEMO_RIG_FRAME,
         "cameras.names": list(rig.cameras),
-        "tags.family": rig.family, "tags.ids": list(rig.tag_ids),
+        "tags.family": rig.family, "tags.ids": list(rig.single_tag_ids),
         "tags.default_size": float(rig.tag_size),
         "noise.sigma": 0.005, "noise.kappa": 400.0, "noise.from_reprojection": False,
         "sync.max_gap_s": 0.1, "sync.extrapolation_tolerance_s": 0.01,
@@ -255,6 +258,11 @@ def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> d
         "solver.mode": mode, "solver.min_pairs": 3, "solver.reject_outliers": False,
         "output.directory": output_directory,
     }
+    boards = [TargetSpec(f"board_{j}", board=b) for j, b in sorted(rig.boards.items())]
+    if boards:
+        flat["targets.names"] = [t.name for t in boards]
+        for t in boards:
+            flat.update(target_parameters(t))
     for cam in rig.cameras:
         image_topic, info_topic = demo_camera_topics(cam)
         flat[f"cameras.{cam}.image_topic"] = image_topic
@@ -265,7 +273,7 @@ def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> d
 
 def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
     from ..session import CalibrationSession
-    from ..simulation import demo_rig, simulated_stream
+    from ..simulation import demo_board, demo_rig, simulated_stream
 
     if args.cameras < 1 or args.tags < 1:
         raise BadInput(f"--cameras/--tags: must be >= 1, got {args.cameras}/{args.tags}")
@@ -275,8 +283,11 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
     settings = read_config(args)
     paths = output_paths(args, report=args.report)  # refuse early, before any work
     t0 = time.perf_counter()
+    if len(args.board) > args.tags:
+        raise BadInput(f"--board: {len(args.board)} boards for {args.tags} tag positions (--tags)")
     try:
-        rig = demo_rig(args.cameras, args.tags)
+        rig = demo_rig(args.cameras, args.tags,
+                       boards={j: demo_board(kind, j) for j, kind in enumerate(args.board)})
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     flat = demo_parameters(rig)
@@ -289,7 +300,8 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
     session = CalibrationSession(config)
     for cam in rig.cameras:
         session.set_camera_info(cam, rig.intrinsics[cam])
-    say.progress(f"simulating: {len(rig.cameras)} cameras, {len(rig.tag_ids)} tags, "
+    say.progress(f"simulating: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} tags, "
+                 f"{len(rig.boards)} boards, "
                  f"{args.seconds:g} s at {args.rate:g} Hz")
     rng = np.random.default_rng(args.seed)
     n_images = 0
@@ -301,14 +313,16 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
             session.add_image(cam, stamp, data)
             n_images += 1
     counters = session.counters()
-    say(f"demo: {len(rig.cameras)} cameras, {len(rig.tag_ids)} tags, {args.seconds:g} s, "
+    say(f"demo: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} tags, "
+        f"{len(rig.boards)} boards, {args.seconds:g} s, "
         f"{n_images} images rendered and searched, {counters.get('pairs_kept', 0)} pairs kept "
         f"({time.perf_counter() - t0:.1f} s)")
     code, outcome = calibrate_session(say, session, paths, force=args.force, report=args.report)
     if outcome.result is None:
         return code
     result = outcome.result
-    X_true = np.array([rig.T_world_tag[int(n[len("tag_"):])] for n in result.x_names])
+    positions = rig.target_names()
+    X_true = np.array([rig.T_world_tag[positions[n]] for n in result.x_names])
     Y_true = np.array([rig.T_rig_cam[n] for n in result.y_names])
     err = result.errors_to(X_true, Y_true)
     say("errors against the simulation's ground truth:")

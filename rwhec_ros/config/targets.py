@@ -35,7 +35,7 @@ from ..vision.targets import TargetSpec
 from .specs import TARGET_SPECS, TARGET_TYPES
 from .validation import check_choice, check_positive
 
-__all__ = ["build_targets", "TYPE_KEYS", "DEFAULT_MIN_CORNERS"]
+__all__ = ["build_targets", "target_parameters", "TYPE_KEYS", "DEFAULT_MIN_CORNERS"]
 
 #: Keys each target type takes (besides ``type``), with the default of an unset optional key
 #: (``...``: required).
@@ -163,3 +163,22 @@ def build_targets(v: dict[str, Any], tag_family: str, single_tag_ids: tuple[int,
                              f"({dictionary_size(family)} tags)")
         out.append(spec)
     return tuple(out)
+
+
+def target_parameters(spec: TargetSpec) -> dict[str, Any]:
+    """The flat parameters ``targets.<name>.<key>`` that :func:`build_targets` turns back into
+    ``spec`` (add ``spec.name`` to ``targets.names``)."""
+    p = f"targets.{spec.name}."
+    if spec.board is None:
+        return {p + "type": "tag", p + "tag_id": spec.tag_id, p + "tag_size": spec.tag_size}
+    b = spec.board
+    if isinstance(b, AprilGridSpec):
+        keys = {"rows": b.rows, "cols": b.cols, "tag_size": b.tag_size, "spacing": b.tag_spacing,
+                "first_id": b.first_id, "family": b.family, "border_bits": b.border_bits}
+    else:
+        keys = {"squares_x": b.squares_x, "squares_y": b.squares_y,
+                "square_size": b.square_size, "marker_size": b.marker_size,
+                "dictionary": b.dictionary, "first_id": b.first_id,
+                "legacy_pattern": b.legacy_pattern}
+    keys["min_corners"] = spec.min_corners
+    return {p + "type": b.kind, **{p + k: v for k, v in keys.items()}}

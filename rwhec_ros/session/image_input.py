@@ -41,7 +41,8 @@ from typing import Any
 import numpy as np
 
 from ..sync.buffer import LookupStatus
-from ..vision.detection import RejectReason, TagDetector
+from ..vision.detection import RejectReason
+from ..vision.target_detector import TargetDetector
 from .outcomes import ImageOutcome
 
 __all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS"]
@@ -70,7 +71,8 @@ class ImageInput:
     """Mixin of :class:`~rwhec_ros.session.CalibrationSession`: the image path (see the module
     docstring). It uses the session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
     ``_pending``, ``_counters``, ``_camera_counts``, ``_rejections``, ``_intrinsics``,
-    ``_data_version``, ``_tag_names``, ``_local``, ``_detector_config``, ``config`` and
+    ``_data_version``, ``_x_names``, ``_target_specs``, ``_local``, ``_detector_config``,
+    ``config`` and
     ``_pose_to_A``."""
 
     # --- public --------------------------------------------------------------------------------
@@ -206,18 +208,17 @@ class ImageInput:
         return self._examine(camera, stamp, image, intrinsics, A)
 
     # --- gate, decode, detect, offer -------------------------------------------------------------
-    def _keepable_tags(self, camera: str, stamp: int, A: np.ndarray) -> list[int]:
-        """Configured tag ids whose edge with ``camera`` would keep a pair at ``(stamp, A)``
+    def _keepable_targets(self, camera: str, stamp: int, A: np.ndarray) -> list[str]:
+        """Targets (X names) whose edge with ``camera`` would keep a pair at ``(stamp, A)``
         (lock held)."""
-        return [t for t, x in self._tag_names.items()
-                if self._acc.would_keep(x, camera, stamp, A)]
+        return [x for x in self._x_names if self._acc.would_keep(x, camera, stamp, A)]
 
     def _examine(self, camera: str, stamp: int, image: ImageSource, intrinsics,
                  A: np.ndarray) -> ImageOutcome:
         """Steps 3-5 of the module docstring for an image whose ``A`` is known (lock NOT held)."""
         gate = self.config.detection.motion_gate
         with self._lock:
-            wanted = self._keepable_tags(camera, stamp, A) if gate else None
+            wanted = self._keepable_targets(camera, stamp, A) if gate else None
             if gate and not wanted:
                 self._count("images_skipped_no_motion")
                 self._camera_count(camera, "skipped_no_motion")
@@ -234,7 +235,7 @@ class ImageInput:
         else:
             gray = image
         try:  # outside the lock: detection is the expensive part
-            detection = self._detector().detect(gray, intrinsics, only_ids=wanted)
+            detection = self._detector().detect(gray, intrinsics, only=wanted)
         except Exception as exc:  # noqa: BLE001 - the live path never raises
             return self._reject(camera, stamp, f"image_detector_error:{type(exc).__name__}",
                                 str(exc))
@@ -254,40 +255,45 @@ class ImageInput:
                 reasons.append(key)
             if detection.skipped:
                 self._count("tags_skipped_no_motion", len(detection.skipped))
-            obs = [o for o in detection.observations if o.tag_id in self._tag_names]
+            obs = detection.observations
             self._count("tags_detected", len(obs))
             if not obs and not detection.skipped:
                 self._count("images_without_tags")
-                return ImageOutcome(camera, stamp, "no_tags", reasons=reasons)
-            kept = self._offer(camera, stamp, A, obs)
+                return ImageOutcome(camera, stamp, "no_tags", reasons=reasons,
+                                    detection=detection)
+            names = self._offer(camera, stamp, A, obs)
+            kept = len(names)
             self._count("images_used" if kept else "images_no_new_pairs")
             if kept:
                 self._camera_count(camera, "used")
                 self._camera_count(camera, "pairs_kept", kept)
             return ImageOutcome(camera, stamp, "used" if kept else "no_new_pairs", len(obs),
-                                kept, reasons)
+                                kept, reasons, detection=detection, kept=tuple(names))
 
-    def _offer(self, camera: str, stamp: int, A: np.ndarray, observations: list) -> int:
-        """Offer the pairs of one image (lock held); returns the number kept."""
+    def _offer(self, camera: str, stamp: int, A: np.ndarray, observations: list) -> list[str]:
+        """Offer the pairs of one image, one per target (a board is one pair: one ``B`` from
+        all its corners) (lock held); returns the targets whose pair was kept."""
         noise = self.config.noise
-        kept = 0
+        kept = []
         for o in observations:
             if noise.from_reprojection and o.sigma is not None and o.kappa is not None:
                 sigma, kappa = float(o.sigma), float(o.kappa)
             else:
                 sigma, kappa = noise.sigma, noise.kappa
-            x = self._tag_names[o.tag_id]
-            ok = self._acc.offer(x, camera, stamp, A, o.T_cam_tag, sigma, kappa,
-                                 corners_px=o.corners)
+            x = o.name
+            # the data set keeps four tag corners per pair (reprojection error); boards none
+            corners = o.image_points if o.kind == "tag" else None
+            ok = self._acc.offer(x, camera, stamp, A, o.T_cam_target, sigma, kappa,
+                                 corners_px=corners)
             self._count("pairs_offered")
             if ok:
-                kept += 1
+                kept.append(x)
                 if self._tracker is not None:
                     try:
-                        self._tracker.add_pair(x, camera, A, o.T_cam_tag, sigma, kappa)
+                        self._tracker.add_pair(x, camera, A, o.T_cam_target, sigma, kappa)
                     except ValueError:
                         self._count("identifiability_rejected_pair")
-        self._count("pairs_kept", kept)
+        self._count("pairs_kept", len(kept))
         if kept:
             self._data_version += 1
         return kept
@@ -327,8 +333,9 @@ class ImageInput:
                 self._rejections.reject(reason, str(camera), words)
         return ImageOutcome(camera, stamp, "rejected", reasons=[reason], detail=detail)
 
-    def _detector(self) -> TagDetector:
+    def _detector(self) -> TargetDetector:
         det = getattr(self._local, "detector", None)
         if det is None:  # one detector per thread: cv2 detector objects are not shared
-            det = self._local.detector = TagDetector(self._detector_config)
+            det = self._local.detector = TargetDetector(self._target_specs,
+                                                        self._detector_config)
         return det

@@ -102,7 +102,8 @@ class CalibrationSession(ImageInput):
             estimate_precision=True,
             decimate=config.detection.decimate,
         )
-        self._tag_names = {t: config.tags.frame_name(t) for t in config.tags.ids}
+        self._target_specs = config.target_specs()
+        self._x_names = config.x_names
         self._intrinsics: dict[str, CameraIntrinsics] = {}
         self._last_outcome: SolveOutcome | None = None
         # never reset: the live solver compares them across resets
@@ -125,7 +126,7 @@ class CalibrationSession(ImageInput):
             keyframe_rotation_rad=c.keyframe.min_rotation_rad,
             keyframe_translation_m=c.keyframe.min_translation_m,
             max_pairs_per_edge=c.keyframe.max_pairs_per_edge,
-            max_edges=max(1, len(c.cameras) * len(c.tags.ids)),
+            max_edges=max(1, len(c.cameras) * len(c.x_names)),
         )
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()

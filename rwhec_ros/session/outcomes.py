@@ -34,6 +34,11 @@ class ImageOutcome:
     detail : str
         What was wrong, for a rejection with more to say than its key (e.g. why the data could
         not be decoded).
+    detection : TargetDetectionResult or None
+        What the detector found in the image (None when it was not searched): drawn by
+        :func:`rwhec_ros.vision.annotate.annotate_detections`.
+    kept : tuple of str
+        Targets whose pair was kept.
     """
 
     camera: str
@@ -43,6 +48,8 @@ class ImageOutcome:
     pairs_kept: int = 0
     reasons: list[str] = field(default_factory=list)
     detail: str = ""
+    detection: Any = None
+    kept: tuple[str, ...] = ()
 
 
 @dataclass

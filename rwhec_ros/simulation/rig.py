@@ -34,6 +34,8 @@ __all__ = [
     "Trajectory",
     "SimulatedRig",
     "demo_rig",
+    "demo_board",
+    "DEMO_BOARD_KINDS",
 ]
 
 #: PoseStamped topic of the demo (``header.frame_id`` = world, pose of the rig).
@@ -95,12 +97,15 @@ class SimulatedRig:
     T_rig_cam : dict of str to ndarray (4, 4)
         True ``Y_k``.
     T_world_tag : dict of int to ndarray (4, 4)
-        True ``X_j`` by tag id.
+        True ``X_j`` by tag id (target position ``j``).
     tag_size : float
         Edge length of every tag's black square [m].
     family : str
         AprilTag family.
     trajectory : Trajectory
+    boards : dict of int to AprilGridSpec or CharucoSpec
+        Positions ``j`` that hold a board instead of tag ``j`` (board frame at
+        ``T_world_tag[j]``); drawn by :meth:`render`, named ``board_<j>``.
     """
 
     cameras: tuple[str, ...]
@@ -110,10 +115,29 @@ class SimulatedRig:
     tag_size: float = 0.25
     family: str = "tag36h11"
     trajectory: Trajectory = field(default_factory=Trajectory)
+    boards: Mapping[int, AprilGridSpec | CharucoSpec] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.boards) - set(self.T_world_tag))
+        if unknown:
+            raise ValueError(f"boards: positions {unknown} are not in the rig "
+                             f"({sorted(self.T_world_tag)})")
 
     @property
     def tag_ids(self) -> tuple[int, ...]:
         return tuple(sorted(self.T_world_tag))
+
+    @property
+    def single_tag_ids(self) -> tuple[int, ...]:
+        """Positions holding a single tag (not a board)."""
+        return tuple(j for j in self.tag_ids if j not in self.boards)
+
+    def target_names(self) -> dict[str, int]:
+        """X-variable name -> position ``j``: ``tag_<j>`` for tags, ``board_<j>`` for boards,
+        in the order of the configuration of :func:`rwhec_ros.cli.replay.demo_parameters`."""
+        out = {f"tag_{j}": j for j in self.single_tag_ids}
+        out.update({f"board_{j}": j for j in sorted(self.boards)})
+        return out
 
     def T_world_rig(self, t: float) -> np.ndarray:
         """True rig pose at time ``t`` [s]."""
@@ -178,14 +202,14 @@ class SimulatedRig:
         Tags partly outside the image are left out entirely (a simple stand-in for a detector
         that rejects cut tags). Noise needs ``rng``; ``noise_std=0`` gives a noise-free image.
 
-        ``boards`` (tag id -> layout) puts a board in place of those tags, its frame
-        (:mod:`rwhec_ros.vision.boards`: centre of the pattern) at the tag's pose, so
-        ``X_j = T_world_tag[j]`` and ``B = T_cam_tag(camera, j, T_world_rig)`` stay the truth
-        with the same trajectory and images. A board is drawn when its centre is in front of
-        the camera and its face toward it, also when only partly in view (a board gives a pose
-        from the corners seen).
+        ``boards`` (tag id -> layout; default: the rig's :attr:`boards`) puts a board in place
+        of those tags, its frame (:mod:`rwhec_ros.vision.boards`: centre of the pattern) at the
+        tag's pose, so ``X_j = T_world_tag[j]`` and ``B = T_cam_tag(camera, j, T_world_rig)``
+        stay the truth with the same trajectory and images. A board is drawn when its centre is
+        in front of the camera and its face toward it, also when only partly in view (a board
+        gives a pose from the corners seen).
         """
-        boards = dict(boards or {})
+        boards = dict(self.boards if boards is None else boards)
         unknown = sorted(set(boards) - set(self.tag_ids))
         if unknown:
             raise ValueError(f"boards: tag ids {unknown} are not in the rig ({self.tag_ids})")
@@ -216,11 +240,13 @@ def demo_rig(
     height: int = 480,
     focal_px: float = 500.0,
     trajectory: Trajectory | None = None,
+    boards: Mapping[int, AprilGridSpec | CharucoSpec] | None = None,
 ) -> SimulatedRig:
     """The demo scene: ``n_cameras`` cameras looking outward from a small rig (evenly spread in
     yaw, each with a different pitch and roll), ``n_tags`` tags on a ring of radius
     ``room_radius`` around the start position facing inward at alternating heights. Camera
-    names ``cam<k>``, tag ids ``0..n_tags-1``. Deterministic (no randomness)."""
+    names ``cam<k>``, tag ids ``0..n_tags-1``; ``boards`` (position -> layout, e.g.
+    :func:`demo_board`) replaces those tags by boards. Deterministic (no randomness)."""
     if n_cameras < 1:
         raise ValueError(f"n_cameras: must be >= 1, got {n_cameras}")
     if n_tags < 1:
@@ -257,4 +283,22 @@ def demo_rig(
         T_world_tag=T_world_tag,
         tag_size=float(tag_size),
         trajectory=trajectory if trajectory is not None else Trajectory(),
+        boards=dict(boards or {}),
     )
+
+
+#: Board kinds of :func:`demo_board`.
+DEMO_BOARD_KINDS = ("aprilgrid", "charuco")
+
+
+def demo_board(kind: str, position: int = 0) -> AprilGridSpec | CharucoSpec:
+    """A board about the size of a demo tag (25 cm) for position ``position`` of the demo:
+    ``"aprilgrid"`` 3 x 3 tags of 7 cm (Kalibr layout, ids ``100 + 9 position ...``, clear of
+    the single tags 0..n_tags-1), ``"charuco"`` 5 x 4 squares of 5 cm with 3.8 cm DICT_4X4_250
+    markers (ids ``10 position ...``)."""
+    if kind == "aprilgrid":
+        return AprilGridSpec(3, 3, tag_size=0.07, tag_spacing=0.3, first_id=100 + 9 * position)
+    if kind == "charuco":
+        return CharucoSpec(5, 4, square_size=0.05, marker_size=0.038, dictionary="DICT_4X4_250",
+                           first_id=10 * position)
+    raise ValueError(f"kind: must be one of {list(DEMO_BOARD_KINDS)}, got {kind!r}")

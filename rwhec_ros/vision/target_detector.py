@@ -25,7 +25,7 @@ Predicted poses (``T_cam_target`` by target name, from the current estimate) res
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import replace
 
 import cv2
@@ -121,6 +121,8 @@ class TargetDetector:
         gray: np.ndarray,
         intrinsics: CameraIntrinsics,
         predicted: Mapping[str, np.ndarray] | None = None,
+        *,
+        only: Collection[str] | None = None,
     ) -> TargetDetectionResult:
         """Detect all targets in an 8-bit grayscale image.
 
@@ -131,6 +133,12 @@ class TargetDetector:
             Its size must match the image.
         predicted : mapping of str to ndarray (4, 4), optional
             Predicted ``T_cam_target`` by target name (resolves pose flips).
+        only : collection of str, optional
+            Examine only these targets: the marker search runs on the whole image as always,
+            but a target outside ``only`` gets no refinement, pose or gates and is listed in
+            ``TargetDetectionResult.skipped`` (the live session's motion gate). Each target is
+            examined on its own, so the observations of the targets examined are those of a
+            full ``detect``.
 
         Returns
         -------
@@ -171,15 +179,21 @@ class TargetDetector:
                         result.rejections.append(TargetRejection(
                             "", RejectReason.NOT_IN_CONFIGURATION.value,
                             f"{dictionary} marker {marker_id} belongs to no target", marker_id))
+                        result.markers.setdefault("", []).append((marker_id, quad))
                 elif target.board is None:
                     single_ids.append(marker_id)
                     single_quads.append(quad)
+                    found[target.name].append((marker_id, quad))
                 else:
                     found[target.name].append((marker_id, quad))
+        result.markers.update({n: m for n, m in found.items() if m})
         tag_predictions = {i: predicted[n] for i, n in self._single_names.items()
                            if n in predicted}
+        only_ids = None if only is None else [i for i, n in self._single_names.items()
+                                              if n in only]
         singles = self._tags.estimate_markers(img, single_ids, single_quads, intrinsics,
-                                              tag_predictions)
+                                              tag_predictions, only_ids=only_ids)
+        result.skipped.extend(self._single_names[i] for i in singles.skipped)
         by_id = {o.tag_id: o for o in singles.observations}
         for r in singles.rejections:
             result.rejections.append(TargetRejection(
@@ -197,6 +211,9 @@ class TargetDetector:
                         flip_ratio=o.flip_ratio))
                 continue
             if not found[t.name]:
+                continue
+            if only is not None and t.name not in only:
+                result.skipped.append(t.name)
                 continue
             obs, rejections = estimate_board(
                 img, t, found[t.name], intrinsics, self.config,

@@ -209,10 +209,24 @@ class TargetRejection:
 
 @dataclass
 class TargetDetectionResult:
-    """Output of :meth:`~rwhec_ros.vision.target_detector.TargetDetector.detect`."""
+    """Output of :meth:`~rwhec_ros.vision.target_detector.TargetDetector.detect`.
+
+    Attributes
+    ----------
+    observations : list of TargetObservation
+    rejections : list of TargetRejection
+    skipped : list of str
+        Targets found in the image but left unexamined (not in ``detect(..., only=...)``).
+    markers : dict of str to list of (int, ndarray (4, 2))
+        Every marker found, by target name (``""``: markers of no target), as cv2.aruco
+        reported it (distorted pixels): where to draw each target
+        (:mod:`rwhec_ros.vision.annotate`), also when it was rejected.
+    """
 
     observations: list[TargetObservation] = field(default_factory=list)
     rejections: list[TargetRejection] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    markers: dict[str, list[tuple[int, np.ndarray]]] = field(default_factory=dict)
 
     def by_name(self) -> dict[str, TargetObservation]:
         """Accepted observations keyed by target name."""

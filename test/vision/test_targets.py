@@ -246,3 +246,21 @@ def test_detect_validates_the_image():
     with pytest.raises(ValueError, match="does not match"):
         det.detect(np.zeros((10, 10), dtype=np.uint8), CAM)
     assert det.detect(np.full((CAM.height, CAM.width), 128, np.uint8), CAM).observations == []
+
+
+@_OLD_OPENCV
+def test_only_examines_the_named_targets_and_reports_where_markers_are():
+    img, truth = scene(np.random.default_rng(0))
+    det = TargetDetector(TARGETS, DetectorConfig())
+    full = det.detect(img, CAM)
+    part = det.detect(img, CAM, only=["charuco"])
+    assert sorted(part.skipped) == ["grid", "tag_7"]  # found, left unexamined
+    assert [o.name for o in part.observations] == ["charuco"]
+    # the target examined gets exactly the pose of a full detection
+    np.testing.assert_array_equal(part.by_name()["charuco"].T_cam_target,
+                                  full.by_name()["charuco"].T_cam_target)
+    # markers found, per target, also those of no target (tag 50)
+    assert {m for m, _ in full.markers["tag_7"]} == {7}
+    assert {m for m, _ in full.markers[""]} == {50}
+    assert len(full.markers["grid"]) >= 15 and set(full.markers) == {"grid", "charuco",
+                                                                       "tag_7", ""}
