@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rwhec_ros.config import CalibratorConfig
 from rwhec_ros.cli.replay import demo_parameters
+from rwhec_ros.config import CalibratorConfig
 from rwhec_ros.data.dataset import Dataset
 from rwhec_ros.session import CalibrationSession
 from rwhec_ros.simulation import demo_board, demo_rig, simulated_stream

@@ -237,7 +237,8 @@ def _transport_hint(cam, topics) -> str:
 
 def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> dict[str, Any]:
     """Flat calibrator parameters for a simulated rig (the values of ``config/demo.yaml``, with
-    the rig's cameras, tags and boards, :meth:`SimulatedRig.target_names`): motion-capture ``PoseStamped`` ``world -> rig``, cameras on
+    the rig's cameras, tags and boards, named as :meth:`SimulatedRig.target_names` says):
+    motion-capture ``PoseStamped`` ``world -> rig``, cameras on
     ``rig``, tags in ``world``; ``output_directory`` as ``output.directory`` (``""``: the
     default of :mod:`rwhec_ros.session.paths`)."""
     from ..simulation import DEMO_POSE_TOPIC, DEMO_RIG_FRAME, DEMO_WORLD_FRAME, demo_camera_topics
