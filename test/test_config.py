@@ -63,6 +63,8 @@ def test_examples_present():
         "mobile_rig_mocap.yaml",
         "mobile_robot_floor.yaml",
         "demo.yaml",
+        "arm_charuco.yaml",
+        "rig_aprilgrid.yaml",
     } <= names
 
 
@@ -97,6 +99,23 @@ def test_frame_conventions_of_the_examples():
     assert rig.tags.sizes[12] == 0.24 and rig.tags.sizes[0] == 0.16
     assert rig.published_frames()["cam3"] == ("rig", "cam3_optical_calibrated")
     assert rig.published_frames()["tag_15"] == ("world", "tag_15_calibrated")
+
+
+def test_board_examples():
+    arm = load_config(CONFIG_DIR / "arm_charuco.yaml")
+    assert arm.tags.ids == () and arm.x_names == ("charuco_board",)
+    (board,) = arm.target_specs()
+    assert board.kind == "charuco" and board.board.n_corners == 24 and board.min_corners == 8
+    assert arm.published_frames()["charuco_board"] == ("base_link",
+                                                       "charuco_board_calibrated")
+    assert arm.pose_source.invert and arm.noise.from_reprojection
+    rig = load_config(CONFIG_DIR / "rig_aprilgrid.yaml")
+    assert rig.x_names == ("tag_300", "grid_north", "grid_east", "grid_south")
+    kinds = [t.kind for t in rig.target_specs()]
+    assert kinds == ["tag", "aprilgrid", "aprilgrid", "aprilgrid"]
+    ids = [m for t in rig.target_specs() for m in t.marker_ids()]
+    assert len(ids) == len(set(ids)) == 1 + 36 + 36 + 20  # every marker id belongs to one target
+    assert rig.ros.detections_rate_hz == 2.0
 
 
 def test_demo_config_matches_the_simulation():

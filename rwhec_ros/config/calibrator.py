@@ -301,6 +301,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         image_qos=check_choice(v, "ros.image_qos", IMAGE_QOS),
         diagnostics_period_s=check_positive(v, "ros.diagnostics_period_s"),
         image_queue_depth=check_positive_int(v, "ros.image_queue_depth", 1),
+        detections_rate_hz=check_positive(v, "ros.detections_rate_hz", allow_zero=True),
     )
     folds = v["accuracy.cross_validation_folds"]
     if folds < 0 or folds == 1:

@@ -197,6 +197,7 @@ class RosConfig:
     image_qos: str
     diagnostics_period_s: float
     image_queue_depth: int = 5
+    detections_rate_hz: float = 2.0
 
 
 @dataclass(frozen=True)

@@ -243,6 +243,9 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("ros.image_qos", "string", "sensor_data",
               doc="image/camera_info QoS: 'sensor_data' (best effort) or 'reliable'"),
     ParamSpec("ros.diagnostics_period_s", "double", 1.0, doc="period of /diagnostics [s]"),
+    ParamSpec("ros.detections_rate_hz", "double", 2.0,
+              doc="rate [Hz] of ~/detections (annotated image of what the calibrator sees, "
+                  "published only while subscribed); 0 = off"),
     ParamSpec("ros.image_queue_depth", "int", 5,
               doc="history depth of each image/camera_info subscription: a burst of more "
                   "images than this between two executor turns is dropped by the middleware, "
