@@ -46,6 +46,7 @@ __all__ = [
     "transform_to_transform_stamped_fields",
     "transform_to_pose_stamped_fields",
     "gray_to_image_fields",
+    "bgr_to_image_fields",
     "gray_to_compressed_image_fields",
     "intrinsics_to_camera_info_fields",
     "diagnostic_rows",
@@ -237,14 +238,28 @@ def gray_to_image_fields(gray: np.ndarray, stamp_ns: int, frame_id: str) -> dict
     g = np.ascontiguousarray(gray)
     if g.ndim != 2 or g.dtype != np.uint8:
         raise ValueError(f"gray: expected a (H, W) uint8 array, got {g.dtype} {g.shape}")
+    return _raw_image_fields(g, "mono8", stamp_ns, frame_id)
+
+
+def bgr_to_image_fields(bgr: np.ndarray, stamp_ns: int, frame_id: str) -> dict[str, Any]:
+    """Fields of a ``bgr8`` ``sensor_msgs/Image`` of a (H, W, 3) uint8 array (e.g.
+    :func:`rwhec_ros.vision.annotate.annotate_detections`)."""
+    b = np.ascontiguousarray(bgr)
+    if b.ndim != 3 or b.shape[2] != 3 or b.dtype != np.uint8:
+        raise ValueError(f"bgr: expected a (H, W, 3) uint8 array, got {b.dtype} {b.shape}")
+    return _raw_image_fields(b, "bgr8", stamp_ns, frame_id)
+
+
+def _raw_image_fields(a: np.ndarray, encoding: str, stamp_ns: int, frame_id: str
+                      ) -> dict[str, Any]:
     return {
         "header": _header(stamp_ns, frame_id),
-        "height": int(g.shape[0]),
-        "width": int(g.shape[1]),
-        "encoding": "mono8",
+        "height": int(a.shape[0]),
+        "width": int(a.shape[1]),
+        "encoding": encoding,
         "is_bigendian": 0,
-        "step": int(g.shape[1]),
-        "data": g.tobytes(),
+        "step": int(a.shape[1] * (a.shape[2] if a.ndim == 3 else 1)),
+        "data": a.tobytes(),
     }
 
 

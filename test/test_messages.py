@@ -15,6 +15,7 @@ from rwhec_ros.messages import (
     LEVEL_ERROR,
     LEVEL_OK,
     LEVEL_WARN,
+    bgr_to_image_fields,
     camera_info_to_intrinsics,
     compressed_image_to_gray,
     diagnostic_rows,
@@ -186,6 +187,21 @@ def test_gray_image_fields_round_trip():
     assert np.array_equal(image_to_gray(msg), gray)
     with pytest.raises(ValueError, match="gray"):
         gray_to_image_fields(gray.astype(np.float32), 0, "x")
+
+
+def test_bgr_image_fields():
+    rng = np.random.default_rng(4)
+    bgr = rng.integers(0, 256, size=(3, 4, 3), dtype=np.uint8)
+    f = bgr_to_image_fields(bgr, 9, "cam0_optical")
+    assert (f["encoding"], f["height"], f["width"], f["step"]) == ("bgr8", 3, 4, 12)
+    assert np.array_equal(np.frombuffer(f["data"], np.uint8).reshape(3, 4, 3), bgr)
+    grey = np.repeat(bgr[:, :, :1], 3, axis=2)  # equal channels: the decoder gives them back
+    g = bgr_to_image_fields(grey, 9, "cam0_optical")
+    msg = image_msg(np.frombuffer(g["data"], np.uint8), g["width"], g["height"], g["encoding"],
+                    g["step"], 9)
+    assert np.array_equal(image_to_gray(msg), grey[:, :, 0])
+    with pytest.raises(ValueError, match="bgr"):
+        bgr_to_image_fields(bgr[:, :, 0], 0, "x")
 
 
 def test_gray_compressed_image_fields_round_trip():

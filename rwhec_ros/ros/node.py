@@ -27,7 +27,11 @@ Interfaces (relative names, so the node can be namespaced):
   :mod:`rwhec_ros.session.live_solve`), and
   ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` (session, live estimate (converged or
   not), one row per camera: received / dropped / skipped / searched and transport loss, one row
-  per edge).
+  per edge), and ``~/detections`` (``sensor_msgs/Image``, ``bgr8``: a searched camera image with
+  every tag and board outlined and labelled, green when kept as a pair, orange with the reason
+  otherwise, :mod:`rwhec_ros.vision.annotate`; all cameras on one topic, ``header.frame_id`` the
+  camera's optical frame, at most ``ros.detections_rate_hz`` images per second and only while
+  someone subscribes, so that it costs nothing otherwise).
 
 Outputs go under ``$ROS_HOME/rwhec_ros`` (``~/.ros/rwhec_ros``) unless ``output.directory``
 says otherwise (:mod:`rwhec_ros.session.paths`); the start-up log and every service answer name
@@ -77,6 +81,7 @@ from std_srvs.srv import Trigger
 from ..config import DEFAULT_NODE_NAME
 from ..config.live_parameters import review_changes
 from ..messages import (
+    bgr_to_image_fields,
     diagnostic_rows,
     fill_message,
     ns_to_stamp_fields,
@@ -87,12 +92,14 @@ from ..messages import (
 from ..session import CalibrationSession, FairImageQueue, MessageHandlers, QueueWorker
 from ..session.camera_monitor import CameraDiagnostics
 from ..session.paths import node_output_root
+from ..session.rate_gate import RateGate
 from ..session.responses import (
     RESET_MESSAGE,
     calibrate_message,
     save_dataset_message,
     should_publish_tf,
 )
+from ..vision.annotate import annotate_detections
 from .params import config_from_node
 from .process import rclpy_main
 
@@ -205,6 +212,12 @@ class CalibratorNode(Node):
         self._result_pub = self.create_publisher(String, "~/result", latched)
         self._estimate_pub = self.create_publisher(String, "~/estimate", latched)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._detections_gate = RateGate(cfg.ros.detections_rate_hz)
+        self._detections_pub = None
+        if cfg.ros.detections_rate_hz > 0:
+            self._detections_pub = self.create_publisher(
+                Image, "~/detections", QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE,
+                                                  history=HistoryPolicy.KEEP_LAST))
         self._static_tf = tf2_ros.StaticTransformBroadcaster(self)
         self._diag_timer = self.create_timer(cfg.ros.diagnostics_period_s,
                                              self._publish_diagnostics,
@@ -219,8 +232,8 @@ class CalibratorNode(Node):
         if post is not None:
             post(self._on_parameters_set)
         self.get_logger().info(
-            f"calibrating cameras {list(cfg.camera_names)} ({cfg.camera_carrier.frame}) and tags "
-            f"{list(cfg.tags.ids)} ({cfg.tag_carrier.frame}); poses from "
+            f"calibrating cameras {list(cfg.camera_names)} ({cfg.camera_carrier.frame}) and "
+            f"targets {list(cfg.x_names)} ({cfg.tag_carrier.frame}); poses from "
             f"{cfg.pose_source.type} {cfg.pose_source.parent}->{cfg.pose_source.child}"
             + (f" on {cfg.pose_source.topic}" if cfg.pose_source.type == "topic" else "")
             + f"; outputs under {self.output_root}"
@@ -306,9 +319,26 @@ class CalibratorNode(Node):
             if T is None:
                 return
         if compressed:
-            self.handlers.on_compressed_image(camera, msg, T)
+            outcome = self.handlers.on_compressed_image(camera, msg, T)
         else:
-            self.handlers.on_image(camera, msg, T)
+            outcome = self.handlers.on_image(camera, msg, T)
+        self._publish_detections(camera, outcome)
+
+    def _publish_detections(self, camera: str, outcome) -> None:
+        """``~/detections``: the searched image annotated, rate-limited, only when subscribed."""
+        pub = self._detections_pub
+        if (pub is None or outcome is None or getattr(outcome, "detection", None) is None
+                or outcome.image is None or pub.get_subscription_count() == 0
+                or not self._detections_gate.take()):
+            return
+        try:
+            bgr = annotate_detections(outcome.image, outcome.detection, outcome.kept,
+                                      title=camera)
+            fields = bgr_to_image_fields(bgr, outcome.stamp_ns, self.config.camera(camera).frame)
+            pub.publish(fill_message(Image(), fields))
+        except Exception as exc:  # noqa: BLE001 - a drawing problem never stops detection
+            self._warn_throttled("detections_image", f"~/detections not published: "
+                                 f"{type(exc).__name__}: {exc}")
 
     def _lookup_pose(self, camera: str, msg):
         ps = self.config.pose_source

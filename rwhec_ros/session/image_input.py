@@ -239,7 +239,9 @@ class ImageInput:
         except Exception as exc:  # noqa: BLE001 - the live path never raises
             return self._reject(camera, stamp, f"image_detector_error:{type(exc).__name__}",
                                 str(exc))
-        return self._offer_detection(camera, stamp, A, detection)
+        outcome = self._offer_detection(camera, stamp, A, detection)
+        outcome.image = gray
+        return outcome
 
     def _offer_detection(self, camera: str, stamp: int, A: np.ndarray, detection) -> ImageOutcome:
         reasons: list[str] = []

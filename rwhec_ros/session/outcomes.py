@@ -39,6 +39,8 @@ class ImageOutcome:
         :func:`rwhec_ros.vision.annotate.annotate_detections`.
     kept : tuple of str
         Targets whose pair was kept.
+    image : ndarray (H, W) uint8 or None
+        The decoded image that was searched (not a copy; None when it was not searched).
     """
 
     camera: str
@@ -50,6 +52,7 @@ class ImageOutcome:
     detail: str = ""
     detection: Any = None
     kept: tuple[str, ...] = ()
+    image: Any = None
 
 
 @dataclass

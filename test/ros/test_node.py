@@ -232,7 +232,13 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                  for c in rig.cameras}
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                          reliability=ReliabilityPolicy.RELIABLE)
-    received = {"tf": [], "bound": [], "result": [], "diag": [], "estimate": []}
+    received = {"tf": [], "bound": [], "result": [], "diag": [], "estimate": [],
+                "detections": []}
+    # ~/detections: the annotated image (ros.detections_rate_hz, default 2 Hz), only while
+    # subscribed
+    assert node._detections_pub.get_subscription_count() == 0
+    helper.create_subscription(Image, "/calibrator/detections",
+                               lambda m: received["detections"].append(m), reliable)
     helper.create_subscription(TFMessage, "/tf_static", lambda m: received["tf"].append(m),
                                QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                                           reliability=ReliabilityPolicy.RELIABLE))
@@ -263,6 +269,15 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                 gray, stamp, f"{cam}_optical")))
         time.sleep(0.03)  # let the detection worker keep up with the bounded queue
     assert wait_for(lambda: node.session.counters().get("pairs_kept", 0) > 60, timeout=30.0)
+    # about 25 s of images at 2 Hz at most; some searched images were annotated and published
+    assert wait_for(lambda: received["detections"], timeout=10.0)
+    assert len(received["detections"]) <= 2.0 * 30 + 1
+    det = received["detections"][-1]
+    assert (det.encoding, det.height, det.width, det.step) == ("bgr8", 480, 640, 3 * 640)
+    assert det.header.frame_id in {f"{c}_optical" for c in rig.cameras}
+    pixels = np.frombuffer(bytes(det.data), np.uint8).reshape(480, 640, 3)
+    assert np.any(np.all(pixels == (0, 255, 0), axis=-1)) or np.any(
+        np.all(pixels == (0, 165, 255), axis=-1))  # outlines in the kept/rejected colours
 
     # the live re-solve (solver.live_period_s 2 s by default) publishes the running estimate
     # with every frame's stds, in the result YAML's schema, and its row on /diagnostics
