@@ -24,8 +24,8 @@ from rwhec_ros.core.synthetic import perturb_measurements, random_transforms
 from rwhec_ros.session import CalibrationSession
 from rwhec_ros.session.convergence import convergence_of
 from rwhec_ros.session.live_solve import LiveSolver, solve_with_uncertainty
-from rwhec_ros.vision.detection import DetectionResult, TagObservation
 from rwhec_ros.vision.intrinsics import CameraIntrinsics
+from rwhec_ros.vision.targets import TargetDetectionResult, TargetObservation
 
 DEMO_YAML = Path(__file__).resolve().parents[1] / "config" / "demo.yaml"
 NS = 1_000_000_000
@@ -69,19 +69,22 @@ class Rig:
             return np.zeros((SIZE, SIZE), np.uint8)
         return load
 
-    def detect(self, gray, intrinsics, only_ids=None) -> DetectionResult:
+    def detect(self, gray, intrinsics, predicted=None, only=None) -> TargetDetectionResult:
+        """The interface of :meth:`TargetDetector.detect` (targets ``tag_<id>``)."""
         camera, A = self.local.current
         if camera not in self.visible:
-            return DetectionResult()
+            return TargetDetectionResult()
         obs = []
         for t in TAGS:
-            if only_ids is not None and t not in only_ids:
+            name = f"tag_{t}"
+            if only is not None and name not in only:
                 continue
             B = invert_transform(self.Y[camera]) @ A @ self.X[t]
             with self.lock:  # one generator, several feeding threads
                 B = perturb_measurements(self.rng, B[None], SIGMA, KAPPA)[0]
-            obs.append(TagObservation(t, B, 0.1, 50.0, 10.0, np.zeros((4, 2)), None, None, 0.25))
-        return DetectionResult(observations=obs)
+            obs.append(TargetObservation(name, "tag", B, 0.1, 10.0, (t,), np.zeros((4, 2)),
+                                         np.zeros((4, 3))))
+        return TargetDetectionResult(observations=obs)
 
 
 def make_session(tmp: Path, rig: Rig, solve_fn=None, **overrides) -> CalibrationSession:

@@ -142,7 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
                    choices=("aprilgrid", "charuco"),
                    help="put a board of this kind (aprilgrid: 3 x 3 tags of 7 cm; charuco: "
                         "5 x 4 squares of 5 cm) in place of the next tag, from tag 0 on; "
-                        "repeatable (e.g. --board aprilgrid --board charuco)")
+                        "repeatable, e.g. --board aprilgrid --board charuco (default: none)")
     p.add_argument("--seconds", type=float, default=24.0,
                    help="simulated duration [s] (default: %(default)s, one full yaw turn)")
     p.add_argument("--rate", type=float, default=5.0, help="image rate [Hz] (default: %(default)s)")
