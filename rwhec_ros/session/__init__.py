@@ -2,8 +2,9 @@
 
 :class:`CalibrationSession` is a thin layer over the pipeline: the pose stream goes into a
 :class:`~rwhec_ros.sync.buffer.PoseBuffer` (as ``A = T_<camera carrier>_<tag carrier>``, inverted
-from ``T_parent_child`` where the configuration says so); each image is searched for tags
-(:class:`~rwhec_ros.vision.detection.TagDetector`, ``B = T_cam_tag``), ``A`` is looked up at the
+from ``T_parent_child`` where the configuration says so); each image is searched for the
+targets, single tags and boards (:class:`~rwhec_ros.vision.target_detector.TargetDetector`,
+``B = T_cam_target``, one per target), ``A`` is looked up at the
 image stamp, and every ``(A, B)`` pair is offered to a
 :class:`~rwhec_ros.sync.accumulator.PairAccumulator` whose kept pairs feed an incremental
 :class:`~rwhec_ros.core.identifiability.IdentifiabilityTracker`.

@@ -12,16 +12,17 @@ Order of the work for one image of camera ``c`` at stamp ``s``:
    brackets it processes it);
 3. **motion gate** (``detection.motion_gate``): the keyframe test of
    :class:`~rwhec_ros.sync.accumulator.PairAccumulator` depends on the stamp and ``A`` only, so
-   before any pixel is read the session asks every edge ``(tag, c)`` whether it would keep a pair
-   at ``(s, A)`` (:meth:`~rwhec_ros.sync.accumulator.PairAccumulator.would_keep`; an edge not
-   seen yet always would). No such tag: the image is skipped, neither decoded nor searched
-   (counted ``images_skipped_no_motion`` and per camera). Otherwise
+   before any pixel is read the session asks every edge ``(target, c)`` whether it would keep a
+   pair at ``(s, A)`` (:meth:`~rwhec_ros.sync.accumulator.PairAccumulator.would_keep`; an edge
+   not seen yet always would). No such target: the image is skipped, neither decoded nor
+   searched (counted ``images_skipped_no_motion`` and per camera). Otherwise
 4. the image is decoded (``image`` may be a callable, e.g. a JPEG decoder, called only now), the
-   candidate search runs on the whole image, and only the tags that could give a pair are refined
-   and solved (:meth:`TagDetector.detect(..., only_ids=...)
-   <rwhec_ros.vision.detection.TagDetector.detect>`; the others are counted
+   marker search runs on the whole image, and only the targets (single tags and boards) that
+   could give a pair are refined and solved (:meth:`TargetDetector.detect(..., only=...)
+   <rwhec_ros.vision.target_detector.TargetDetector.detect>`; the others are counted
    ``tags_skipped_no_motion``);
-5. the pairs are offered to the accumulator (which applies the same keyframe test again).
+5. one pair per target -- a board is one ``B`` from all its corners -- is offered to the
+   accumulator (which applies the same keyframe test again).
 
 The gate changes no pair: a tag left out would have been refused by its edge (its edge's state,
 the stamp and ``A`` decide, not ``B``), and each tag is refined and solved on its own, so the kept

@@ -71,7 +71,8 @@ class CalibrationSession(ImageInput):
     Notes
     -----
     Frame names: Y variables are the camera names of the configuration, X variables the tag frame
-    names ``<tags.frame_prefix><id>``; results are published as ``(parent, child)`` from
+    names ``<tags.frame_prefix><id>`` and the named targets (``targets.names``: boards); results
+    are published as ``(parent, child)`` from
     :meth:`CalibratorConfig.published_frames`.
     """
 
