@@ -183,8 +183,8 @@ def missing_frames(b: Builder, problem: Problem, xs: list[str], ys: list[str],
                   "image stamps", [name], why="no data")
         else:
             b.add("caution", "unseen_tag",
-                  f"{name}: never observed, not calibrated; remove it from tags.ids if it is "
-                  "not needed", [name], why="never observed")
+                  f"{name}: never observed, not calibrated; remove it from tags.ids (or "
+                  "targets.names) if it is not needed", [name], why="never observed")
 
 
 def _edge_has(key: str, name: str) -> bool:
@@ -236,8 +236,9 @@ def edge_reasons(b: Builder, fit: FitStatistics, problem: Problem, opts: Verdict
             if role == "tag":
                 cause = ("the tag moved during the recording, its id is used twice, or its pose "
                          "flips" if worse == "rotation" else
-                         "its size is wrong (tags.sizes) or it moved during the recording")
-                todo = f"check {name}, or remove it from tags.ids"
+                         "its size is wrong (tags.sizes, a board's layout) or it moved during "
+                         "the recording")
+                todo = f"check {name}, or remove it from tags.ids (or targets.names)"
             else:
                 cause = ("its intrinsics (focal length, distortion) are wrong or its images are "
                          "not in time with the pose stream")
