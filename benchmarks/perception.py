@@ -9,8 +9,9 @@ vs distance with a check of the precision model, distortion round trips, the dec
 search (``DetectorConfig.decimate``) vs tag size, throughput on one core, and decoding of
 compressed images (``sensor_msgs/CompressedImage``) with detection. Boards
 (``benchmarks/perception_boards.py``): single tags vs an AprilGrid vs a ChArUco board, pose
-flips on small far tags with and without the flip check, Kalibr corner squares, and an
-end-to-end preview of the demo rig with boards.
+flips on small far tags with and without the flip check, Kalibr corner squares; and
+(``benchmarks/perception_end_to_end.py``) the end-to-end calibration of the demo rig with
+single tags vs boards through the session.
 Every image is rendered by :mod:`rwhec_ros.vision.render` with a known ``T_cam_tag``; seeds are
 fixed, so the accuracy tables are reproducible (the throughput table depends on the machine and
 its load). Times are CPU time of the detecting thread (``time.thread_time`` with
@@ -45,6 +46,7 @@ from rwhec_ros.vision.render import RenderedTag, look_at, render_tags  # noqa: E
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import perception_boards  # noqa: E402
+import perception_end_to_end  # noqa: E402
 
 SIZE = 0.16  # tag edge (m)
 NOISE_STD = 2.0  # grey levels
@@ -595,16 +597,10 @@ def main() -> None:
         "threshold constants 7, 20 and 40 and merges the markers; tags below `min_side_px` "
         "(20 px, the 2.8 m rows) are rejected by design."
     )
-    print("\n## End to end, preview: demo rig with single tags vs boards (targets 2 m away)\n")
-    print("\n".join(perception_boards.end_to_end_table()))
-    print(
-        "\nThe demo rig (3 cameras 640x480, f = 500 px, the demo trajectory for 24 s, images "
-        "at 2 Hz) among 6 targets on a 2 m ring: the same poses hold single tags or boards "
-        "(each board with its own ids). Every detection is one pair with its own sigma/kappa "
-        "(`noise.from_reprojection`), solved by `rwhec_ros.core.solve` in `fast` mode: a "
-        "preview of the session integration, without keyframes or the session's gates. Single "
-        "tags are drawn only when entirely in view, boards also partly."
-    )
+    print("\n## End to end through the session: demo rig with single tags vs boards "
+          "(targets 2 m away)\n")
+    print("\n".join(perception_end_to_end.end_to_end_table()))
+    print("\n" + perception_end_to_end.EXPLANATION)
     print(
         "\n## Throughput (one core: `cv2.setNumThreads(1)`, CPU time of the thread, best of 3 "
         "runs)\n"

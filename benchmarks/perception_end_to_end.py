@@ -159,10 +159,43 @@ def end_to_end_table(room_radius: float = 2.0, image_rate_hz: float = 2.0,
     return lines
 
 
+#: Printed under the tables by ``benchmarks/perception.py``: the set-up and the reading of the
+#: run committed in ``benchmarks/perception.md`` (numbers quoted from it).
+EXPLANATION = (
+    "The demo rig (3 cameras 640x480, f = 500 px, the demo trajectory for 24 s, images at 2 Hz: "
+    "48 per camera) among 6 targets on a 2 m ring, calibrated through the real "
+    "`CalibrationSession` (keyframes, motion gate, detector gates, `noise.from_reprojection`, "
+    "`fast`): the same six poses hold single tags or boards (each board with its own ids). Each "
+    "layout's images are rendered once and fed to two sessions, one with the demo's noisy "
+    "motion-capture poses, one with the exact poses; the B errors are those of the kept pairs "
+    "of the exact-pose session against `Y_k^-1 A X_j`.\n\n"
+    "Reading (issue 12's target: a board reduces the worst end-to-end camera error by >= 2x at "
+    "2 m; not met). Against the demo's 25 cm tags the 43 cm AprilGrid gives 1.4-2.4x lower "
+    "worst camera errors over the three seeds (1.9x on the worst of each); against a single "
+    "40 cm tag of the same size it gives no gain with exact poses (0.48-0.63 mm vs 0.34-0.42 "
+    "mm) and a steadier result with noisy ones (0.77-0.96 mm vs 0.75-1.66 mm). What dominates: "
+    "(1) the target's extent in the image, not its number of corners: the 40 cm tag's four "
+    "corners come from edge-line fits along 100-px edges and give B rotations as precise as "
+    "the grid's 36 corners (median 0.079 vs 0.077 deg); the grid gains over the 25 cm tag "
+    "because it is larger. (2) The pose stream: at the demo's 0.5 mm / 0.5 mrad per axis, "
+    "exact poses halve the error of the large targets (0.36 vs 0.75, 0.61 vs 0.96 mm), so "
+    "about 0.7 mm (in quadrature) of the worst camera error comes from A whatever the target; "
+    "the grid's "
+    "advantage with noisy poses is its number of pairs (148 vs 89 kept: it still gives a pose "
+    "when partly in view, a single tag must be entirely in the image), which averages that "
+    "noise. (3) ChArUco at this scale (8 cm squares at 2 m: 20 px, 6 cm markers: 15 px) is "
+    "worse than single tags: OpenCV's interpolated ChArUco corners give B errors of 1.7 mm / "
+    "0.9 deg median (cf. the board table: ChArUco degrades fastest with distance). A 2x gain at "
+    "2 m would need a board that is larger in the image than the single tags it replaces, or a "
+    "more precise pose stream."
+)
+
+
 def main() -> None:
     print("## End to end through the session: demo rig with single tags vs boards "
           "(targets 2 m away)\n")
     print("\n".join(end_to_end_table()))
+    print("\n" + EXPLANATION)
 
 
 if __name__ == "__main__":
