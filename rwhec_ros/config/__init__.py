@@ -21,7 +21,10 @@ lists of mappings), hence the scheme used here:
   ``cameras.<name>.image_topic``, ``cameras.<name>.camera_info_topic``, ``cameras.<name>.frame``
   (optical frame) and optionally ``cameras.<name>.calibrated_frame``;
 * tag sizes: parallel arrays ``tags.sizes.ids: [0, 1]`` (integers) and
-  ``tags.sizes.values: [0.16, 0.08]`` (metres) plus ``tags.default_size`` for every other id.
+  ``tags.sizes.values: [0.16, 0.08]`` (metres) plus ``tags.default_size`` for every other id;
+* boards (and tags with a frame name of their own): ``targets.names: [board]`` and, per name,
+  ``targets.<name>.type`` (``aprilgrid``, ``charuco``, ``tag``) with that type's keys
+  (:mod:`.targets`).
 
 Frame convention (paper eq. (1)/(7), ``A_i X_j = Y_k B_i``): cameras are the Y variables, tags the
 X variables::
@@ -44,6 +47,7 @@ enforces the same rule so that a file accepted here is accepted by the node.
 Units: metres, seconds, radians (suffixes ``_m``, ``_s``, ``_rad`` in the names).
 
 Modules: :mod:`.specs` (the parameter schema), :mod:`.sections` (the typed sections),
+:mod:`.targets` (the named targets: boards),
 :mod:`.calibrator` (:class:`CalibratorConfig`, built from its sections), :mod:`.validation`
 (types and values, naming the parameter) and :mod:`.parameter_file` (reading a ROS 2 parameter
 file without ROS).
