@@ -97,6 +97,13 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "row sums (up to the summation order's rounding, far below gamma)",
     (_CERT, "+ gamma(3) * (np.abs(Qs).sum(axis=1) + np.abs(K).sum(axis=1)))", "1 -> 0"):
         "|Q'| and |K| are symmetric: column sums = row sums (as above)",
+    (_CERT, "rows = (reduced.err_rows / scale) * (1.0 + gamma(2)) + UNIT_ROUNDOFF * np.abs(Z)"
+            ".sum(axis=1)", "2 -> 1"):
+        "1.0 + gamma(1) and 1.0 + gamma(2) are the same double, 1 + 2^-52 (gamma(1) is just above "
+        "half an ulp of 1 and rounds up): asserted in test_certificate",
+    (_CERT, "rows = (rows + z_err_rows) * (1.0 + gamma(3))", "3 -> 4"):
+        "1.0 + gamma(3) and 1.0 + gamma(4) are the same double, 1 + 2^-51: asserted in "
+        "test_certificate",
     (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> 1"):
         "Z is square (the eigensolver refuses anything else): shape[1] = shape[0]",
     (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> -1"):

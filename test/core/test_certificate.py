@@ -348,28 +348,32 @@ class _Reduction:
         self.residual_norm = residual_norm
 
 
-def _documented_rounding(Z, z_err_rows, red_rows, scale, ny):
+def _documented_rounding(Z, z_err_rows, red_rows, scale, ny, k_red=2):
     """The rounding term of the module docstring's bound, written out independently:
     rows = ((e_red / scale)(1 + gamma_2) + u sum_j |Z_ij| + e_Z)(1 + gamma_3), then
     min(sum(rows), ny max(rows)) (1 + gamma_size), with gamma_k = k u / (1 - k u)."""
     u = np.finfo(float).eps / 2
     g = lambda k: k * u / (1 - k * u)
-    rows = (red_rows / scale) * (1.0 + g(2)) + u * np.abs(Z).sum(axis=1)
+    rows = (red_rows / scale) * (1.0 + g(k_red)) + u * np.abs(Z).sum(axis=1)
     rows = (rows + z_err_rows) * (1.0 + g(3))
     return float(min(rows.sum(), ny * rows.max()) * (1.0 + g(rows.size))), rows
 
 
-@pytest.mark.parametrize("spread", ["uniform", "one_row"])
+@pytest.mark.parametrize("spread", ["uniform", "one_row", "reduction"])
 def test_rounding_term_is_the_documented_formula_bit_for_bit(spread):
     """Every factor of the rounding term (the (1 + gamma_k) inflations, the division by the
     scale, the min of the two sums) is pinned exactly: each is a few ulps, so only an exact
     comparison sees a wrong one. ``uniform`` rows make ``ny max`` the smaller of the two sums
-    (the size 19 exceeds ny = 7), ``one_row`` makes the sum the smaller one."""
+    (the size 19 exceeds ny = 7), ``one_row`` makes the sum the smaller one; in ``reduction`` the
+    reduction's rows dominate so that their own (1 + gamma_2) is not lost below an ulp."""
     Z = _crafted(_spectrum(0.0))
     rng = np.random.default_rng(3)
     if spread == "uniform":
         z_rows = np.full(D, 3e-9)
         red_rows = np.full(D, 5e-9)
+    elif spread == "reduction":
+        z_rows = np.zeros(D)
+        red_rows = np.full(D, 1e3)
     else:
         z_rows = np.zeros(D)
         z_rows[4] = 2e-8
@@ -380,6 +384,8 @@ def test_rounding_term_is_the_documented_formula_bit_for_bit(spread):
     expected, rows = _documented_rounding(Z, z_rows, red_rows, scale, ny)
     # the case exercises the branch of the min it is named for
     assert (rows.sum() < ny * rows.max()) == (spread == "one_row")
+    if spread == "reduction":  # the case sees the reduction's own inflation (1 + gamma_2)
+        assert _documented_rounding(Z, z_rows, red_rows, scale, ny, k_red=3)[0] != expected
     assert b.rounding_term == expected
     # the bound subtracts exactly the rounding, the eigenvalue and the Schur terms from lambda_s
     assert b.value == float(1.0 - b.eigenvalue_term - b.rounding_term - b.schur_term)
@@ -468,3 +474,13 @@ def test_homogeneous_s_entries_equal_to_null_tol_are_zero(where):
     c = certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT, homogeneous=True)
     assert c.certified, c.message
     assert "sign of s" in c.message
+
+
+def test_inflation_factors_that_are_the_same_double():
+    """Why two mutants of the rounding term are equivalent (benchmarks/mutation.py): as doubles,
+    1 + gamma_1 == 1 + gamma_2 (= 1 + 2^-52) and 1 + gamma_3 == 1 + gamma_4 (= 1 + 2^-51), while
+    1 + gamma_2 < 1 + gamma_3."""
+    from rwhec_ros.core.verified import gamma
+
+    assert 1.0 + gamma(1) == 1.0 + gamma(2) == 1.0 + 2.0**-52
+    assert 1.0 + gamma(3) == 1.0 + gamma(4) == 1.0 + 2.0**-51
