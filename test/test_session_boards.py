@@ -110,6 +110,7 @@ def test_boards_and_tags_calibrate_certified_near_the_truth(run):
     assert r_err.max() < 0.8, dict(zip(names, r_err.round(3), strict=True))
 
 
+@pytest.mark.slow  # the bag CLI path end to end (the session path runs on both CI lines)
 def test_rwhec_calibrate_bag_with_boards(stream, run, tmp_path):
     """The same images and poses recorded as a rosbag2 file, calibrated by ``rwhec-calibrate
     bag`` with the configuration as a parameter file: the boards are calibrated too."""
