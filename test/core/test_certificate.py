@@ -11,7 +11,9 @@ import pytest
 
 from rwhec_ros.core.certificate import (
     CertificateOptions,
+    DualBound,
     ExactReduction,
+    certificate_from_bound,
     certificate_matrix,
     certify,
     certify_from_Z,
@@ -484,3 +486,98 @@ def test_inflation_factors_that_are_the_same_double():
 
     assert 1.0 + gamma(1) == 1.0 + gamma(2) == 1.0 + 2.0**-52
     assert 1.0 + gamma(3) == 1.0 + gamma(4) == 1.0 + 2.0**-51
+
+
+def _bound(value=1.0, eig=0.0, rounding=0.0, schur=0.0):
+    return DualBound(value, value + eig + rounding + schur, 0.0, eig, rounding, schur)
+
+
+W = np.array([0.0, 0.25, 0.5, 0.75, 1.0, 1.25])
+
+
+def test_status_from_bound_exact_rho_and_margins():
+    """d = value * scale, rho_hat = (p - d) / d, the margins in unscaled units: exact numbers
+    (powers of two) so that a changed operator or factor shows."""
+    b = _bound(value=1.0, eig=0.125, rounding=0.25, schur=0.5)
+    c = certificate_from_bound(b, W, 1, False, 3.0, 2.0)
+    assert c.dual_bound == 2.0
+    assert c.suboptimality_bound == 0.5
+    assert c.margins == {"eigenvalue": 0.25, "rounding": 0.5, "schur": 1.0}
+    assert c.status is Status.NOT_TIGHT
+    assert c.null_space_dim == 1 and c.tolerance == CertificateOptions().rho_tol
+    np.testing.assert_array_equal(c.eigenvalues, W)
+
+
+def test_rho_hat_equal_to_the_tolerance_is_certified():
+    """The tolerance is inclusive: rho_hat = 2^-20 exactly, with rho_tol = 2^-20."""
+    tol = 2.0**-20
+    c = certificate_from_bound(_bound(1.0), W, 1, False, 1.0 + tol, 1.0,
+                               options=CertificateOptions(rho_tol=tol))
+    assert c.suboptimality_bound == tol
+    assert c.certified, c.message
+
+
+def test_zero_dual_bound_without_floor_has_no_rho():
+    """d = 0 and no cost floor: rho_hat is undefined (nan), never a division by zero."""
+    c = certificate_from_bound(_bound(0.0), W, 1, False, 1.0, 1.0)
+    assert np.isnan(c.suboptimality_bound) and not c.certified
+    assert "rho_hat=nan" in c.message
+    c2 = certificate_from_bound(_bound(0.0), W, 1, False, 1.0, 1.0, cost_floor=0.5)
+    assert c2.suboptimality_bound == 2.0  # (1 - 0) / 0.5
+
+
+def test_messages_name_the_numbers():
+    """Each status message carries the numbers it is decided on, formatted as documented."""
+    ok = certificate_from_bound(_bound(1.0), W, 1, False, 1.0, 1.0)
+    assert ok.certified
+    assert "rho_hat=0 <= 1e-06" in ok.message
+    assert "eigenvalues 0, 0.25, ..." in ok.message
+    inacc = certificate_from_bound(_bound(1.0), W + 0.5, 1, False, 1.5, 1.0, solver_ok=False,
+                                   solver_status="max_iterations")
+    assert inacc.status is Status.SOLVER_INACCURATE
+    assert "'max_iterations'" in inacc.message
+    assert "rho_hat=0.5" in inacc.message and "lambda_min=0.5" in inacc.message
+    only_rho = certificate_from_bound(_bound(1.0), W, 1, False, 1.5, 1.0)
+    assert only_rho.message == "not certified: rho_hat=0.5 > 1e-06"
+    only_null = certificate_from_bound(_bound(1.0), W, 2, False, 1.0, 1.0)
+    assert only_null.message.startswith("not certified: Z has 2 eigenvalues <= 1e-06 (smallest ")
+    assert "rho_hat" not in only_null.message
+    assert np.array2string(W, precision=3) in only_null.message
+    both = certificate_from_bound(_bound(1.0), W, 3, False, 1.5, 1.0)
+    assert both.message.startswith("not certified: rho_hat=0.5 > 1e-06; Z has 3 eigenvalues")
+    trivial = certificate_from_bound(_bound(1.0), W, 1, True, 1.0, 1.0)
+    assert trivial.message.endswith("on the rotation block (the sign of s is free for unknown "
+                                    "scale)")
+
+
+def test_homogeneous_rotation_block_eigenvalue_equal_to_null_tol_counts_as_null():
+    """With e_s set aside, the rotation block's null space is counted inclusively too."""
+    tol = CertificateOptions().null_tol
+    Z = np.zeros((D, D))
+    Z[:-1, :-1] = np.diag(_spectrum(0.0, tol)[:-1])
+    c = certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT, homogeneous=True)
+    assert c.null_space_dim == 2 and not c.certified
+
+
+def test_known_scale_is_the_default_of_certify():
+    import inspect
+
+    for f in (certify, certify_from_Z, certificate_from_bound):
+        params = inspect.signature(f).parameters
+        if "homogeneous" in params:
+            assert params["homogeneous"].default is False, f.__name__
+
+
+def test_certify_with_non_finite_multipliers_fails_without_eigenvalues():
+    rng = np.random.default_rng(6)
+    problem, gt = random_instance(rng, 1, 1, n_per_edge=6, sigma=0.01, kappa=200)
+    red = reduce_cost(build_cost_matrices(problem)[0], StateLayout(problem.M, problem.P), False)
+    cons = so3_constraint_matrices(np.arange(2) * 9, 19, 18)
+    lam = np.zeros(cons.m)
+    lam[3] = np.nan
+    c = certify(red, 1.0, red.Qr, cons, lam, 2.5, solver_status="optimal")
+    assert c.status is Status.SOLVER_FAILED
+    assert c.primal_cost == 2.5 and np.isnan(c.dual_bound) and np.isnan(c.lambda_min)
+    assert c.eigenvalues.size == 0 and c.null_space_dim == -1
+    assert c.tolerance == CertificateOptions().rho_tol
+    assert c.message == "solver status 'optimal': no finite dual point"
