@@ -69,8 +69,8 @@ TARGETS = {
 TESTS = {
     "rwhec_ros/core/certificate.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
                                       "test/core/test_solve.py"],
-    "rwhec_ros/core/verified.py": ["test/core/test_certificate.py", "test/core/test_verified.py",
-                                   "test/core/test_gauge.py"],
+    "rwhec_ros/core/verified.py": ["test/core/test_verified_rounding.py",
+                                   "test/core/test_verified.py", "test/core/test_certificate.py"],
     "rwhec_ros/core/solve.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
                                 "test/core/test_solve.py"],
     "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_path.py",
