@@ -104,6 +104,12 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     (_CERT, "rows = (rows + z_err_rows) * (1.0 + gamma(3))", "3 -> 4"):
         "1.0 + gamma(3) and 1.0 + gamma(4) are the same double, 1 + 2^-51: asserted in "
         "test_certificate",
+    **{("rwhec_ros/core/solve.py", "if abs(v[-1]) > 1e-8 * np.linalg.norm(v):", d):
+       "the division of the null vector by s is redundant: rotations_from_vector divides every "
+       "block by the mean cube-root determinant, which removes any common scale and sign (only "
+       "the rounding differs)" for d in ("Gt -> GtE", "drop abs", "drop USub", "1 -> 2",
+                                          "1 -> 0", "Mult -> Div", "1e-08 -> x100",
+                                          "1e-08 -> /100")},
     (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> 1"):
         "Z is square (the eigensolver refuses anything else): shape[1] = shape[0]",
     (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> -1"):

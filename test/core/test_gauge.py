@@ -162,6 +162,17 @@ def test_sdp_solver_exception_becomes_solver_failed(monkeypatch):
     assert res.certificate.status is Status.SOLVER_FAILED
     assert "Clarabel" in res.certificate.message and "fast" in res.certificate.message
     assert np.all(np.isfinite(res.X)) and np.all(np.isfinite(res.Y))
+    _assert_failed_result(res)
+
+
+def _assert_failed_result(res, wall=60.0):
+    """A failed solve: no eigenvalues, the -1 null-space flag, the configured tolerance, the
+    closed-form estimate not rounded from a null vector, and sane step timings (seconds)."""
+    c = res.certificate
+    assert c.eigenvalues.size == 0 and c.null_space_dim == -1
+    assert c.tolerance == SolveOptions().certificate.rho_tol
+    assert res.rounding_displacement == 0.0
+    assert all(0.0 <= t < wall for t in res.timing_s.values()), res.timing_s
 
 
 def test_local_solver_exception_falls_back_or_fails(monkeypatch):
@@ -190,6 +201,52 @@ def test_nan_sdp_multipliers_become_solver_failed(monkeypatch):
     res = solve(problem, SolveOptions(mode="sdp"))
     assert res.certificate.status is Status.SOLVER_FAILED
     assert "no solution" in res.certificate.message
+    _assert_failed_result(res)
+    assert "extract" in res.timing_s and "constraints" in res.timing_s
+
+
+def test_eigendecomposition_failure_of_the_sdp_z_becomes_solver_failed(monkeypatch):
+    def bad_z(*a, **k):
+        raise np.linalg.LinAlgError("Eigenvalues did not converge")
+
+    monkeypatch.setattr(solve_module, "certificate_matrix", bad_z)
+    rng = np.random.default_rng(8)
+    problem, _ = random_instance(rng, 1, 1, n_per_edge=10, sigma=0.01, kappa=125)
+    res = solve(problem, SolveOptions(mode="sdp"))
+    assert res.certificate.status is Status.SOLVER_FAILED
+    assert "eigendecomposition of Z failed" in res.certificate.message
+    _assert_failed_result(res)
+
+
+class _FormTaken(Exception):
+    pass
+
+
+@pytest.mark.parametrize("form", ["auto", "arrow", "full", "reduced"])
+def test_the_sdp_form_asked_for_is_the_form_solved(monkeypatch, form):
+    """Which SDP builder runs (spies that stop the solve), and the note naming the form: an
+    explicit form is honoured; ``auto`` on 4 targets x 3 cameras picks ``arrow`` (its cost
+    model, see benchmarks/sdp_forms.md)."""
+    from rwhec_ros.core.relaxation import SdpOptions
+
+    called = []
+
+    def spy(name):
+        def f(*a, **k):
+            called.append(name)
+            raise _FormTaken(name)
+        return f
+
+    monkeypatch.setattr(solve_module, "solve_dual_sdp_arrow", spy("arrow"))
+    monkeypatch.setattr(solve_module, "solve_dual_sdp", spy("dense"))
+    rng = np.random.default_rng(0)
+    problem, _ = random_instance(rng, 4, 3, [(j, k) for j in range(4) for k in range(3)],
+                                 n_per_edge=10, sigma=0.01, kappa=100.0)
+    res = solve(problem, SolveOptions(mode="sdp", sdp=SdpOptions(form=form)))
+    solved = "arrow" if form == "auto" else form
+    assert f"SDP form: {solved}" in res.notes
+    assert called == ["arrow" if solved == "arrow" else "dense"]
+    assert res.certificate.status is Status.SOLVER_FAILED
 
 
 def test_inaccurate_sdp_status_is_not_certified(monkeypatch):
