@@ -566,11 +566,11 @@ def main(argv: list[str] | None = None) -> int:
         mutants = mutants[: args.limit]
     # keyed without the line number (edits above a line move it); the latest record of a key
     # wins (logs of successive runs may be concatenated); only killed mutants are skipped
-    earlier: dict[tuple[str, str, str], str] = {}
+    earlier: dict[tuple[str, str, str], tuple[str, float]] = {}
     if args.rerun_survivors:
         for line in args.rerun_survivors.read_text().splitlines():
             r = json.loads(line)
-            earlier[(r["file"], r["source"], r["description"])] = r["outcome"]
+            earlier[(r["file"], r["source"], r["description"])] = (r["outcome"], r["seconds"])
     if args.list:
         for m in mutants:
             print(f"{m.file}:{m.lineno}: {m.description}    | {m.source}")
@@ -605,10 +605,10 @@ def main(argv: list[str] | None = None) -> int:
 
     def task(i: int):
         m = mutants[i]
-        before = earlier.get((m.file, m.source, m.description))
+        before, before_s = earlier.get((m.file, m.source, m.description), (None, 0.0))
         tests = None
         if before is not None and before.startswith("killed"):
-            outcome, dt = "killed (earlier run)", 0.0
+            outcome, dt = "killed (earlier run)", before_s  # the earlier run's test time
         elif cover is not None and not (tests := cover.select(m, args.budget, args.max_files)):
             outcome, dt = "survived (no test executes it)", 0.0
         else:
@@ -664,11 +664,11 @@ def report(results, t_base: dict[str, float], total: float, cover: CoverageMap |
         for f, t in t_base.items():
             print(f"- `{f}`: " + ", ".join(f"`{x}`" for x in TESTS[f]) + f" ({t:.0f} s)")
         print()
-    ran = sorted(dt for _, o, dt, _ in results if "earlier run" not in o and dt > 0)
+    ran = sorted(dt for _, o, dt, _ in results if dt > 0)  # this run's or the earlier one's
     if ran:
         q = lambda p: ran[min(len(ran) - 1, int(p * len(ran)))]
         print(f"Wall time of the tests per mutant (pytest start-up included, {len(ran)} runs, "
-              f"{args.jobs} in parallel on {os.cpu_count()} CPUs): median {q(0.5):.1f} s, "
+              f"in parallel with other jobs on {os.cpu_count()} CPUs): median {q(0.5):.1f} s, "
               f"90th percentile {q(0.9):.1f} s, largest {ran[-1]:.1f} s; "
               f"{sum(d < 60 for d in ran)} of {len(ran)} under a minute.\n")
     print("| module | mutants | killed | survived | argued equivalent | score (killed / "
