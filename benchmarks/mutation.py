@@ -507,6 +507,10 @@ def run_mutant(m: Mutant, workdir: Path, timeout: float, tests: list[str] | None
         target.write_text(original)
     if code == "timeout":
         outcome = "killed (timeout)"
+    elif isinstance(code, str) and code.startswith("signal"):
+        # the mutant crashed the interpreter (e.g. out-of-range indices handed to compiled code):
+        # the tests did not pass
+        outcome = f"killed (crashed: {code})"
     elif code == 0:
         outcome = "survived"
     elif code in (3, 4, 5, 98) or isinstance(code, str):
