@@ -19,17 +19,23 @@ Runs (same stream each):
   (a) with ``detection.decimate: 1`` (the detection of ``main`` before issue 18's vision
   changes, 7abf143) and (b) with the default ``decimate: auto`` (2 here). (b) is the reference
   "every frame" run: its pairs, and which images gave them.
-* **offline, motion gate** -- (c) as (b) with the gate on (the default): its pairs must equal
-  (b)'s.
+* **offline, motion gate** -- (c) as (b) with the gate on and ``detection.discovery_step: 0``
+  (every edge counts, also of tags out of view): its pairs must equal (b)'s; (d) the gate with
+  the defaults (discovery step 0.5: near its camera's last searched pose an image counts only
+  the tags found there): fewer images searched, slightly different pairs.
 * **live** -- a producer thread paced to the wall clock adds the poses (as the node's pose
   callback, then ``FairImageQueue.notify``) and puts the images (arrays, the raw transport) into
   the node's :class:`~rwhec_ros.session.FairImageQueue` (4 per camera, images held until their
-  pose is there); ``sync.detection_threads: auto`` :class:`~rwhec_ros.session.QueueWorker`
-  threads call ``add_image``. With the gate on (the node's default) and off.
+  pose is there, a full queue dropping first an image the gate would skip);
+  ``sync.detection_threads: auto`` :class:`~rwhec_ros.session.QueueWorker` threads call
+  ``add_image``. With the node's
+  defaults, with every edge counting, and with the gate off.
 * **bag** -- the same stream recorded as a rosbag2 file with JPEG ``CompressedImage`` messages
   (quality 95, image_transport's format) plus a ``CameraInfo`` per image, replayed end to end by
   ``rwhec-calibrate bag`` in-process (reading, deserialising, decoding, detection, solve): the new
-  defaults on 2 threads (auto) and on 1, and the old path (decimate 1, no gate, 1 thread).
+  defaults on 2 threads (auto) and on 1, every edge counting on 2, and the old path (decimate 1,
+  no gate, 1 thread). The time inside ``CalibrationSession.calibrate`` (the final solve and its
+  assessment) is reported apart from the replay.
 
 Measured: wall time, process CPU time (all threads, ``time.process_time``), pairs kept,
 detection CPU (process CPU inside ``TagDetector.detect``, meaningful on the one-thread runs

@@ -184,22 +184,6 @@ def test_tags_out_of_view_do_not_hold_the_gate_open(streams, tmp_path):
         assert ea[k].max() <= 2.0 * eb[k].max() + slack, (k, ea[k], eb[k])
 
 
-def test_gate_would_skip_answers_without_counting(tmp_path):
-    session = CalibrationSession(config(tmp_path, ["cam0"], [3]))
-    intr = demo_rig().intrinsics["cam0"]
-    session.set_camera_info("cam0", intr)
-    gray = one_tag_image(intr, 3)
-    session.add_pose(0, np.eye(4))
-    session.add_pose(NS // 10, np.eye(4))
-    assert not session.gate_would_skip("cam0", NS // 20)  # edge not seen yet: it would keep
-    assert session.add_image("cam0", NS // 20, gray).status == "used"
-    before = session.counters()
-    assert session.gate_would_skip("cam0", NS // 20 + 1)  # same pose: nothing to gain
-    assert not session.gate_would_skip("cam0", NS)  # pose not there yet: not known
-    assert not session.gate_would_skip("nope", NS // 20) and not session.gate_would_skip("cam0", -1)
-    assert session.counters() == before
-
-
 def one_tag_image(intr: CameraIntrinsics, tag_id: int) -> np.ndarray:
     T_cam_tag = np.diag([1.0, -1.0, -1.0, 1.0])
     T_cam_tag[2, 3] = 1.0
@@ -226,8 +210,15 @@ def test_a_skipped_image_is_never_decoded_and_a_waiting_one_is_gated_on_its_pose
     session.add_pose(NS // 10, np.eye(4))
     assert session.pose_ready(NS // 20) and not session.pose_ready(NS // 5)
     assert session.pose_ready(-1)  # invalid: let it through to be rejected at once
+    assert not session.gate_would_skip("cam0", NS // 20)  # edge not seen yet: it would keep
     first = Decoder(gray)
     assert session.add_image("cam0", NS // 20, first).status == "used" and first.calls == 1
+    # the look-ahead of the live queue (what to drop first): answers, counts nothing
+    before = session.counters()
+    assert session.gate_would_skip("cam0", NS // 20 + 1)  # same pose: nothing to gain
+    assert not session.gate_would_skip("cam0", NS)  # pose not there yet: not known
+    assert not session.gate_would_skip("nope", NS // 20) and not session.gate_would_skip("cam0", -1)
+    assert session.counters() == before
     # the only edge (tag_3, cam0) has its pair at this pose: nothing to gain, nothing decoded
     same = Decoder(gray)
     assert session.add_image("cam0", NS // 20 + 1, same).status == "skipped"
