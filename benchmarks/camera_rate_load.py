@@ -38,7 +38,7 @@ Runs (same stream each):
   assessment) is reported apart from the replay.
 
 Measured: wall time, process CPU time (all threads, ``time.process_time``), pairs kept,
-detection CPU (process CPU inside ``TagDetector.detect``, meaningful on the one-thread runs
+detection CPU (process CPU inside ``TargetDetector.detect``, meaningful on the one-thread runs
 only), images dropped by the live queue and how many of them gave a pair in the reference run,
 and the calibration against the reference and against the truth.
 """
@@ -81,7 +81,7 @@ from rwhec_ros.messages import (  # noqa: E402
 )
 from rwhec_ros.session import CalibrationSession, FairImageQueue, QueueWorker  # noqa: E402
 from rwhec_ros.simulation import DEMO_POSE_TOPIC, demo_camera_topics, demo_rig  # noqa: E402
-from rwhec_ros.vision.detection import TagDetector  # noqa: E402
+from rwhec_ros.vision.target_detector import TargetDetector  # noqa: E402
 
 NS = 1_000_000_000
 N_CAMERAS, N_TAGS = 8, 16
@@ -127,10 +127,11 @@ class MethodTimer:
 
 
 class DetectTimer(MethodTimer):
-    """:class:`MethodTimer` of ``TagDetector.detect``."""
+    """:class:`MethodTimer` of ``TargetDetector.detect`` (the session's detector: marker search,
+    refinement and pose of every target)."""
 
     def __init__(self) -> None:
-        super().__init__(TagDetector, "detect")
+        super().__init__(TargetDetector, "detect")
 
 
 def pace(t0: float, offset_ns: int, speed: float = 1.0) -> float:
@@ -506,7 +507,7 @@ def section(seconds: float, cache: Path | None, seed: int = 0,
         "synchronisation (wall and CPU of the whole run minus `calibrate`); calibrate = the "
         "final solve with its assessment (cross-validation, uncertainty), a fixed cost that "
         "does not grow with the images (it grows with the pairs); detection CPU = process CPU "
-        "inside `TagDetector.detect` (one-thread runs only; it includes OpenCV's own worker "
+        "inside `TargetDetector.detect` (one-thread runs only; it includes OpenCV's own worker "
         "threads).",
         "",
     ]
