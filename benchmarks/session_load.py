@@ -39,7 +39,7 @@ The session processes images synchronously in ``add_image``. Runs:
    separate run): its peak is the memory the session allocates (the image pool is allocated
    before tracing starts).
 
-Detection time share: ``TagDetector.detect`` is wrapped with a timer (benchmark-only
+Detection time share: ``TargetDetector.detect`` is wrapped with a timer (benchmark-only
 instrumentation); share = time in ``detect`` / time in ``add_image``. Numbers depend on the
 machine and its load (the load average is printed).
 """
@@ -295,7 +295,7 @@ def vga_section(args: argparse.Namespace) -> list[str]:
         f"tracing); process max RSS {rss_start / 1024:.0f} MiB at start, "
         f"{rss_pool / 1024:.0f} MiB after rendering the pool, {rss_end / 1024:.0f} MiB at the "
         "end (`resource.getrusage`, includes the pool and the libraries)",
-        "- detection share = time in `TagDetector.detect` / time in `add_image`; the rest is "
+        "- detection share = time in `TargetDetector.detect` / time in `add_image`; the rest is "
         "pose lookup, keyframe test, identifiability update and locking. ms per image = wall "
         "time in `add_image` per processed image (grows when threads wait for a core; OpenCV "
         f"runs {cv2.getNumThreads()} threads inside detection). CPU cores used = process CPU "

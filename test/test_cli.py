@@ -278,24 +278,38 @@ def test_dataset_round_trip_of_a_session_data_set(recorded, tmp_path):
 
 def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tmp_path):
     rig, root = recorded
-    pairs = {}
-    for threads in (1, 2):
+    pairs, inputs = {}, {}
+    # (the rig turns 0.1 rad between two images here: the gate skips none, see
+    # test_session_gating.py for the skipping)
+    runs = {"1": (1, {}), "2": (2, {}),  # the defaults: motion gate with discovery step 0.5
+            "edges": (2, {"detection.discovery_step": 0.0}),  # gate, every edge counts
+            "every": (2, {"detection.motion_gate": False})}  # every image decoded and searched
+    for name, (threads, extra) in runs.items():
         flat = demo_parameters(rig, output_directory=str(tmp_path / "unused"))
         flat["sync.detection_threads"] = threads
+        flat.update(extra)
         for cam in rig.cameras:
             flat[f"cameras.{cam}.image_transport"] = "compressed"
-        cfg = tmp_path / f"compressed_{threads}.yaml"
+        cfg = tmp_path / f"compressed_{name}.yaml"
         cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
-        out = tmp_path / f"out_{threads}"
+        out = tmp_path / f"out_{name}"
         code, stdout, stderr = run(["bag", root / "compressed", "--config", cfg, "--quiet",
                                     "-o", out])
         assert code == EXIT_OK, stdout + stderr
-        pairs[threads] = {(e.x, e.y): e for e in Dataset.load(out / "dataset.yaml").edges}
+        pairs[name] = {(e.x, e.y): e for e in Dataset.load(out / "dataset.yaml").edges}
+        inputs[name] = next(line for line in stdout.splitlines() if line.startswith("input: "))
+
+    def same(a: str, b: str) -> None:
+        assert pairs[a].keys() == pairs[b].keys() and len(pairs[a]) >= 9
+        for key, e in pairs[a].items():
+            for field in ("stamps_ns", "A", "B"):
+                np.testing.assert_array_equal(getattr(e, field), getattr(pairs[b][key], field))
+
     # each camera's images are examined in order on any number of threads: the same pairs
-    assert pairs[1].keys() == pairs[2].keys() and len(pairs[1]) >= 9
-    for key, e in pairs[1].items():
-        for field in ("stamps_ns", "A", "B"):
-            np.testing.assert_array_equal(getattr(e, field), getattr(pairs[2][key], field))
+    same("1", "2")
+    # the gate decides before decoding; with every edge counting it changes no pair
+    same("edges", "every")
+    assert "images_skipped_no_motion" not in inputs["every"]
     # a raw-image configuration on this bag says which setting to change
     code, _, stderr = run(["bag", root / "compressed", "--config", root / "topic.yaml",
                            "-o", tmp_path / "raw"])

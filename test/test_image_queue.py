@@ -26,7 +26,8 @@ def test_round_robin_one_in_service_per_key_and_fifo():
     q.task_done(got[0])
     assert q.get(0) == ("a", "a1")  # oldest first
     stats = q.stats()
-    assert stats["a"] == {"received": 6, "dropped": 0, "processed": 1, "queued": 4}
+    assert stats["a"] == {"received": 6, "dropped": 0, "dropped_expendable": 0, "processed": 1,
+                          "queued": 4}
     assert len(q) == 4
     with pytest.raises(KeyError):
         q.put("z", 1)
@@ -54,6 +55,15 @@ def test_full_key_drops_its_oldest_live_and_blocks_offline():
     assert not live.put("a", 3)  # drops 1
     assert live.put("b", 9)  # another camera's room is its own
     assert live.stats()["a"]["dropped"] == 1 and live.get(0) == ("a", 2)
+
+    # with an expendable predicate (the motion gate would skip it), that item goes first
+    pick = FairImageQueue(["a"], 3, expendable=lambda key, item: item % 2 == 0)
+    for i in (1, 2, 3):
+        assert pick.put("a", i)
+    assert not pick.put("a", 5)  # drops 2, the oldest expendable, not 1
+    assert not pick.put("a", 7)  # nothing expendable left: drops the oldest, 1
+    assert pick.get(0) == ("a", 3)
+    assert pick.stats()["a"]["dropped"] == 2 and pick.stats()["a"]["dropped_expendable"] == 1
 
     offline = FairImageQueue(["a"], 1, block=True)
     offline.put("a", 1)

@@ -272,6 +272,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         max_obliquity_deg=check_positive(v, "detection.max_obliquity_deg"),
         decimate=check_int_or_auto(v, "detection.decimate", 1),
         motion_gate=v["detection.motion_gate"],
+        discovery_step=check_positive(v, "detection.discovery_step", allow_zero=True),
     )
     if detection.max_obliquity_deg > 90.0:
         raise ValueError(

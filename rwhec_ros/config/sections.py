@@ -145,6 +145,7 @@ class DetectionConfig:
     max_obliquity_deg: float
     decimate: int | str = "auto"
     motion_gate: bool = True
+    discovery_step: float = 0.5
 
 
 @dataclass(frozen=True)

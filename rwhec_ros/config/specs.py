@@ -154,7 +154,14 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "about 37 px are not found), or an integer >= 1 (1 = full image)"),
     ParamSpec("detection.motion_gate", "bool", True,
               doc="examine only the tags whose pair the keyframe test could keep at the "
-                  "image's pose, and skip images where it could keep none (same pairs)"),
+                  "image's pose, and skip images where it could keep none"),
+    ParamSpec("detection.discovery_step", "double", 0.5,
+              doc="motion gate, targets out of view: an image whose pose is within this "
+                  "fraction of the keyframe thresholds of its camera's last searched image "
+                  "counts only the targets found there, so a target coming into view is found "
+                  "within this fraction of a keyframe step; 0 = every edge counts, also of "
+                  "targets out of view (exactly the pairs of examining every image, few images "
+                  "skipped)"),
     ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),
     ParamSpec("solver.min_pairs", "int", 3, doc="edges with fewer pairs are left out"),
     ParamSpec("solver.reject_outliers", "bool", False,

@@ -152,9 +152,11 @@ class CalibratorNode(Node):
         self._live_group = MutuallyExclusiveCallbackGroup()
 
         # --- detection off the executor: per-camera drop-oldest queues + worker threads -------
-        # Images wait in the queue (undecoded) until the session has the pose at their stamp.
+        # Images wait in the queue (undecoded) until the session has the pose at their stamp; a
+        # full camera queue drops first an image the motion gate would skip anyway.
         ready = None if cfg.pose_source.type == "tf" else self._pose_ready
-        self._queue = FairImageQueue(cfg.camera_names, cfg.sync.image_queue_size, ready=ready)
+        self._queue = FairImageQueue(cfg.camera_names, cfg.sync.image_queue_size, ready=ready,
+                                     expendable=self._gate_would_skip)
         self._camera_diagnostics = CameraDiagnostics(cfg.camera_names)
         self._workers = [
             QueueWorker(
@@ -309,6 +311,10 @@ class CalibratorNode(Node):
     def _pose_ready(self, item) -> bool:
         stamp_ns = item[1]
         return stamp_ns is None or self.session.pose_ready(stamp_ns)
+
+    def _gate_would_skip(self, camera: str, item) -> bool:
+        stamp_ns = item[1]
+        return stamp_ns is not None and self.session.gate_would_skip(camera, stamp_ns)
 
     def _process_image(self, entry) -> None:
         """Worker thread: optional tf lookup at the image stamp, then gate, decode, detect."""

@@ -14,7 +14,13 @@ Order of the work for one image of camera ``c`` at stamp ``s``:
    :class:`~rwhec_ros.sync.accumulator.PairAccumulator` depends on the stamp and ``A`` only, so
    before any pixel is read the session asks every edge ``(target, c)`` whether it would keep a
    pair at ``(s, A)`` (:meth:`~rwhec_ros.sync.accumulator.PairAccumulator.would_keep`; an edge
-   not seen yet always would). No such target: the image is skipped, neither decoded nor
+   not seen yet always would). Targets out of view: an edge whose target left the view (or was
+   never in it) would always keep a pair, which would hold the gate open wherever a camera sees
+   a changing subset of the targets. So the session remembers, per camera, the pose ``A_c`` of
+   its last searched image and the targets whose markers were found there; while ``A`` is within
+   ``detection.discovery_step`` times the keyframe thresholds of ``A_c`` only those targets count
+   (the view has hardly changed); beyond it every keepable target counts and the image is
+   searched (discovery). No target that counts: the image is skipped, neither decoded nor
    searched (counted ``images_skipped_no_motion`` and per camera). Otherwise
 4. the image is decoded (``image`` may be a callable, e.g. a JPEG decoder, called only now), the
    marker search runs on the whole image, and only the targets (single tags and boards) that
@@ -24,13 +30,18 @@ Order of the work for one image of camera ``c`` at stamp ``s``:
 5. one pair per target -- a board is one ``B`` from all its corners -- is offered to the
    accumulator (which applies the same keyframe test again).
 
-The gate changes no pair: a tag left out would have been refused by its edge (its edge's state,
-the stamp and ``A`` decide, not ``B``), and each tag is refined and solved on its own, so the kept
-pairs are those of examining every tag of every image, provided the images of one camera are
-added one at a time in stamp order (what the node's per-camera queue and the ``bag`` replay do):
-an edge's decision depends on the pairs kept before it. What the gate changes are the counters of
-refused pairs (``pairs:skipped_no_motion`` counts only examined tags) and that a skipped image is
-never decoded, so bad data in it goes unnoticed.
+With ``detection.discovery_step: 0`` (every edge counts) the gate changes no pair: a tag left out
+would have been refused by its edge (its edge's state, the stamp and ``A`` decide, not ``B``), and
+each tag is refined and solved on its own, so the kept pairs are those of examining every tag of
+every image, provided the images of one camera are added one at a time in stamp order (what the
+node's per-camera queue and the ``bag`` replay do): an edge's decision depends on the pairs kept
+before it. With a discovery step (default 0.5) a tag coming into view between two searches gets
+its first pair at the next search, at most that fraction of a keyframe step later, so its edge's
+later pairs shift too: in the camera-rate benchmark (``benchmarks/session_load.md``, 8 cameras
+among 16 tags) 44 % of the images are searched instead of 100 %, for about 2 % fewer pairs and a
+calibration within noise of examining every image. What the gate also changes are the counters
+of refused pairs (``pairs:skipped_no_motion`` counts only examined tags) and that a skipped image
+is never decoded, so bad data in it goes unnoticed.
 """
 
 from __future__ import annotations
@@ -157,6 +168,25 @@ class ImageInput:
         with self._lock:
             return not self._waits(stamp)
 
+    def gate_would_skip(self, camera: str, stamp_ns: int) -> bool:
+        """True when the motion gate would skip an image of ``camera`` stamped ``stamp_ns``
+        if it were examined now (its pose is in the buffer; nothing is counted or changed).
+        False whenever that is not known (gate off, unknown camera, invalid stamp, the pose not
+        there yet). The node's image queue uses it to drop such an image first when a camera's
+        queue is full, rather than the oldest one, which might give a pair."""
+        stamp = safe_int(stamp_ns)
+        if (not self.config.detection.motion_gate or stamp is None or stamp < 0
+                or camera not in self.config.camera_names):
+            return False
+        with self._lock:
+            if self._waits(stamp):
+                return False
+            A = self._buffer.lookup(stamp, count=False)
+            if A is None:
+                return False
+            return not self._worth_searching(camera, A,
+                                             self._keepable_targets(camera, stamp, A))
+
     def camera_counters(self) -> dict[str, dict[str, int]]:
         """Per camera (configuration order): ``images`` taken, ``skipped_no_motion`` (motion
         gate: not decoded, not searched), ``detected`` (searched for tags), ``used`` (at least
@@ -214,13 +244,29 @@ class ImageInput:
         (lock held)."""
         return [x for x in self._x_names if self._acc.would_keep(x, camera, stamp, A)]
 
+    def _worth_searching(self, camera: str, A: np.ndarray, wanted: list[str]) -> bool:
+        """The motion gate's verdict for an image of ``camera`` at ``A`` whose keepable targets
+        are ``wanted`` (lock held; module docstring, step 3)."""
+        if not wanted:
+            return False
+        step = self.config.detection.discovery_step
+        view = self._views.get(camera) if step > 0 else None
+        if view is None or self._acc.moved(view[0], A, step):
+            return True
+        return not view[1].isdisjoint(wanted)
+
+    def _remember_view(self, camera: str, A: np.ndarray, detection) -> None:
+        """The configured targets whose markers the search of an image of ``camera`` at ``A``
+        found (lock held)."""
+        self._views[camera] = (A, frozenset(name for name in detection.markers if name))
+
     def _examine(self, camera: str, stamp: int, image: ImageSource, intrinsics,
                  A: np.ndarray) -> ImageOutcome:
         """Steps 3-5 of the module docstring for an image whose ``A`` is known (lock NOT held)."""
         gate = self.config.detection.motion_gate
         with self._lock:
             wanted = self._keepable_targets(camera, stamp, A) if gate else None
-            if gate and not wanted:
+            if gate and not self._worth_searching(camera, A, wanted):
                 self._count("images_skipped_no_motion")
                 self._camera_count(camera, "skipped_no_motion")
                 return ImageOutcome(camera, stamp, "skipped")
@@ -248,6 +294,7 @@ class ImageInput:
         reasons: list[str] = []
         with self._lock:
             self._camera_count(camera, "detected")
+            self._remember_view(camera, A, detection)
             for r in detection.rejections:
                 key = (
                     "tag_not_in_config"

@@ -109,6 +109,10 @@ class FairImageQueue(_Closable):
     block : bool
         ``put`` on a full key waits for room (offline: nothing is lost) instead of dropping the
         key's oldest item (live).
+    expendable : callable(key, item) -> bool, optional
+        Live, on a full key: the oldest item for which it returns True is dropped instead of the
+        key's oldest item (e.g. an image the motion gate would skip anyway). Called with the
+        queue's lock held, like ``ready``.
     recheck_s : float
         Longest wait of :meth:`get` before it looks at readiness again.
     """
@@ -121,6 +125,7 @@ class FairImageQueue(_Closable):
         ready: Callable[[Any], bool] | None = None,
         block: bool = False,
         recheck_s: float = 0.05,
+        expendable: Callable[[Hashable, Any], bool] | None = None,
     ) -> None:
         if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
             raise ValueError(f"maxsize: expected an integer >= 1, got {maxsize!r}")
@@ -132,13 +137,15 @@ class FairImageQueue(_Closable):
         self.maxsize = maxsize
         self.block = bool(block)
         self._ready = ready
+        self._expendable = expendable
         self._recheck_s = float(recheck_s)
         self._queues = {k: collections.deque() for k in self.keys}
         self._busy: set = set()
         self._next = 0
         self._cond = threading.Condition()
         self._closed = False
-        self._stats = {k: dict.fromkeys(("received", "dropped", "processed"), 0)
+        self._stats = {k: dict.fromkeys(("received", "dropped", "dropped_expendable",
+                                         "processed"), 0)
                        for k in self.keys}
 
     def put(self, key: Hashable, item: Any) -> bool:
@@ -155,12 +162,22 @@ class FairImageQueue(_Closable):
                 if self._closed:
                     return False
             elif len(q) >= self.maxsize:
-                q.popleft()
+                self._drop_one(key, q)
                 self._stats[key]["dropped"] += 1
                 dropped = True
             q.append(item)
             self._cond.notify_all()
             return not dropped
+
+    def _drop_one(self, key: Hashable, q: collections.deque) -> None:
+        """Drop the oldest expendable item of a full key, else its oldest (lock held)."""
+        if self._expendable is not None:
+            for i, item in enumerate(q):
+                if self._expendable(key, item):
+                    del q[i]
+                    self._stats[key]["dropped_expendable"] += 1
+                    return
+        q.popleft()
 
     def _take(self) -> tuple[Hashable, Any] | None:
         """The next servable ``(key, item)`` in round-robin order (lock held), or None."""
@@ -235,8 +252,9 @@ class FairImageQueue(_Closable):
             return sum(s["dropped"] for s in self._stats.values())
 
     def stats(self) -> dict[Hashable, dict[str, int]]:
-        """Per key: ``received`` (put), ``dropped`` (oldest dropped when full), ``processed``
-        (handed out and done) and ``queued`` (waiting now)."""
+        """Per key: ``received`` (put), ``dropped`` (dropped when full), of which
+        ``dropped_expendable`` (an expendable item rather than the oldest), ``processed`` (handed
+        out and done) and ``queued`` (waiting now)."""
         with self._cond:
             return {k: {**s, "queued": len(self._queues[k])} for k, s in self._stats.items()}
 

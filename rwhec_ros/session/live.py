@@ -131,6 +131,7 @@ class CalibrationSession(ImageInput):
         )
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()
+        self._views: dict = {}  # camera -> (A, targets found) of its last searched image
         self._counters: collections.Counter = collections.Counter()
         self._camera_counts = {name: collections.Counter(dict.fromkeys(CAMERA_COUNTERS, 0))
                                for name in c.camera_names}

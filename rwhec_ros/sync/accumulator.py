@@ -237,6 +237,17 @@ class PairAccumulator:
             raise ValueError(f"callback: not a registered listener: {callback!r}") from None
 
     # --- input ---------------------------------------------------------------------------------
+    def moved(self, A0: np.ndarray, A1: np.ndarray, fraction: float = 1.0) -> bool:
+        """Whether the pose changed from ``A0`` to ``A1`` (both (4, 4), rigid) by more than
+        ``fraction`` times a keyframe threshold (``keyframe_rotation_rad`` or
+        ``keyframe_translation_m``; ``fraction = 1``: the motion the keyframe test asks of an
+        edge between two kept pairs)."""
+        A0, A1 = np.asarray(A0, dtype=float), np.asarray(A1, dtype=float)
+        angle = float(_rotation_angles(A0[None, :3, :3], A1[:3, :3])[0])
+        shift = float(np.linalg.norm(A1[:3, 3] - A0[:3, 3]))
+        return (angle > fraction * self.keyframe_rotation_rad
+                or shift > fraction * self.keyframe_translation_m)
+
     def _moved(self, last_A: np.ndarray, A: np.ndarray) -> bool:
         angle = float(_rotation_angles(last_A[None, :3, :3], A[:3, :3])[0])
         shift = float(np.linalg.norm(A[:3, 3] - last_A[:3, 3]))

@@ -270,8 +270,9 @@ class PoseBuffer:
         stamp = _check_int("stamp_ns", stamp_ns, 0)
         return self._locate(stamp)[0]
 
-    def lookup(self, stamp_ns: int) -> np.ndarray | None:
-        """The pose at ``stamp_ns``, shape (4, 4), or ``None`` (counted by reason).
+    def lookup(self, stamp_ns: int, *, count: bool = True) -> np.ndarray | None:
+        """The pose at ``stamp_ns``, shape (4, 4), or ``None`` (counted by reason unless
+        ``count`` is False: a look-ahead that is not a use of the pose).
 
         A ``WAIT`` stamp is counted as ``"lookup_after_buffer"`` here: call
         :meth:`lookup_status` first to decide whether to retry later.
@@ -280,9 +281,9 @@ class PoseBuffer:
         status, how, i0, i1 = self._locate(stamp)
         if status is not LookupStatus.OK:
             key = "after_buffer" if status is LookupStatus.WAIT else status.value
-            self._counters[f"lookup_{key}"] += 1
+            self._counters[f"lookup_{key}"] += count
             return None
-        self._counters[f"lookup_{how}"] += 1
+        self._counters[f"lookup_{how}"] += count
         if how != "interpolated":
             return self._poses[i0].copy()
         t0, t1 = self._stamps[i0], self._stamps[i1]
