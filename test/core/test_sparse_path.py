@@ -245,3 +245,58 @@ def test_large_rig_certified_on_the_sparse_path():
     assert res.certified and "sparse unreduced path" in res.notes[0]
     assert np.abs(res.Y[:, :3, 3] - gt.Y[:, :3, 3]).max() < 0.1  # 2 cm noise, 6 pairs
 
+
+
+@pytest.mark.parametrize("t", [0.0, 0.37])
+def test_sparse_certificate_matrix_and_its_rounding_rows(t):
+    """``matrix_data`` against dense matrices built entry by entry from the module docstring:
+    ``Z = Q_s - K(Gamma, lambda_s) - t D`` (K holds Gamma_l[a, b] at (3a+i, 3b+i) of block l and
+    ``lambda_s - sum tr Gamma_l`` at (s, s); D the handedness matrix) and the row sums of ``E``:
+    ``gamma_2 (|Q_s| + |K|) 1``, plus ``gamma_{3n+1} (|lambda_s| + sum |diag Gamma_l|)`` on the s
+    row, plus with ``t``: ``gamma_{n+8} h + gamma_2 (|Q_s| + |K| + h) 1`` with ``h`` the row sums
+    of ``|t|`` times the bound on |D|'s terms. Relative agreement 1e-12 (the sums run in another
+    order); every factor of the bound changes it by far more."""
+    from rwhec_ros.core.sparse_certificate import handedness_entries
+    from rwhec_ros.core.verified import gamma
+
+    problem, _ = random_instance(np.random.default_rng(4), 1, 5, n_per_edge=8, sigma=0.02,
+                                 kappa=100)
+    prep = prepare_sparse(problem, SolveOptions())
+    loc = refine_rotations_sparse(prep.form, prep.Qs, prep.init_R)
+    pattern = CertificatePattern(prep.form, prep.Qs)
+    Gamma, lam_s, _ = first_order_multipliers(prep.form, prep.Qs, loc.R)
+    Gamma = Gamma + 1e-3 * np.random.default_rng(1).standard_normal(Gamma.shape)  # not optimal:
+    Gamma = 0.5 * (Gamma + np.swapaxes(Gamma, 1, 2))  # every term of the bound is non-zero
+    hand = handedness_entries(loc.R) if t else None
+    data, err = pattern.matrix_data(Gamma, lam_s, t, hand)
+    n, nf, size = pattern.n, pattern.nf, pattern.size
+    Qd = prep.Qs.toarray()
+    K = np.zeros((size, size))
+    for ell in range(n):
+        for a in range(3):
+            for b in range(3):
+                for i in range(3):
+                    K[nf + 9 * ell + 3 * a + i, nf + 9 * ell + 3 * b + i] = Gamma[ell, a, b]
+    K[-1, -1] = lam_s - sum(np.trace(G) for G in Gamma)
+    D = np.zeros((size, size))
+    Dabs = np.zeros((size, size))
+    if t:
+        pp, qq = np.triu_indices(10)
+        vals, absv = hand
+        for ell in range(n):
+            glob = [nf + 9 * ell + k for k in range(9)] + [size - 1]
+            for k, (p, q) in enumerate(zip(pp, qq, strict=True)):
+                for M, v in ((D, vals[ell, k]), (Dabs, absv[ell, k])):
+                    M[glob[p], glob[q]] += v
+                    if p != q:
+                        M[glob[q], glob[p]] += v
+    Z = Qd - K - t * D
+    got = _dense_Z(pattern, data)
+    np.testing.assert_allclose(got[np.abs(Z) > 0], Z[np.abs(Z) > 0], rtol=1e-12, atol=1e-14)
+    base = np.abs(Qd).sum(axis=1) + np.abs(K).sum(axis=1)
+    E = gamma(2) * base
+    E[-1] += gamma(3 * n + 1) * (abs(lam_s) + sum(np.abs(np.diag(G)).sum() for G in Gamma))
+    if t:
+        h = abs(t) * Dabs.sum(axis=1)
+        E += gamma(n + 8) * h + gamma(2) * (base + h)
+    np.testing.assert_allclose(err, E, rtol=1e-12)
