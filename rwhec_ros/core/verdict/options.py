@@ -88,7 +88,7 @@ class VerdictOptions:
         many standard deviations (4.0) ...
     focal_caution : float
         ... and beyond this relative difference (0.02: 2 %) -> caution for that camera (good
-        rendered runs: within 0.3 %; a focal length 5 % off: 4.5-4.8 %).
+        rendered runs: within 0.23 %; a focal length 5 % off: 4.5-5.5 %).
     """
 
     significance: float = 1e-3
