@@ -29,8 +29,10 @@ Three parts, each row with its own seeded runs:
    what the session is told (tag sizes, intrinsics, stamps); fewer runs per row.
 
 "reason" counts the broken runs whose reasons name the expected cause: code ``scale`` for tag
-sizes and focal lengths; a reason naming the moved tag (its frame, or an edge of it) for the moved
-and turned tags; a reason that mentions the time sync for late stamps.
+sizes; a reason that mentions the intrinsics or the focal length for focal lengths (the
+verdict's focal check from the tag corners, code ``intrinsics``, or an edge reason); a reason
+naming the moved tag (its frame, or an edge of it) for the moved and turned tags; a reason that
+mentions the time sync for late stamps.
 """
 
 from __future__ import annotations

@@ -241,6 +241,15 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="unknown scale: caution when the scale's relative std exceeds this"),
     ParamSpec("verdict.unusable_scale_rel_std", "double", 0.1,
               doc="unknown scale: unusable when the scale's relative std exceeds this"),
+    ParamSpec("verdict.focal_check", "bool", True,
+              doc="with tag corners and intrinsics in the data: check per camera the focal "
+                  "length that the corners fit, each image through its own pose"),
+    ParamSpec("verdict.focal_sigmas", "double", 4.0,
+              doc="a camera's fitted focal length differs from its camera info only beyond "
+                  "this many standard deviations ..."),
+    ParamSpec("verdict.focal_caution", "double", 0.02,
+              doc="... and beyond this relative difference: caution for that camera (0.02 = "
+                  "2 %)"),
     ParamSpec("accuracy.cross_validation_folds", "int", 5,
               doc="k-fold cross-validation over the pairs at calibrate (held-out vs in-sample "
                   "residuals per edge); 0: off"),

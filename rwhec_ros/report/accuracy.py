@@ -127,6 +127,18 @@ def draw_validation(ax, doc: Mapping[str, Any], what: str, label: int = 4) -> No
                  f"{float(ins.get(key, np.nan)):.3g} {unit})", fontsize=11)
 
 
+def _px(value) -> str:
+    return f"{value:.2f}" if isinstance(value, (int, float)) and np.isfinite(value) else "-"
+
+
+def _focal_words(r: Mapping[str, Any]) -> str:
+    """``x0.953 +-0.001`` (``-`` when not determined or not computed)."""
+    s, std = r.get("focal_scale"), r.get("focal_scale_std")
+    if not (isinstance(s, (int, float)) and np.isfinite(s)):
+        return "-"
+    return f"x{s:.3f} +-{std:.3f}"
+
+
 def summary_text_lines(doc: Mapping[str, Any], width: int = 40) -> list[str]:
     """The reprojection RMS per camera and the next motion (or why none is needed), wrapped to
     ``width``; empty without them."""
@@ -204,16 +216,19 @@ def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, lis
     rep = doc.get("reprojection")
     if rep:
         rows = [(cam, r["n_pairs"], f"{r['rms_px']:.2f}", f"{r['median_px']:.2f}",
-                 f"{r['max_px']:.1f}", r.get("n_behind", 0)) for cam, r in
+                 f"{r['max_px']:.1f}", r.get("n_behind", 0), _px(r.get("image_fit_rms_px")),
+                 _focal_words(r)) for cam, r in
                 sorted(rep.items(), key=lambda kv: natural_key(kv[0]))]
         out.append(("Reprojection error per camera",
                     "The detected tag corners against the tag placed by the calibrated chain "
                     "(camera <- carrier <- pose stream <- tag carrier <- tag) and projected "
                     "with the camera's intrinsics, in pixels: the residual of the whole "
                     "calibration, to compare with the detector's noise (a few tenths of a "
-                    "pixel for sharp tags).",
+                    "pixel for sharp tags). Per image: the same corners through each image's "
+                    "own best pose; focal length: the factor on the configured focal length "
+                    "that the corners fit best (1: as configured; the verdict's focal check).",
                     ("camera", "pairs", "RMS [px]", "median [px]", "max [px]",
-                     "pairs behind the camera"), rows))
+                     "pairs behind the camera", "per image [px]", "focal length fits"), rows))
     g = doc.get("guidance")
     if g:
         rows = [(c.get("x"), c.get("y"), _motion_words(c), c.get("worst", ""))

@@ -92,8 +92,8 @@ def _banner(ax, doc: Mapping[str, Any]) -> None:
     ax.text(0.01, 1 - 0.12 / height, head, transform=ax.transAxes, va="top", ha="left",
             fontsize=20, fontweight="bold", color=fg)
     details = doc.get("verdict_details")
-    body = banner_lines(doc) or [details.get("summary", "") if isinstance(details, Mapping)
-                                 else ""]
+    summary = str(details.get("summary", "")) if isinstance(details, Mapping) else ""
+    body = banner_lines(doc) or textwrap.wrap(summary, 150)  # the reasons' width: not clipped
     ax.text(0.01, 1 - 0.6 / height, "\n".join(body), transform=ax.transAxes, va="top",
             ha="left", fontsize=11, color="0.1", family="monospace")
 

@@ -12,7 +12,10 @@ At the solution of :func:`~rwhec_ros.session.solving.solve_and_assess`:
 * the **reprojection error per camera**
   (:func:`rwhec_ros.vision.reprojection.reprojection_errors`) of the detected tag corners through
   the calibrated chain, when the data keep corners and intrinsics
-  (:func:`rwhec_ros.data.corners.corner_observations`).
+  (:func:`rwhec_ros.data.corners.corner_observations`), with each camera's focal fit
+  (:func:`rwhec_ros.vision.focal_fit.fit_focal_scale`, read by the verdict's focal check):
+  about 8 per-image pose fits of at most 100 images per camera, ~0.2-0.5 s per camera on a busy
+  2-core machine.
 
 :class:`Accuracy` holds them (each None when skipped or failed, with a note saying why) and
 gives the result-YAML keys (:meth:`Accuracy.frame_fields`, :meth:`Accuracy.to_dict`), the summary

@@ -188,7 +188,8 @@ def solve_and_assess(
     says what of the per-frame uncertainty, cross-validation and guidance to compute
     (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the verdict's
     precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
-    reprojection error per camera. Exceptions of the solver propagate."""
+    reprojection error per camera and the verdict's focal check (with ``accuracy`` only).
+    Exceptions of the solver propagate."""
     from ..core.solve import blas_threads
 
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
@@ -205,6 +206,8 @@ def solve_and_assess(
     with blas_threads(1):
         verdict = assess(result, solved, identifiability=ident, options=thresholds,
                          uncertainty=None if acc is None else acc.uncertainty,
+                         reprojection=None if acc is None else acc.reprojection,
+                         intrinsics=None if corners is None else corners[1],
                          expected_x=[*expected_x, *problem.x_names],
                          expected_y=[*expected_y, *problem.y_names],
                          excluded={**dict(excluded or {}), **dropped}, carriers=carriers)

@@ -7,6 +7,7 @@ The modules, one concept each:
   chi-square test, globally and per edge; paper eq. (33));
 * :mod:`.scale_check`: a known-scale problem solved with an unknown scale (tag sizes, focal
   lengths, pose-stream units);
+* :mod:`.focal_check`: the focal length each camera's tag corners fit (data with corners);
 * :mod:`.precision`: each frame's predicted standard deviation (today from the identifiability
   numeric check);
 * :mod:`.model`: :class:`Reason`, :class:`FrameVerdict`, :class:`Verdict` and the builder that
@@ -17,6 +18,7 @@ The modules, one concept each:
 """
 
 from .fit import EdgeFit, FitStatistics, goodness_of_fit
+from .focal_check import FocalCheck, focal_checks
 from .options import LEVELS, VerdictOptions, worst_level
 from .precision import FramePrecision, frame_precisions
 from .scale_check import ScaleCheck, check_scale
@@ -29,6 +31,8 @@ __all__ = [
     "EdgeFit",
     "FitStatistics",
     "goodness_of_fit",
+    "FocalCheck",
+    "focal_checks",
     "ScaleCheck",
     "check_scale",
     "FramePrecision",

@@ -14,7 +14,8 @@ __all__ = ["Reason", "FrameVerdict", "Verdict", "Builder", "PRIORITY"]
 
 #: Order of the reasons of one level: the most specific cause first.
 PRIORITY = ("certificate_failed", "not_identifiable", "not_calibrated", "tag", "camera",
-            "edge", "scale", "fit", "precision", "certificate", "unseen_tag", "check_failed")
+            "intrinsics", "edge", "scale", "fit", "precision", "certificate", "unseen_tag",
+            "check_failed")
 
 
 @dataclass(frozen=True)
@@ -27,8 +28,8 @@ class Reason:
         ``caution`` or ``unusable``.
     code : str
         What kind: one of ``certificate_failed``, ``not_identifiable``, ``not_calibrated``,
-        ``scale``, ``tag``, ``camera``, ``edge``, ``fit``, ``precision``, ``certificate``,
-        ``unseen_tag``, ``check_failed``.
+        ``scale``, ``tag``, ``camera``, ``intrinsics`` (:mod:`.focal_check`), ``edge``,
+        ``fit``, ``precision``, ``certificate``, ``unseen_tag``, ``check_failed``.
     message : str
         A sentence: the frame or edge, the number, the likely cause, what to do.
     frames : tuple of str
@@ -103,6 +104,8 @@ class Verdict:
     summary : str
         What a ``good`` verdict rests on (certificate, fit, precision), in words.
     options : VerdictOptions
+    focal_check : dict of str to FocalCheck, or str
+        Per camera, the focal check (:mod:`.focal_check`); a sentence when it was not made.
     """
 
     level: str
@@ -112,6 +115,7 @@ class Verdict:
     scale_check: ScaleCheck | None = None
     summary: str = ""
     options: VerdictOptions = field(default_factory=VerdictOptions)
+    focal_check: dict | str = ""
 
     @property
     def usable(self) -> bool:
@@ -145,6 +149,8 @@ class Verdict:
             "fit": None if self.fit is None else self.fit.to_dict(),
             "scale_check": None if self.scale_check is None else self.scale_check.to_dict(),
             "options": asdict(self.options),
+            "focal_check": (self.focal_check if isinstance(self.focal_check, str) else
+                            {cam: c.to_dict() for cam, c in self.focal_check.items()}),
         }
 
 

@@ -11,6 +11,8 @@ It combines, for a solution of a :class:`~rwhec_ros.core.problem.Problem`:
 * the scale check of a known-scale problem (:mod:`.scale_check`);
 * the precision of each frame (:mod:`.precision`, from the per-frame covariance of
   :mod:`rwhec_ros.core.uncertainty`);
+* when the data keep the tag corners: the focal length each camera's corners fit
+  (:mod:`.focal_check`);
 * the frames the user asked for that got no estimate at all.
 
 The result is a :class:`Verdict`: a level (``good``, ``caution``, ``unusable``), the reasons as
@@ -31,6 +33,7 @@ import numpy as np
 from ..problem import Problem
 from ..result import CalibrationResult
 from .fit import FitStatistics, goodness_of_fit
+from .focal_check import NOT_CHECKED, focal_checks, focal_reasons, focal_summary
 from .model import Builder, FrameVerdict, Reason, Verdict
 from .options import VerdictOptions
 from .reasons import (
@@ -61,6 +64,8 @@ def assess(
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
     scale_check: ScaleCheck | None = None,
     uncertainty=None,
+    reprojection: Mapping | None = None,
+    intrinsics: Mapping | None = None,
 ) -> Verdict:
     """The verdict of ``result``, the solution of ``problem``.
 
@@ -86,6 +91,12 @@ def assess(
         The per-frame covariance at the solution
         (:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`, ideally with the solve's
         ``GaugeOptions`` so that the priors count); computed here (without priors) when None.
+    reprojection : mapping of str to CameraReprojection, optional
+        The reprojection error per camera with its focal fit
+        (:func:`rwhec_ros.vision.reprojection.reprojection_errors`), for the focal check; None
+        (data without tag corners): the check is skipped and ``Verdict.focal_check`` says so.
+    intrinsics : mapping of str to CameraIntrinsics, optional
+        The configured intrinsics (for ``fx`` in the focal check's words).
     """
     opts = options or VerdictOptions()
     xs = list(dict.fromkeys([*expected_x, *problem.x_names]))
@@ -120,8 +131,17 @@ def assess(
               "computed, so the precision of the frames is unknown", why="precision unknown")
     precision_reasons(b, uncertainty, fit, opts, problem, pinned_frames(result),
                       float(result.scale))
+    focal: dict | str = "off (verdict.focal_check false)"
+    if opts.focal_check:
+        focal = focal_checks(reprojection, intrinsics) or NOT_CHECKED
+        if not isinstance(focal, str):
+            focal_reasons(b, focal, opts)
     summary = _summary(result, fit, b)
-    return b.verdict(fit, scale_check, summary, opts)
+    if not isinstance(focal, str) and focal_summary(focal, opts):
+        summary += "; " + focal_summary(focal, opts)
+    verdict = b.verdict(fit, scale_check, summary, opts)
+    verdict.focal_check = focal
+    return verdict
 
 
 def _analyze(problem: Problem, result: CalibrationResult):
