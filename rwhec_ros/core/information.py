@@ -318,6 +318,14 @@ def _check_estimate(problem: Problem, X, Y, alpha: float) -> tuple[np.ndarray, f
     return np.concatenate([X, Y]), a
 
 
+def _scatter_add(n: int, idx: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    """``sum_g`` of ``blocks[g]`` (G, b, b) added at ``idx[g] x idx[g]`` ((G, b) indices, distinct
+    within a group) of an ``n x n`` zero matrix: one ``bincount`` (the sums in group order, as
+    ``np.add.at`` forms them)."""
+    flat = (idx[:, :, None] * n + idx[:, None, :]).ravel()
+    return np.bincount(flat, weights=blocks.ravel(), minlength=n * n).reshape(n, n)
+
+
 def scatter_information(
     layout: TangentLayout,
     xi: np.ndarray,
@@ -331,8 +339,7 @@ def scatter_information(
     idx = layout.pair_indices(xi, yi)
     blocks = terms.hessian if layout.unknown_scale else \
         terms.hessian[:, _LOCAL_KNOWN][:, :, _LOCAL_KNOWN]
-    H = np.zeros((n, n))
-    np.add.at(H, (idx[:, :, None], idx[:, None, :]), blocks)
+    H = _scatter_add(n, idx, blocks)
     m = 3 * F + (1 if layout.unknown_scale else 0)
     three = np.arange(3)
     qidx = np.concatenate([3 * np.asarray(xi)[:, None] + three,
@@ -341,8 +348,7 @@ def scatter_information(
     qb = terms.translation_block
     if not layout.unknown_scale:
         qidx, qb = qidx[:, :6], qb[:, :6, :6]
-    Qee = np.zeros((m, m))
-    np.add.at(Qee, (qidx[:, :, None], qidx[:, None, :]), qb)
+    Qee = _scatter_add(m, qidx, qb)
     return 0.5 * (H + H.T), 0.5 * (Qee + Qee.T)
 
 
