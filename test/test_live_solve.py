@@ -372,3 +372,103 @@ def test_take_new_hands_out_each_estimate_once(tmp_path):
         assert session.live.solve_now(30.0) is est  # nothing new: no re-solve
     finally:
         session.close()
+
+
+def _first_pairs(problem, share: float):
+    """``problem`` with the first ``share`` of every edge's pairs (the data of an earlier live
+    re-solve)."""
+    from rwhec_ros.core.problem import Edge
+
+    edges = []
+    for e in problem.edges:
+        k = max(3, int(share * e.n))
+        edges.append(Edge.build(e.x, e.y, e.A[:k], e.B[:k], e.sigma[:k], e.kappa[:k]))
+    return problem.with_edges(edges)
+
+
+def _assert_same_solution(warm, cold, unc_warm, unc_cold):
+    """Same status, estimate and stds. Both solves stop when the Riemannian gradient of the
+    scaled cost is below 1e-10 (LocalSolverOptions.gradient_tol) at the same certified global
+    optimum, so they agree to about 1e-10 over the curvature (O(1) here: noise 5 mm / kappa
+    400, 30 pairs per edge); 1e-7 m / 1e-7 leaves three orders of margin and would still catch
+    a different local minimum (millimetres to radians away)."""
+    assert warm.certificate.status == cold.certificate.status
+    np.testing.assert_allclose(warm.X, cold.X, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(warm.Y, cold.Y, rtol=0, atol=1e-7)
+    assert abs(warm.certificate.primal_cost - cold.certificate.primal_cost) <= 1e-7 * abs(
+        cold.certificate.primal_cost)
+    for fw, fc in zip(unc_warm.frames, unc_cold.frames, strict=True):
+        np.testing.assert_allclose(fw.std_translation_m, fc.std_translation_m, rtol=1e-6)
+        np.testing.assert_allclose(fw.std_rotation_deg, fc.std_rotation_deg, rtol=1e-6)
+
+
+def test_warm_start_gives_the_cold_estimate_and_certificate(tmp_path):
+    from rwhec_ros.core.synthetic import random_instance
+
+    problem, _ = random_instance(np.random.default_rng(21), 3, 2, n_per_edge=30, sigma=SIGMA,
+                                 kappa=KAPPA)
+    config = make_config(tmp_path)
+    previous, _ = solve_with_uncertainty(_first_pairs(problem, 0.5), config)
+    assert previous.certified
+    cold, unc_cold = solve_with_uncertainty(problem, config)
+    warm, unc_warm = solve_with_uncertainty(problem, config, initial=(previous.X, previous.Y))
+    assert cold.certified and warm.certified
+    assert "live: started from the previous live estimate" in warm.notes
+    assert not any("previous live estimate" in n for n in cold.notes)
+    _assert_same_solution(warm, cold, unc_warm, unc_cold)
+
+
+def test_a_bad_warm_start_never_changes_the_outcome(tmp_path):
+    from rwhec_ros.core.synthetic import random_instance
+
+    problem, _ = random_instance(np.random.default_rng(22), 3, 2, n_per_edge=30, sigma=SIGMA,
+                                 kappa=KAPPA)
+    config = make_config(tmp_path)
+    cold, unc_cold = solve_with_uncertainty(problem, config)
+    flip = np.diag([1.0, -1.0, -1.0, 1.0])  # every frame turned by 180 deg about its x axis
+    for initial in ((cold.X @ flip, cold.Y @ flip), (cold.X @ flip, cold.Y)):
+        warm, unc_warm = solve_with_uncertainty(problem, config, initial=initial)
+        # either it certifies (then it is the global optimum, the cold one) or it was solved
+        # again from the closed form: the outcome is the cold one either way
+        _assert_same_solution(warm, cold, unc_warm, unc_cold)
+
+
+def test_the_live_solver_warm_starts_from_its_previous_estimate(tmp_path):
+    from rwhec_ros.session.live_solve import warm_start_of
+
+    rig = Rig(np.random.default_rng(23))
+    session = make_session(tmp_path, rig)
+    clock = FakeClock()
+    session.live = LiveSolver(session, clock=clock)
+    warm_note = "live: started from the previous live estimate"
+    try:
+        notes = []
+        for n in (8, 8):
+            feed(session, rig, n, start=len(notes) * 8)
+            clock.t += 10.0
+            assert session.live.tick() == "started" and session.live.wait_idle(60.0)
+            est = session.live.estimate
+            assert est.result.certified
+            notes.append(warm_note in est.result.notes)
+        assert notes == [False, True]  # the first has nothing to start from
+        # the warm-started estimate is the one a cold solve of the same pairs gives
+        snap = session.pairs_snapshot()
+        from rwhec_ros.sync.accumulator import problem_from_edges
+
+        c = session.config
+        problem, _ = problem_from_edges(snap.edges, c.x_names, c.y_names, c.tags.unknown_scale,
+                                        c.solver.min_pairs, snap.rotation_tol, validate=False)
+        cold, unc_cold = solve_with_uncertainty(problem, c)
+        _assert_same_solution(est.result, cold, est.uncertainty, unc_cold)
+        # a reset forgets it: the next re-solve starts from the closed form again
+        session.live.forget()
+        feed(session, rig, 2, start=16)
+        clock.t += 10.0
+        assert session.live.tick() == "started" and session.live.wait_idle(60.0)
+        assert warm_note not in session.live.estimate.result.notes
+        # only a certified estimate of the same frames is used
+        assert warm_start_of(session.live.estimate, problem) is not None
+        other = problem.with_edges([e for e in problem.edges if e.y == "cam0"])
+        assert warm_start_of(session.live.estimate, other) is None
+    finally:
+        session.close()

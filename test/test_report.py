@@ -145,3 +145,166 @@ def test_report_shows_the_accuracy_and_grows_by_its_rows(tmp_path):
     assert "Uncertainty per frame" not in without.html.read_text()  # older results: no section
     text = page.split("base64,")[0] + page.split("base64,")[1].split("'", 1)[1]  # no figure
     assert "None" not in text and "nan" not in text  # words, not Python values
+
+
+@pytest.fixture(scope="module")
+def assessed():
+    """A solved, verdicted and assessed synthetic problem (no corners) and its report files
+    (one solve and one report for the tests below: they are the slow part)."""
+    import tempfile
+    from pathlib import Path
+
+    from rwhec_ros.session.accuracy import AccuracyOptions
+    from rwhec_ros.session.solving import solve_and_assess
+
+    problem, _ = random_instance(np.random.default_rng(3), 3, 2, n_per_edge=12, sigma=0.01,
+                                 kappa=400.0)
+    solved = solve_and_assess(problem, accuracy=AccuracyOptions(folds=3))
+    naming = FrameNaming.from_carriers(problem.x_names, problem.y_names,
+                                       camera_carrier="rig", tag_carrier="world")
+    doc = result_document(solved.result, naming, verdict=solved.verdict,
+                          accuracy=solved.accuracy)
+    with tempfile.TemporaryDirectory() as tmp:
+        files = write_report(doc, problem, Path(tmp) / "r.png", Path(tmp) / "r.html")
+        yield problem, doc, files
+
+
+def _images(page: str) -> dict[str, bytes]:
+    """The page's embedded PNGs by their alt text."""
+    import base64
+    import re
+
+    return {alt: base64.b64decode(data) for data, alt in
+            re.findall(r"<img src='data:image/png;base64,([^']*)' alt='([^']*)'>", page)}
+
+
+def test_report_has_per_edge_residual_boxes_and_no_reprojection_without_corners(assessed):
+    from io import BytesIO
+
+    from matplotlib.image import imread
+
+    problem, doc, files = assessed
+    assert doc.get("reprojection") is None  # synthetic pairs: no corners, no intrinsics
+    page = files.html.read_text()
+    images = _images(page)
+    assert "residuals per edge, the worst edges first" in images  # in its section
+    edges_at = page.index("<h2>Residuals of A X = Y B per edge</h2>")
+    assert edges_at < page.index("alt='residuals per edge, the worst edges first'")
+    assert page.index("alt='residuals per edge") < page.index("<h2>Uncertainty per frame</h2>")
+    img = imread(BytesIO(images["residuals per edge, the worst edges first"]))
+    assert img.shape[1] == 1440 and img[..., :3].std() > 0.05
+    # no corners: neither a reprojection section nor its chart
+    assert "Reprojection error per camera" not in page
+    assert "reprojection error per camera" not in images
+
+
+def test_report_has_the_reprojection_chart_with_corners(assessed, tmp_path):
+    import copy
+
+    from matplotlib.image import imread
+
+    problem, plain, without = assessed
+    doc = copy.deepcopy(plain)
+    # the reprojection mapping as the accuracy step writes it (rwhec_ros.session.accuracy)
+    doc["reprojection"] = {cam: {"camera": cam, "n_pairs": 20 + k, "rms_px": 0.4 + 0.3 * k,
+                                 "median_px": 0.3 + 0.2 * k, "max_px": 2.0, "n_behind": 0}
+                           for k, cam in enumerate(problem.y_names)}
+    doc.setdefault("config", {})["detection.max_reprojection_rms_px"] = 1.0
+    files = write_report(doc, problem, tmp_path / "r.png", tmp_path / "r.html")
+    page = files.html.read_text()
+    images = _images(page)
+    assert "reprojection error per camera" in images
+    heading = page.index("<h2>Reprojection error per camera</h2>")
+    assert heading < page.index("alt='reprojection error per camera'") < page.index(
+        "<h2>Next motion</h2>")
+    assert "<td>y1</td><td>21</td><td>0.70</td>" in page  # the table stays
+    # the stand-alone PNG grows by the chart's row (at least 2.2 inches at 80 dpi)
+    assert imread(str(files.png)).shape[0] >= imread(str(without.png)).shape[0] + 2.2 * 80
+
+
+def test_reprojection_bars_are_the_rms_per_camera_with_the_detection_limit():
+    from matplotlib.figure import Figure
+
+    from rwhec_ros.report.edges import draw_reprojection
+
+    doc = {"reprojection": {"cam10": {"rms_px": 0.9, "median_px": 0.5, "n_pairs": 3},
+                            "cam2": {"rms_px": 0.25, "median_px": 0.2, "n_pairs": 40,
+                                     "n_behind": 2}},
+           "config": {"detection.max_reprojection_rms_px": 1.5}}
+    ax = Figure().add_subplot()
+    draw_reprojection(ax, doc)
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["cam2", "cam10"]  # natural order
+    widths = [p.get_width() for p in ax.patches]
+    assert widths == [0.25, 0.9]
+    assert ax.get_xlim()[1] >= 1.5  # the per-detection limit is on the chart
+    texts = [t.get_text() for t in ax.texts]
+    assert "0.25 px (40 pairs), 2 behind the camera" in texts and "0.90 px (3 pairs)" in texts
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any("per-detection limit 1.5 px" in t for t in legend)
+
+
+def test_edge_boxes_show_the_worst_edges_of_many_in_rank_order():
+    from matplotlib.figure import Figure
+
+    from rwhec_ros.report import edge_residuals, fit_of_document
+    from rwhec_ros.report.edges import EDGE_ROWS, draw_edge_boxes, ranked_edges
+
+    # 6 tags x 5 cameras = 30 edges: more than EDGE_ROWS, so only the worst are drawn
+    problem, gt = random_instance(np.random.default_rng(8), 6, 5, n_per_edge=6, sigma=0.01,
+                                  kappa=400.0)
+    result = solve(problem)
+    naming = FrameNaming.from_carriers(problem.x_names, problem.y_names,
+                                       camera_carrier="rig", tag_carrier="world")
+    doc = result_document(result, naming)
+    residuals = edge_residuals(problem, result.X, result.Y, result.scale)
+    fit = fit_of_document(doc, problem)
+    shown = ranked_edges(residuals, fit)
+    assert len(residuals) == 30 and len(shown) == EDGE_ROWS
+    ratio = {(e.x, e.y): e.ratio for e in fit.edges}
+    ranks = [ratio[(r.x, r.y)] for r in shown]
+    assert ranks == sorted(ranks, reverse=True)  # worst first
+    left_out = [ratio[(r.x, r.y)] for r in residuals if r not in shown]
+    assert max(left_out) <= min(ranks)  # none left out is worse than one shown
+    ax = Figure().add_subplot()
+    boxes = draw_edge_boxes(ax, residuals, fit, "translation")
+    labels = [t.get_text() for t in ax.get_yticklabels()]
+    assert labels == [f"{r.x} / {r.y} ({r.n})" for r in shown] + ["all 180 pairs"]
+    assert f"the {EDGE_ROWS} worst of 30 edges" in ax.get_title()
+    # the boxes are of the residuals in mm: the pooled median is the median of all pairs
+    pooled = 1e3 * np.concatenate([r.translation_m for r in residuals])
+    assert boxes["medians"][-1].get_xdata()[0] == pytest.approx(np.median(pooled))
+    worst = 1e3 * shown[0].translation_m
+    assert boxes["medians"][0].get_xdata()[0] == pytest.approx(np.median(worst))
+
+
+def test_cross_validation_labels_never_overlap():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from rwhec_ros.report.accuracy import draw_validation
+
+    # a crowded corner: eight edges within 2 % of each other, all named (held out at 1.6x)
+    rng = np.random.default_rng(2)
+    edges = [{"x": f"tag_{j}", "y": f"cam_{j % 3}", "n_pairs": 10,
+              "in_sample": {"rms_translation_mm": v, "rms_rotation_deg": v},
+              "held_out": {"rms_translation_mm": 1.6 * v, "rms_rotation_deg": 1.6 * v}}
+             for j, v in enumerate(4.0 + 0.08 * rng.random(8))]
+    edges += [{"x": "tag_20", "y": "cam_0", "n_pairs": 10,
+               "in_sample": {"rms_translation_mm": 1.0, "rms_rotation_deg": 1.0},
+               "held_out": {"rms_translation_mm": 1.0, "rms_rotation_deg": 1.0}}]
+    doc = {"cross_validation": {"folds": 5, "edges": edges, "held_out": {}, "in_sample": {}}}
+    fig = Figure(figsize=(9, 5))
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    draw_validation(ax, doc, "translation")
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    from matplotlib.text import Text
+
+    boxes = [Text.get_window_extent(t, renderer) for t in ax.texts]  # the text, not its line
+    assert len(boxes) == 8  # 4 largest held-out + up to 4 more held out at > 1.5x
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert not a.overlaps(b), (a, b)
+    frame = ax.get_window_extent(renderer)
+    assert all(frame.x0 <= b.x0 and b.x1 <= frame.x1 + 1 for b in boxes)  # inside the axes

@@ -82,41 +82,57 @@ class StateLayout:
 
 
 def _edge_blocks(
-    A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray
+    A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray,
+    counts: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Summed 25x25 blocks of ``E`` edges with ``N`` pairs each: ``1/2 sum_i (M_t^T M_t /
-    sigma_i^2 + kappa_i M_R^T M_R)`` and its rotation-only part ``1/2 sum_i kappa_i M_R^T M_R``.
+    """Summed 25x25 blocks of ``E`` edges: ``1/2 sum_i (M_t^T M_t / sigma_i^2 + kappa_i M_R^T
+    M_R)`` and its rotation-only part ``1/2 sum_i kappa_i M_R^T M_R``.
 
-    ``A, B`` (E, N, 4, 4), ``sigma, kappa`` (E, N); returns two arrays (E, 25, 25). Local variable
-    order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``. With ``M_R = [I (x) R_A,
-    -(R_B^T (x) I)]`` on ``(r_X, r_Y)``, ``M_R^T M_R`` has identity diagonal blocks and
-    off-diagonal ``-(R_B^T (x) R_A^T)`` (cf. eq. (36)); the translation rows ``M_t = [R_A, -I,
-    t_A, 0, -(t_B^T (x) I)]`` (cf. eq. (28)) are weighted and reduced by one matrix product per
-    edge (batched over the edges).
+    ``A, B`` (N, 4, 4) and ``sigma, kappa`` (N,): the pairs of all edges concatenated edge by
+    edge, ``counts`` (E,) the pairs of each edge (default: one edge); returns two arrays (E, 25,
+    25). Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``. With ``M_R =
+    [I (x) R_A, -(R_B^T (x) I)]`` on ``(r_X, r_Y)``, ``M_R^T M_R`` has identity diagonal blocks
+    and off-diagonal ``-(R_B^T (x) R_A^T)`` (cf. eq. (36)); the translation rows ``M_t = [R_A,
+    -I, t_A, 0, -(t_B^T (x) I)]`` (cf. eq. (28)) are weighted once for all pairs, then each
+    edge's stacked rows and its kappa-weighted rotations are reduced by one matrix product each
+    (the per-pair arrays are formed once, whatever the number of edges).
     """
-    E, N = A.shape[:2]
-    RA, tA = A[..., :3, :3], A[..., :3, 3]
-    RB, tB = B[..., :3, :3], B[..., :3, 3]
+    N = A.shape[0]
+    counts = np.array([N]) if counts is None else np.asarray(counts, dtype=int)
+    E = counts.shape[0]
+    ends = np.cumsum(counts)
+    starts = ends - counts
+    RA, tA = A[:, :3, :3], A[:, :3, 3]
+    RB, tB = B[:, :3, :3], B[:, :3, 3]
+    half_k = 0.5 * np.asarray(kappa, dtype=float)
+    # translation rows on the 16 columns [t_X, t_Y, alpha, r_Y]
+    Mt = np.zeros((N, 3, 16))
+    Mt[:, :, 0:3] = RA
+    Mt[:, 0, 3] = Mt[:, 1, 4] = Mt[:, 2, 5] = -1.0
+    Mt[:, :, 6] = tA
+    for c in range(3):  # -(t_B^T (x) I): column block c of vec(R_Y) multiplies t_B[c]
+        Mt[:, 0, 7 + 3 * c] = -tB[:, c]
+        Mt[:, 1, 8 + 3 * c] = -tB[:, c]
+        Mt[:, 2, 9 + 3 * c] = -tB[:, c]
+    Mt *= np.sqrt(0.5 / np.asarray(sigma, dtype=float) ** 2)[:, None, None]
+    Mt2 = Mt.reshape(3 * N, 16)
+    # sum k/2 R_B^T (x) R_A^T per edge: K[b a, j i] = sum k/2 RB[b, a] RA[j, i]
+    U = (RB * half_k[:, None, None]).reshape(N, 9)
+    V = RA.reshape(N, 9)
+    G = np.empty((E, 16, 16))
+    K = np.empty((E, 9, 9))
+    ksum = np.empty(E)
+    for e in range(E):
+        a, b = starts[e], ends[e]
+        m = Mt2[3 * a: 3 * b]
+        np.dot(m.T, m, out=G[e])
+        np.dot(U[a:b].T, V[a:b], out=K[e])
+        ksum[e] = half_k[a:b].sum()
+    C = K.reshape(E, 3, 3, 3, 3).transpose(0, 2, 4, 1, 3).reshape(E, 9, 9)  # [a i, b j]
     rot = np.zeros((E, 25, 25))
-    half_k = 0.5 * kappa
-    ksum = half_k.sum(axis=1)
-    # sum k/2 R_B^T (x) R_A^T per edge
-    C = np.einsum("en,enba,enji->eaibj", half_k, RB, RA).reshape(E, 9, 9)
     rot.reshape(E, 625)[:, _ROT_DIAG] = ksum[:, None]
     rot[:, 7:16, 16:25] = -C
     rot[:, 16:25, 7:16] = -np.swapaxes(C, 1, 2)
-    # translation rows on the 16 columns [t_X, t_Y, alpha, r_Y]
-    Mt = np.zeros((E, N, 3, 16))
-    Mt[..., :, 0:3] = RA
-    Mt[..., 0, 3] = Mt[..., 1, 4] = Mt[..., 2, 5] = -1.0
-    Mt[..., :, 6] = tA
-    for c in range(3):  # -(t_B^T (x) I): column block c of vec(R_Y) multiplies t_B[c]
-        Mt[..., 0, 7 + 3 * c] = -tB[..., c]
-        Mt[..., 1, 8 + 3 * c] = -tB[..., c]
-        Mt[..., 2, 9 + 3 * c] = -tB[..., c]
-    Mt *= np.sqrt(0.5 / sigma**2)[..., None, None]
-    Mt2 = Mt.reshape(E, 3 * N, 16)
-    G = np.matmul(np.swapaxes(Mt2, 1, 2), Mt2)
     full = rot.copy()  # G lives on the columns [t_X, t_Y, alpha] (0:7) and r_Y (16:25)
     full[:, 0:7, 0:7] += G[:, :7, :7]
     full[:, 0:7, 16:25] += G[:, :7, 7:]
@@ -130,20 +146,14 @@ _ROT_DIAG = np.arange(7, 25) * 26
 
 
 def _all_edge_blocks(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_edge_blocks` of every edge of ``problem`` (E, 25, 25), batched over the edges with
-    the same number of pairs, in edge order."""
-    E = len(problem.edges)
-    full = np.empty((E, 25, 25))
-    rot = np.empty((E, 25, 25))
+    """:func:`_edge_blocks` of every edge of ``problem`` (E, 25, 25), in edge order."""
+    if not problem.edges:
+        return np.zeros((0, 25, 25)), np.zeros((0, 25, 25))
     counts = np.array([e.n for e in problem.edges])
-    for N in np.unique(counts):
-        sel = np.flatnonzero(counts == N)
-        es = [problem.edges[i] for i in sel]
-        f, r = _edge_blocks(np.stack([e.A for e in es]), np.stack([e.B for e in es]),
-                            np.stack([e.sigma for e in es]), np.stack([e.kappa for e in es]))
-        full[sel] = f
-        rot[sel] = r
-    return full, rot
+    cat = np.concatenate
+    return _edge_blocks(cat([e.A for e in problem.edges]), cat([e.B for e in problem.edges]),
+                        cat([e.sigma for e in problem.edges]),
+                        cat([e.kappa for e in problem.edges]), counts)
 
 
 def _local_to_global(layout: StateLayout, xi: np.ndarray, yi: np.ndarray) -> np.ndarray:
@@ -194,12 +204,11 @@ def build_cost_matrices(
         dense = layout.size <= DENSE_MAX_SIZE
     n = layout.size
     if dense:
-        Q = np.zeros((n, n))
-        Qr = np.zeros((n, n))
-        for e_idx in range(idx.shape[0]):
-            ix = np.ix_(idx[e_idx], idx[e_idx])
-            Q[ix] += full[e_idx]
-            Qr[ix] += rot[e_idx]
+        # one scatter-add in edge order (each block's 25 indices are distinct): the same sums
+        # as adding the blocks one after the other
+        flat = (idx[:, :, None] * n + idx[:, None, :]).ravel()
+        Q = np.bincount(flat, weights=full.ravel(), minlength=n * n).reshape(n, n)
+        Qr = np.bincount(flat, weights=rot.ravel(), minlength=n * n).reshape(n, n)
         return Q, Qr
     rows = np.repeat(idx[:, :, None], 25, axis=2).ravel()
     cols = np.repeat(idx[:, None, :], 25, axis=1).ravel()

@@ -157,6 +157,16 @@ def pair_residuals(
     return r, _angle_of(D)
 
 
+def _times_hat(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``R @ hat(t)`` for ``R`` (N, 3, 3) and ``t`` (N, 3), column by column (no (N, 3, 3)
+    ``hat`` and no batched product)."""
+    out = np.empty(R.shape)
+    out[:, :, 0] = R[:, :, 1] * t[:, 2, None] - R[:, :, 2] * t[:, 1, None]
+    out[:, :, 1] = R[:, :, 2] * t[:, 0, None] - R[:, :, 0] * t[:, 2, None]
+    out[:, :, 2] = R[:, :, 0] * t[:, 1, None] - R[:, :, 1] * t[:, 0, None]
+    return out
+
+
 def _sym(S: np.ndarray) -> np.ndarray:
     return 0.5 * (S + np.swapaxes(S, -1, -2))
 
@@ -196,7 +206,7 @@ def pair_terms(
     J[:, :, 0:3] = alpha * RA
     J[:, 0, 3] = J[:, 1, 4] = J[:, 2, 5] = -alpha
     J[:, :, 6] = p
-    J[:, :, 10:13] = RY @ hat(tB)
+    J[:, :, 10:13] = _times_hat(RY, tB)
     J[:, :, 13] = tA
     J *= np.sqrt(w)[:, None, None]
     J2 = J.reshape(3 * N, 14)
@@ -208,7 +218,7 @@ def pair_terms(
     trD = np.trace(D, axis1=1, axis2=2)
     kk = k[:, None, None]
     parts = np.empty((N, 53))
-    parts[:, 0:3] = np.einsum("nk,nkj->nj", rw, RA)  # (d alpha, dt_X): r w . R_A
+    parts[:, 0:3] = (rw[:, :, None] * RA).sum(axis=1)  # (d alpha, dt_X): r w . R_A
     parts[:, 3:6] = rw  # (d alpha, dt_Y): -r w
     parts[:, 6:15] = (u[:, :, None] * tB[:, None, :]).reshape(N, 9)  # (w_Y, w_Y)
     parts[:, 15] = np.einsum("ni,ni->n", u, tB)
@@ -222,10 +232,9 @@ def pair_terms(
     Mg = np.empty((G, 14, 14))
     S = np.empty((G, 53))
     for g in range(G):
-        a, b = starts[g], ends[g]
-        Jg = J2[3 * a: 3 * b]
+        Jg = J2[3 * starts[g]: 3 * ends[g]]
         np.dot(Jg.T, Jg, out=Mg[g])
-        parts[a:b].sum(axis=0, out=S[g])
+    np.add.reduceat(parts, starts, axis=0, out=S)
     H = Mg[:, :13, :13].copy()
     sel = np.r_[0:6, 13]
     scale = np.r_[np.full(6, 1.0 / alpha), 1.0]
@@ -309,6 +318,14 @@ def _check_estimate(problem: Problem, X, Y, alpha: float) -> tuple[np.ndarray, f
     return np.concatenate([X, Y]), a
 
 
+def _scatter_add(n: int, idx: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    """``sum_g`` of ``blocks[g]`` (G, b, b) added at ``idx[g] x idx[g]`` ((G, b) indices, distinct
+    within a group) of an ``n x n`` zero matrix: one ``bincount`` (the sums in group order, as
+    ``np.add.at`` forms them)."""
+    flat = (idx[:, :, None] * n + idx[:, None, :]).ravel()
+    return np.bincount(flat, weights=blocks.ravel(), minlength=n * n).reshape(n, n)
+
+
 def scatter_information(
     layout: TangentLayout,
     xi: np.ndarray,
@@ -322,8 +339,7 @@ def scatter_information(
     idx = layout.pair_indices(xi, yi)
     blocks = terms.hessian if layout.unknown_scale else \
         terms.hessian[:, _LOCAL_KNOWN][:, :, _LOCAL_KNOWN]
-    H = np.zeros((n, n))
-    np.add.at(H, (idx[:, :, None], idx[:, None, :]), blocks)
+    H = _scatter_add(n, idx, blocks)
     m = 3 * F + (1 if layout.unknown_scale else 0)
     three = np.arange(3)
     qidx = np.concatenate([3 * np.asarray(xi)[:, None] + three,
@@ -332,8 +348,7 @@ def scatter_information(
     qb = terms.translation_block
     if not layout.unknown_scale:
         qidx, qb = qidx[:, :6], qb[:, :6, :6]
-    Qee = np.zeros((m, m))
-    np.add.at(Qee, (qidx[:, :, None], qidx[:, None, :]), qb)
+    Qee = _scatter_add(m, qidx, qb)
     return 0.5 * (H + H.T), 0.5 * (Qee + Qee.T)
 
 

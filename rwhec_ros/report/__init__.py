@@ -3,11 +3,15 @@
 The verdict first (a coloured banner: green ``GOOD``, amber ``CAUTION``, red ``UNUSABLE``, with
 its reasons), then the summary, the identifiability grid of the paper's Fig. 10, the fit per edge
 on the same grid with the worst edges ranked (readable with 70+ edges), the estimated frames in
-3D and the residual histograms. The HTML page is self-contained (the figure embedded as base64)
-and gives the banner, the summary and the tables as text (frames with usability and precision,
-edges in natural order, edges left out, notes).
+3D, the residual histograms, the residuals per edge as boxes (the worst edges) and, when the
+data set kept the tag corners, the reprojection error per camera. The HTML page is
+self-contained (its figures embedded as base64) and gives the banner, the summary and the tables
+as text (frames with usability and precision, edges in natural order, edges left out, notes),
+the per-edge boxes and the reprojection bars in their own sections.
 
-Modules: :mod:`.residuals` (the numbers), :mod:`.figure` (the PNG), :mod:`.page` (the HTML).
+Modules: :mod:`.residuals` (the numbers), :mod:`.figure` (the PNG), :mod:`.edges` (per-edge
+boxes, reprojection per camera), :mod:`.accuracy` (stds, cross-validation, guidance),
+:mod:`.labels` (labels that do not overlap), :mod:`.page` (the HTML).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.problem import Problem
+from .edges import write_section_figures
 from .figure import draw_report
 from .page import render_page
 from .residuals import (
@@ -90,6 +95,8 @@ def write_report(
         figure = Path(tmp) / "figure.png"  # without the banner and summary: the page has them
         draw_report(figure, doc, problem, residuals, fit, identifiability, title, dpi,
                     with_text=False)
-        page = render_page(doc, problem, residuals, fit, identifiability, figure, title)
+        sections = write_section_figures(Path(tmp), doc, residuals, fit, dpi)
+        page = render_page(doc, problem, residuals, fit, identifiability, figure, title,
+                           sections=sections)
     html_path.write_text(page, encoding="utf-8")
     return ReportFiles(png_path, html_path)

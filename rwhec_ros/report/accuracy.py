@@ -16,11 +16,14 @@ from typing import Any
 
 import numpy as np
 
+from .labels import label_points
 from .residuals import natural_key
 
-__all__ = ["has_accuracy", "has_validation", "draw_std_bars", "draw_validation",
-           "summary_text_lines", "accuracy_sections"]
+__all__ = ["REPROJECTION_HEADING", "has_accuracy", "has_validation", "draw_std_bars",
+           "draw_validation", "summary_text_lines", "accuracy_sections"]
 
+#: The heading of the reprojection section (the page puts its bar chart under it).
+REPROJECTION_HEADING = "Reprojection error per camera"
 _AXES = ("x", "y", "z")
 _AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
 
@@ -96,7 +99,8 @@ def draw_validation(ax, doc: Mapping[str, Any], what: str, label: int = 4) -> No
     """Per edge, the held-out RMS residual against the in-sample one (``what``:
     ``"translation"`` [mm] or ``"rotation"`` [deg]) with the line held-out = in-sample; the
     ``label`` edges with the largest held-out residual are named, and (up to 4 more) those
-    held out at more than 1.5 times their in-sample residual."""
+    held out at more than 1.5 times their in-sample residual; the names never overlap each
+    other or a point (:func:`~rwhec_ros.report.labels.label_points`)."""
     cv = doc.get("cross_validation") or {}
     key, unit = (("rms_translation_mm", "mm") if what == "translation" else
                  ("rms_rotation_deg", "deg"))
@@ -108,14 +112,11 @@ def draw_validation(ax, doc: Mapping[str, Any], what: str, label: int = 4) -> No
     ax.plot([0, hi], [0, hi], color="0.5", lw=1, ls="--", label="held-out = in-sample")
     ax.set_xlim(0, hi)
     ax.set_ylim(0, hi)
-    worst = list(np.argsort(-y)[:label])
+    worst = [int(i) for i in np.argsort(-y)[:label]]
     ratio = np.where(x > 0, y / np.where(x > 0, x, 1.0), np.inf)
-    worst += [i for i in np.argsort(-ratio) if ratio[i] > 1.5 and i not in worst][:4]
-    for i in worst:
-        right = x[i] > 0.7 * hi  # near the right edge: the label to the left of the point
-        ax.annotate(f"{edges[i]['x']} / {edges[i]['y']}", (x[i], y[i]), fontsize=7,
-                    xytext=(-4 if right else 4, 4), textcoords="offset points",
-                    ha="right" if right else "left")
+    worst += [int(i) for i in np.argsort(-ratio) if ratio[i] > 1.5 and i not in worst][:4]
+    label_points(ax, x[worst], y[worst], [f"{edges[i]['x']} / {edges[i]['y']}" for i in worst],
+                 others=(x, y))
     ax.set_xlabel(f"in-sample RMS {what} residual [{unit}]", fontsize=9)
     ax.set_ylabel(f"held-out RMS [{unit}]", fontsize=9)
     ax.tick_params(labelsize=8)
@@ -219,7 +220,7 @@ def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, lis
                  f"{r['max_px']:.1f}", r.get("n_behind", 0), _px(r.get("image_fit_rms_px")),
                  _focal_words(r)) for cam, r in
                 sorted(rep.items(), key=lambda kv: natural_key(kv[0]))]
-        out.append(("Reprojection error per camera",
+        out.append((REPROJECTION_HEADING,
                     "The detected tag corners against the tag placed by the calibrated chain "
                     "(camera <- carrier <- pose stream <- tag carrier <- tag) and projected "
                     "with the camera's intrinsics, in pixels: the residual of the whole "

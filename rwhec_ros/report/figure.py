@@ -10,7 +10,9 @@ Matplotlib on the Agg canvas without pyplot (no global state). Layout, top to bo
 3. the fit per edge on the same grid (noise of the edge over that of the median edge; outliers
    framed) and the worst edges ranked, so that 70+ edges stay readable;
 4. the estimated frames as axes triads in 3D, labels placed so that they do not overlap;
-5. histograms of the residuals of all pairs;
+5. histograms of the residuals of all pairs, then the residuals per edge as boxes (the worst
+   edges, :mod:`.edges`) and, when the data set kept the tag corners, the reprojection error per
+   camera;
 6. with an accuracy in the result (:mod:`.accuracy`): the per-frame std bars (translation,
    rotation), and the held-out vs in-sample residuals per edge of the cross-validation; the next
    motion ends the summary text.
@@ -34,9 +36,19 @@ from .accuracy import (
     has_validation,
     summary_text_lines,
 )
+from .edges import (
+    draw_edge_boxes,
+    draw_reprojection,
+    edge_boxes_height,
+    edge_rows,
+    has_reprojection,
+    indented_axes,
+    reprojection_height,
+)
+from .labels import place_labels
 from .residuals import EdgeResiduals, natural_key
 
-__all__ = ["BANNER_COLORS", "draw_report"]
+__all__ = ["BANNER_COLORS", "draw_report", "place_labels"]
 
 #: Banner colours (text, background) of each verdict level.
 BANNER_COLORS = {
@@ -224,37 +236,6 @@ def _triad(ax, T: np.ndarray, length: float, *, lw: float = 1.6) -> None:
         ax.plot([o[0], tip[0]], [o[1], tip[1]], [o[2], tip[2]], color=c, linewidth=lw)
 
 
-def place_labels(points: np.ndarray, sizes: np.ndarray, *, step: float = 10.0,
-                 rings: int = 8) -> np.ndarray:
-    """Offsets (n, 2) [display units] for labels anchored at ``points`` (n, 2) with box
-    ``sizes`` (n, 2) so that no two boxes overlap (greedy: each label tries positions on rings
-    of growing radius, 8 directions each, and takes the first free one)."""
-    placed: list[tuple[float, float, float, float]] = []
-    out = np.zeros_like(points, dtype=float)
-    dirs = [(1, 1), (1, -1), (-1, 1), (-1, -1), (1, 0), (-1, 0), (0, 1), (0, -1)]
-    for i, (p, s) in enumerate(zip(points, sizes, strict=True)):
-        best = None
-        for r in range(1, rings + 1):
-            for dx, dy in dirs:
-                off = np.array([dx, dy], float) * step * r
-                x0 = p[0] + off[0] - (s[0] if dx < 0 else 0 if dx > 0 else s[0] / 2)
-                y0 = p[1] + off[1] - (s[1] if dy < 0 else 0 if dy > 0 else s[1] / 2)
-                box = (x0, y0, x0 + s[0], y0 + s[1])
-                if all(box[2] <= b[0] or box[0] >= b[2] or box[3] <= b[1] or box[1] >= b[3]
-                       for b in placed):
-                    best = (off, box)
-                    break
-            if best is not None:
-                break
-        if best is None:  # crowded: the last ring's first direction
-            off = np.array([1.0, 1.0]) * step * rings
-            best = (off, (p[0] + off[0], p[1] + off[1], p[0] + off[0] + s[0],
-                          p[1] + off[1] + s[1]))
-        out[i] = best[0]
-        placed.append(best[1])
-    return out
-
-
 def _frames_3d(ax, frames: Sequence[tuple[str, np.ndarray]], carrier: str,
                what: str) -> list[tuple[str, np.ndarray]]:
     """Axes triads of ``frames`` and of the carrier; returns the labels to place."""
@@ -275,7 +256,7 @@ def _frames_3d(ax, frames: Sequence[tuple[str, np.ndarray]], carrier: str,
     ax.set_xlim(centre[0] - half, centre[0] + half)
     ax.set_ylim(centre[1] - half, centre[1] + half)
     ax.set_zlim(centre[2] - half, centre[2] + half)
-    ax.set_box_aspect((1, 1, 1), zoom=1.2)
+    ax.set_box_aspect((1, 1, 1), zoom=1.1)  # 1.2 reached into the title of the row below
     ax.set_xlabel("x [m]", fontsize=8)
     ax.set_ylabel("y [m]", fontsize=8)
     ax.set_zlabel("z [m]", fontsize=8)
@@ -296,7 +277,9 @@ def _label_3d(fig, ax, labels: list[tuple[str, np.ndarray]]) -> None:
     offsets = place_labels(xy, sizes, step=6 * dpi)
     for (name, _), p2, off in zip(labels, xy2, offsets, strict=True):
         ax.annotate(name, xy=p2, xycoords="data", xytext=off / dpi, textcoords="offset points",
-                    fontsize=7, color="0.1", ha="left", va="bottom",
+                    fontsize=7, color="0.1",
+                    ha="left" if off[0] > 0 else ("right" if off[0] < 0 else "center"),
+                    va="bottom" if off[1] > 0 else ("top" if off[1] < 0 else "center"),
                     arrowprops={"arrowstyle": "-", "color": "0.6", "linewidth": 0.5})
 
 
@@ -357,8 +340,10 @@ def _text(ax, lines: list[str]) -> None:
 def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
                 residuals: list[EdgeResiduals], fit: FitStatistics, ident, title: str,
                 dpi: int, *, with_text: bool = True) -> None:
-    """Write the report figure to ``path`` (PNG). ``with_text``: the banner and the summary
-    (the stand-alone PNG); without them for the HTML page, which gives them as text."""
+    """Write the report figure to ``path`` (PNG). ``with_text``: the banner, the summary, the
+    per-edge residual boxes and the reprojection error per camera (the stand-alone PNG); without
+    them for the HTML page, which gives the text as text and those two figures in their own
+    sections (:func:`~rwhec_ros.report.edges.write_section_figures`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -380,6 +365,13 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
         max(2.5, 0.3 * n_ranked + 1.0), 6.5, 3.2]
     std_rows = has_accuracy(doc)
     cv_rows = has_validation(doc)
+    # the page gives the per-edge boxes and the reprojection in their own sections
+    box_rows = edge_rows(residuals) if with_text else 0
+    if box_rows:
+        heights.append(edge_boxes_height(box_rows))
+    rep_rows = len(doc.get("reprojection") or {}) if with_text and has_reprojection(doc) else 0
+    if rep_rows:
+        heights.append(reprojection_height(rep_rows))
     if std_rows:  # three bars per frame
         heights.append(max(3.0, 0.33 * len(doc["frames"]) + 1.2))
     if cv_rows:
@@ -432,6 +424,13 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
         ax.set_title(f"{what} residuals of A X = Y B, all {pooled.size} pairs"
                      + (" (log count)" if log else ""), fontsize=11)
         ax.tick_params(labelsize=8)
+    if box_rows:
+        row += 1
+        for col, what in ((slice(0, 2), "translation"), (slice(2, 4), "rotation")):
+            draw_edge_boxes(indented_axes(fig, gs[row, col], 1.0), residuals, fit, what)
+    if rep_rows:
+        row += 1
+        draw_reprojection(fig.add_subplot(gs[row, 1:3]), doc)
     if std_rows:
         row += 1
         draw_std_bars(fig.add_subplot(gs[row, 0:2]), doc, "translation")

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..core.problem import Problem
 from ..core.verdict import FitStatistics
-from .accuracy import accuracy_sections
+from .accuracy import REPROJECTION_HEADING, accuracy_sections
 from .figure import BANNER_COLORS
 from .residuals import EdgeResiduals, natural_key
 
@@ -126,10 +126,18 @@ def _frame_rows(doc: Mapping[str, Any]) -> list[tuple]:
     return rows
 
 
-def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeResiduals],
-                fit: FitStatistics, ident, png: Path, title: str) -> str:
-    """The HTML page, with the figure ``png`` embedded (base64)."""
+def _img(png: Path, alt: str) -> str:
     data = base64.b64encode(Path(png).read_bytes()).decode("ascii")
+    return f"<p><img src='data:image/png;base64,{data}' alt='{html.escape(alt)}'></p>"
+
+
+def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeResiduals],
+                fit: FitStatistics, ident, png: Path, title: str,
+                sections: Mapping[str, Path] | None = None) -> str:
+    """The HTML page, with the figure ``png`` and the section figures ``sections`` (``"edges"``,
+    ``"reprojection"``: :func:`~rwhec_ros.report.edges.write_section_figures`) embedded
+    (base64)."""
+    sections = sections or {}
     by_edge = {(e.x, e.y): e for e in fit.edges}
     rows = []
     for r in residuals:
@@ -166,15 +174,18 @@ def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeRe
         "number and is left off /tf_static.</p>",
         _table(("frame", "kind", "published as", "usable", "translation [m]",
                 "quaternion (x, y, z, w)", "precision"), _frame_rows(doc)),
-        f"<p><img src='data:image/png;base64,{data}' alt='identifiability and fit per edge, "
-        "frames in 3D, residual histograms'></p>",
+        _img(png, "identifiability and fit per edge, frames in 3D, residual histograms"),
         "<h2>Residuals of A X = Y B per edge</h2>",
-        "<p>Tags in natural order. 'vs. median edge': the edge's noise over that of the median "
-        "edge (the larger of translation and rotation).</p>",
+        *([_img(sections["edges"], "residuals per edge, the worst edges first"),
+           "<p>Above: the residuals of each pair of the worst edges (ranked by their noise over "
+           "that of the median edge), one box per edge, and of all pairs together.</p>"]
+          if "edges" in sections else []),
+        "<p>Below: every edge, tags in natural order. 'vs. median edge': the edge's noise over "
+        "that of the median edge (the larger of translation and rotation).</p>",
         _table(("tag (X)", "camera (Y)", "pairs", "identifiability", "translation RMS [mm]",
                 "translation max [mm]", "rotation RMS [deg]", "rotation max [deg]",
                 "vs. median edge", ""), rows),
-        *_accuracy_html(doc),
+        *_accuracy_html(doc, sections),
         "<h2>Edges left out</h2>",
         _table(("edge", "reason"), excluded) if excluded else "<p>none</p>",
     ]
@@ -184,11 +195,14 @@ def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeRe
     return "\n".join(parts)
 
 
-def _accuracy_html(doc: Mapping[str, Any]) -> list[str]:
-    """The uncertainty, cross-validation and guidance sections (:mod:`.accuracy`)."""
+def _accuracy_html(doc: Mapping[str, Any], sections: Mapping[str, Path]) -> list[str]:
+    """The uncertainty, cross-validation, reprojection (with its bar chart) and guidance
+    sections (:mod:`.accuracy`)."""
     parts = []
     for heading, text, header, rows in accuracy_sections(doc):
         parts += [f"<h2>{html.escape(heading)}</h2>", f"<p>{html.escape(text)}</p>"]
+        if heading == REPROJECTION_HEADING and "reprojection" in sections:
+            parts.append(_img(sections["reprojection"], "reprojection error per camera"))
         if rows:
             parts.append(_table(header, rows))
     return parts

@@ -413,9 +413,13 @@ class CalibratorNode(Node):
 
     # --- live estimate ------------------------------------------------------------------------
     def _on_live_tick(self) -> None:
-        """Start a due live re-solve (returns at once) and publish a new estimate once."""
+        """Start a due live re-solve (returns at once) and publish a new estimate once, while
+        ``~/estimate`` has a subscriber (without one the YAML is never built; the latest
+        estimate is published when one appears)."""
         live = self.session.live
         live.tick()
+        if self._estimate_pub.get_subscription_count() == 0:
+            return
         est = live.take_new()
         if est is None:
             return
