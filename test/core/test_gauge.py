@@ -1,6 +1,8 @@
 """Unobservable translations (motion about one axis), priors, the scale floor, solver failures:
 the statuses of issue 10, checked against an independent least-squares solver."""
 
+import time
+
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -73,6 +75,9 @@ def test_single_axis_motion_is_not_identifiable_and_named(jitter):
     assert set(d.frames()) == {"tag_0", "tag_1", "cam0", "cam1"}
     assert all(axis_words(v) == "z" for v in d.components.values())
     assert "z of" in c.message and "cam0" in c.message and "give a prior" in c.message
+    # the underlying certificate was certified: the message quotes it, not a failure
+    assert c.message.endswith(f"With that, the rest is certified optimal "
+                              f"(rho_hat={c.suboptimality_bound:.3g}).")
     assert d.fixed_by == "default"
     # the default: the cameras' heights are zero on average
     assert abs(res.Y[:, 2, 3].mean()) < 1e-4  # held by a penalty of weight w_max: ~1e-5 m
@@ -273,11 +278,19 @@ def test_certified_primal_cost_is_the_direct_cost(mode, unknown_scale):
     rng = np.random.default_rng(10)
     problem, _ = random_instance(rng, 2, 2, n_per_edge=15, sigma=0.02, kappa=100,
                                  unknown_scale=unknown_scale, alpha=0.7 if unknown_scale else 1)
+    t0 = time.perf_counter()
     res = solve(problem, SolveOptions(mode=mode))
+    wall = time.perf_counter() - t0
     assert res.certified, res.certificate.message
     p = direct_cost(problem, res.X, res.Y, res.scale)
     assert res.certificate.primal_cost == pytest.approx(p, rel=1e-12)
     assert res.certificate.dual_bound <= p
+    # each step's time is a duration within the call (not a clock reading)
+    assert all(0.0 <= t <= wall for t in res.timing_s.values()), res.timing_s
+    if mode == "fast":  # the local solver's rotations are exact: nothing was rounded
+        assert res.rounding_displacement == 0.0
+        local = solve(problem, SolveOptions(mode="local"))
+        assert local.rounding_displacement == 0.0 and local.certificate.status is Status.LOCAL_ONLY
 
 
 def test_unknown_scale_fast_certified_without_sdp_fallback():
