@@ -112,9 +112,12 @@ def draw_edge_boxes(ax, residuals: Sequence[EdgeResiduals], fit: FitStatistics, 
     pos = np.arange(len(shown) + 1)
     style = {"markersize": 2.5, "markerfacecolor": "0.3", "markeredgecolor": "none",
              "marker": "o", "alpha": 0.6}
-    boxes = ax.boxplot([*data, pooled], positions=pos, orientation="horizontal", widths=0.6,
-                       patch_artist=True, flierprops=style,
-                       medianprops={"color": "black", "linewidth": 1.2})
+    kwargs = dict(positions=pos, widths=0.6, patch_artist=True, flierprops=style,
+                  medianprops={"color": "black", "linewidth": 1.2})
+    try:
+        boxes = ax.boxplot([*data, pooled], orientation="horizontal", **kwargs)
+    except TypeError:  # matplotlib < 3.10 (Ubuntu 24.04's 3.6 and 3.8): no `orientation` yet
+        boxes = ax.boxplot([*data, pooled], vert=False, **kwargs)
     flagged = {(e.x, e.y) for e in fit.edges if e.flagged}
     for i, patch in enumerate(boxes["boxes"]):
         last = i == len(shown)

@@ -248,7 +248,6 @@ def test_detect_validates_the_image():
     assert det.detect(np.full((CAM.height, CAM.width), 128, np.uint8), CAM).observations == []
 
 
-@_OLD_OPENCV
 def test_only_examines_the_named_targets_and_reports_where_markers_are():
     img, truth = scene(np.random.default_rng(0))
     det = TargetDetector(TARGETS, DetectorConfig())
