@@ -54,10 +54,12 @@ def test_gamma_and_its_overflow_guard():
 
 
 @pytest.mark.parametrize("shape", [(6, 6), (4, 7)])
-def test_spectral_radius_bound_is_the_documented_formula(shape):
+@pytest.mark.parametrize("size", [1.0, 0.01])
+def test_spectral_radius_bound_is_the_documented_formula(shape, size):
     """Bit for bit, with the default 4 power iterations; a slowly converging R (random,
-    nonnegative and mixed-sign entries) so that one iteration more or less changes the value."""
-    R = np.random.default_rng(11).standard_normal(shape)
+    nonnegative and mixed-sign entries) so that one iteration more or less changes the value;
+    small entries (products below 1) run every iteration too."""
+    R = size * np.random.default_rng(11).standard_normal(shape)
     got = nonnegative_spectral_radius_bound(R)
     assert got == _radius_bound(R, 4)
     assert got != _radius_bound(R, 5) and got != _radius_bound(R, 3)
@@ -121,7 +123,9 @@ def test_default_attempts_are_eight():
     g0 = _g(7) * 6.0
     b = verified_min_eigenvalue(A, 1.0 + 10 * g0 * 8.0**7)
     assert b.attempts == 8 and not b.verified
-    assert verified_min_eigenvalue(A, 1.0 + 0.5 * g0 * 8.0**7).attempts == 8  # the 8th succeeds
+    last = verified_min_eigenvalue(A, 1.0 + 0.5 * g0 * 8.0**7)
+    assert last.verified and last.attempts == 8  # the 8th attempt succeeds
+    assert last.shift == 1.0 + 0.5 * g0 * 8.0**7 - g0 * 8.0**7
 
 
 def test_estimate_defaults_to_the_smallest_eigenvalue():
@@ -204,3 +208,10 @@ def test_smallest_eigenvalues_k_zero_and_k_above_d():
     assert smallest_eigenvalues(np.eye(4), 0).shape == (0,)
     np.testing.assert_array_equal(smallest_eigenvalues(np.diag([3.0, 1.0, 2.0]), 5),
                                   [1.0, 2.0, 3.0])
+
+
+def test_spectral_radius_bound_of_one_column():
+    """n = 1: |R|^T |R| is the 1 x 1 matrix sum r_i^2 (here 25), up to the inflation."""
+    got = nonnegative_spectral_radius_bound(np.array([[3.0], [4.0]]))
+    assert got == _radius_bound(np.array([[3.0], [4.0]]))
+    assert 25.0 <= got < 25.0 * (1 + 1e-14)
