@@ -612,6 +612,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="coverage selection: the tests run once under coverage (default: the "
                          "whole suite)")
     args = ap.parse_args(argv)
+    if args.report_only and args.rerun_survivors is None:
+        ap.error("--report-only needs --rerun-survivors LOG (the outcomes to report)")
     files = args.file or list(TARGETS)
     mutants = [m for f in files for m in generate(f, TARGETS[f])]
     if args.limit:
