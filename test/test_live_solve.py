@@ -472,3 +472,49 @@ def test_the_live_solver_warm_starts_from_its_previous_estimate(tmp_path):
         assert warm_start_of(session.live.estimate, other) is None
     finally:
         session.close()
+
+
+def test_live_uncertainty_and_cached_blocks_match_the_reference_path(tmp_path):
+    """The live path (edge blocks reused from the previous re-solve, information from the edge
+    blocks) gives the certificate of a solve from scratch and the uncertainty of the
+    pair-by-pair :func:`frame_uncertainty`."""
+    from rwhec_ros.core.solve import solve
+    from rwhec_ros.core.uncertainty import UncertaintyOptions, frame_uncertainty
+    from rwhec_ros.session.solving import solve_options
+    from rwhec_ros.sync.accumulator import problem_from_edges
+
+    rig = Rig(np.random.default_rng(24))
+    session = make_session(tmp_path, rig)
+    clock = FakeClock()
+    session.live = LiveSolver(session, clock=clock)
+    try:
+        for start in (0, 8):
+            feed(session, rig, 8, start=start)
+            clock.t += 10.0
+            assert session.live.tick() == "started" and session.live.wait_idle(60.0)
+        est = session.live.estimate
+        assert est.result.certified
+        assert session.live._blocks.reused_pairs > 0  # the second re-solve reused the first's
+        c = session.config
+        snap = session.pairs_snapshot()
+        problem, _ = problem_from_edges(snap.edges, c.x_names, c.y_names, c.tags.unknown_scale,
+                                        c.solver.min_pairs, snap.rotation_tol, validate=False)
+        options, _ = solve_options(problem, mode="fast", priors=c.priors.entries,
+                                   unobservable_std_m=c.solver.unobservable_std_m,
+                                   min_scale=c.solver.min_scale)
+        options.fallback_to_sdp = False
+        options.initial = (est.result.X, est.result.Y)
+        fresh = solve(problem, options)  # blocks assembled from the pairs
+        assert fresh.certificate.status == est.result.certificate.status
+        # the same optimum from the same start on (to rounding) the same cost matrix
+        np.testing.assert_allclose(est.result.X, fresh.X, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(est.result.Y, fresh.Y, rtol=0, atol=1e-9)
+        ref = frame_uncertainty(problem, est.result, UncertaintyOptions(gauge=options.gauge))
+        assert est.uncertainty.rank == ref.rank and est.uncertainty.dof == ref.dof
+        # chi2 from x^T Q x instead of the residuals: ~1e-13 relative here
+        assert est.uncertainty.variance_factor == pytest.approx(ref.variance_factor, rel=1e-9)
+        for fl, fr in zip(est.uncertainty.frames, ref.frames, strict=True):
+            # the same information matrix to ~1e-15, inverted with condition number < 1e4
+            np.testing.assert_allclose(fl.covariance, fr.covariance, rtol=1e-9, atol=1e-16)
+    finally:
+        session.close()

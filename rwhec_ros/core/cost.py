@@ -81,22 +81,15 @@ class StateLayout:
         return slice(self.r0 + 9 * frame, self.r0 + 9 * frame + 9)
 
 
-def _edge_blocks(
+def _edge_sums(
     A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray,
     counts: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Summed 25x25 blocks of ``E`` edges: ``1/2 sum_i (M_t^T M_t / sigma_i^2 + kappa_i M_R^T
-    M_R)`` and its rotation-only part ``1/2 sum_i kappa_i M_R^T M_R``.
-
-    ``A, B`` (N, 4, 4) and ``sigma, kappa`` (N,): the pairs of all edges concatenated edge by
-    edge, ``counts`` (E,) the pairs of each edge (default: one edge); returns two arrays (E, 25,
-    25). Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``. With ``M_R =
-    [I (x) R_A, -(R_B^T (x) I)]`` on ``(r_X, r_Y)``, ``M_R^T M_R`` has identity diagonal blocks
-    and off-diagonal ``-(R_B^T (x) R_A^T)`` (cf. eq. (36)); the translation rows ``M_t = [R_A,
-    -I, t_A, 0, -(t_B^T (x) I)]`` (cf. eq. (28)) are weighted once for all pairs, then each
-    edge's stacked rows and its kappa-weighted rotations are reduced by one matrix product each
-    (the per-pair arrays are formed once, whatever the number of edges).
-    """
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The per-edge sums behind :func:`_edge_blocks`: ``G`` (E, 16, 16), ``sum_i M_t^T M_t /
+    (2 sigma_i^2)`` on the columns ``[t_X, t_Y, alpha, r_Y]``; ``K`` (E, 9, 9), ``sum_i
+    kappa_i/2 R_B^T (x) R_A^T`` with ``K[b a, j i] = sum k/2 RB[b, a] RA[j, i]``; ``ksum`` (E,),
+    ``sum_i kappa_i / 2``. Sums over pairs: those of two runs of an edge's pairs add up to the
+    sums of both (:class:`EdgeBlockCache`). ``counts`` (E,) may hold zeros."""
     N = A.shape[0]
     counts = np.array([N]) if counts is None else np.asarray(counts, dtype=int)
     E = counts.shape[0]
@@ -128,6 +121,42 @@ def _edge_blocks(
         np.dot(m.T, m, out=G[e])
         np.dot(U[a:b].T, V[a:b], out=K[e])
         ksum[e] = half_k[a:b].sum()
+    return G, K, ksum
+
+
+def _edge_sums_few(
+    A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray, counts: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_edge_sums` for few pairs over many edges (``counts`` (E,) all >= 1): per-pair
+    products summed per edge by ``reduceat`` instead of one matrix product per edge (the
+    Python loop over the edges costs more than the sums then). Temporaries of ~2.7 kB per pair:
+    meant for the new pairs of :class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`."""
+    counts = np.asarray(counts, dtype=int)
+    starts = np.cumsum(counts) - counts
+    N = A.shape[0]
+    RA, tA = A[:, :3, :3], A[:, :3, 3]
+    RB, tB = B[:, :3, :3], B[:, :3, 3]
+    half_k = 0.5 * np.asarray(kappa, dtype=float)
+    Mt = np.zeros((N, 3, 16))  # the rows of _edge_sums
+    Mt[:, :, 0:3] = RA
+    Mt[:, 0, 3] = Mt[:, 1, 4] = Mt[:, 2, 5] = -1.0
+    Mt[:, :, 6] = tA
+    for c in range(3):
+        Mt[:, 0, 7 + 3 * c] = -tB[:, c]
+        Mt[:, 1, 8 + 3 * c] = -tB[:, c]
+        Mt[:, 2, 9 + 3 * c] = -tB[:, c]
+    Mt *= np.sqrt(0.5 / np.asarray(sigma, dtype=float) ** 2)[:, None, None]
+    G = np.add.reduceat(np.swapaxes(Mt, 1, 2) @ Mt, starts, axis=0)
+    U = (RB * half_k[:, None, None]).reshape(N, 9)
+    K = np.add.reduceat(U[:, :, None] * RA.reshape(N, 1, 9), starts, axis=0)
+    return G, K, np.add.reduceat(half_k, starts)
+
+
+def _blocks_from_sums(G: np.ndarray, K: np.ndarray, ksum: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The 25x25 blocks ``(full, rot)`` (E, 25, 25) of :func:`_edge_blocks` from the sums of
+    :func:`_edge_sums`."""
+    E = G.shape[0]
     C = K.reshape(E, 3, 3, 3, 3).transpose(0, 2, 4, 1, 3).reshape(E, 9, 9)  # [a i, b j]
     rot = np.zeros((E, 25, 25))
     rot.reshape(E, 625)[:, _ROT_DIAG] = ksum[:, None]
@@ -139,6 +168,25 @@ def _edge_blocks(
     full[:, 16:25, 0:7] += G[:, 7:, :7]
     full[:, 16:25, 16:25] += G[:, 7:, 7:]
     return full, rot
+
+
+def _edge_blocks(
+    A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray,
+    counts: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Summed 25x25 blocks of ``E`` edges: ``1/2 sum_i (M_t^T M_t / sigma_i^2 + kappa_i M_R^T
+    M_R)`` and its rotation-only part ``1/2 sum_i kappa_i M_R^T M_R``.
+
+    ``A, B`` (N, 4, 4) and ``sigma, kappa`` (N,): the pairs of all edges concatenated edge by
+    edge, ``counts`` (E,) the pairs of each edge (default: one edge); returns two arrays (E, 25,
+    25). Local variable order: ``[t_X (3), t_Y (3), alpha (1), r_X (9), r_Y (9)]``. With ``M_R =
+    [I (x) R_A, -(R_B^T (x) I)]`` on ``(r_X, r_Y)``, ``M_R^T M_R`` has identity diagonal blocks
+    and off-diagonal ``-(R_B^T (x) R_A^T)`` (cf. eq. (36)); the translation rows ``M_t = [R_A,
+    -I, t_A, 0, -(t_B^T (x) I)]`` (cf. eq. (28)) are weighted once for all pairs, then each
+    edge's stacked rows and its kappa-weighted rotations are reduced by one matrix product each
+    (the per-pair arrays are formed once, whatever the number of edges).
+    """
+    return _blocks_from_sums(*_edge_sums(A, B, sigma, kappa, counts))
 
 
 #: Flat indices of the rotation diagonal (local variables 7..24) of a 25 x 25 edge block.
@@ -175,12 +223,30 @@ def edge_blocks(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The summed 25x25 blocks of every edge, exactly symmetric: ``(full, rot, idx)`` with
     ``full`` and its rotation-only part ``rot`` (E, 25, 25) and ``idx`` (E, 25) the indices of
     the local variables ``[t_X, t_Y, alpha, r_X, r_Y]`` in the state of eq. (44): ``Q`` is the sum
-    of ``full[e]`` scattered to ``idx[e] x idx[e]`` (see :func:`build_cost_matrices`)."""
+    of ``full[e]`` scattered to ``idx[e] x idx[e]`` (see :func:`build_cost_matrices`).
+
+    ``problem.precomputed_blocks`` (e.g. from :class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`)
+    is returned as it is when set (after a check of its shapes and indices)."""
     layout = StateLayout(problem.M, problem.P)
+    pre = problem.precomputed_blocks
+    if pre is not None:
+        return _checked_blocks(problem, layout, pre)
     full, rot = _all_edge_blocks(problem)  # (E, 25, 25) each
     full = 0.5 * (full + np.swapaxes(full, 1, 2))  # exact symmetry
     rot = 0.5 * (rot + np.swapaxes(rot, 1, 2))
     return full, rot, _local_to_global(layout, problem.edge_x, problem.edge_y)
+
+
+def _checked_blocks(problem: Problem, layout: StateLayout, blocks: tuple) -> tuple:
+    """``blocks`` ``(full, rot, idx)`` if their shapes and indices are those of ``problem``'s
+    edges, else ``ValueError`` naming ``precomputed_blocks``."""
+    full, rot, idx = blocks
+    E = len(problem.edges)
+    if full.shape != (E, 25, 25) or rot.shape != (E, 25, 25) or idx.shape != (E, 25) or \
+            not np.array_equal(idx, _local_to_global(layout, problem.edge_x, problem.edge_y)):
+        raise ValueError(f"precomputed_blocks: shapes {full.shape}, {rot.shape}, {idx.shape} or "
+                         f"indices do not match the problem's {E} edges")
+    return full, rot, idx
 
 
 #: Problems whose state has at most this many entries get dense cost matrices (faster to build

@@ -46,6 +46,7 @@ __all__ = [
     "pair_terms",
     "pair_residuals",
     "information_matrix",
+    "information_from_edge_blocks",
     "scatter_information",
     "information_from_cost_matrix",
     "check_result_frames",
@@ -334,18 +335,24 @@ def scatter_information(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Scatter the per-group blocks of ``terms`` (group ``g`` joining X frame ``xi[g]`` and Y
     frame ``yi[g]``, (G,)) into ``(H (n, n), Q_ee (m, m))`` of ``layout``, ``m = 3 F`` (+1)."""
+    return _scatter_blocks(layout, xi, yi, terms.hessian, terms.translation_block)
+
+
+def _scatter_blocks(layout: TangentLayout, xi: np.ndarray, yi: np.ndarray, hessian: np.ndarray,
+                    translation_block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`scatter_information` of per-group ``hessian`` (G, 13, 13) and
+    ``translation_block`` (G, 7, 7)."""
     n = layout.size
     F = layout.n_frames
     idx = layout.pair_indices(xi, yi)
-    blocks = terms.hessian if layout.unknown_scale else \
-        terms.hessian[:, _LOCAL_KNOWN][:, :, _LOCAL_KNOWN]
+    blocks = hessian if layout.unknown_scale else hessian[:, _LOCAL_KNOWN][:, :, _LOCAL_KNOWN]
     H = _scatter_add(n, idx, blocks)
     m = 3 * F + (1 if layout.unknown_scale else 0)
     three = np.arange(3)
     qidx = np.concatenate([3 * np.asarray(xi)[:, None] + three,
                            3 * (layout.M + np.asarray(yi)[:, None]) + three,
                            np.full((len(xi), 1), 3 * F)], axis=1)
-    qb = terms.translation_block
+    qb = translation_block
     if not layout.unknown_scale:
         qidx, qb = qidx[:, :6], qb[:, :6, :6]
     Qee = _scatter_add(m, qidx, qb)
@@ -374,6 +381,62 @@ def information_matrix(
         layout=layout, names=problem.frame_names, R=T[:, :3, :3].copy(), t=T[:, :3, 3].copy(),
         alpha=a, H=H, Q_ee=Qee, chi2=float(terms.chi2.sum()), n_pairs=int(terms.chi2.size),
         edge_chi2=np.add.reduceat(terms.chi2, starts))
+
+
+def information_from_edge_blocks(
+    problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1.0
+) -> Information:
+    """The same :class:`Information` from the cost's 25x25 edge blocks
+    (:func:`~rwhec_ros.core.cost.edge_blocks`, ``problem.precomputed_blocks`` when set: the
+    live re-solve's, so nothing is summed over the pairs here): per edge ``2 J_e^T Q_e J_e`` on
+    ``[dt_X, dt_Y, d alpha, w_X, w_Y]`` plus, per frame, the curvature terms of the gradient
+    ``2 Q x`` (as :func:`information_from_cost_matrix`, ``J = dx / d xi``).
+
+    ``chi2`` and ``edge_chi2`` are ``2 x_e^T Q_e x_e`` per edge (rounding of order ``u |x_e|^T
+    |Q_e| |x_e|``, where :func:`information_matrix` sums the residuals directly); ``H`` and
+    ``Q_ee`` agree with :func:`information_matrix` to rounding.
+    """
+    from .cost import StateLayout, edge_blocks, pack_state
+
+    T, a = _check_estimate(problem, X, Y, alpha)
+    F = T.shape[0]
+    M = problem.M
+    layout = TangentLayout(M, problem.P, problem.unknown_scale)
+    st = StateLayout(M, problem.P)
+    R, t = T[:, :3, :3], T[:, :3, 3]
+    full, _, idx = edge_blocks(problem)
+    E = full.shape[0]
+    x = pack_state(st, T[:M], T[M:], a)
+    xe = x[idx]  # (E, 25) on [alpha t_X, alpha t_Y, alpha, vec R_X, vec R_Y]
+    Qx = np.einsum("eij,ej->ei", full, xe)
+    edge_chi2 = 2.0 * np.einsum("ei,ei->e", xe, Qx)
+    g = 2.0 * np.bincount(idx.ravel(), weights=Qx.ravel(), minlength=st.size)  # 2 Q x
+    # local Jacobian (E, 25, 13) of x_e on [dt_X, dt_Y, d alpha, w_X, w_Y]
+    fx, fy = problem.edge_x, M + problem.edge_y
+    basis = np.swapaxes(R[:, None] @ hat(np.eye(3))[None], -1, -2).reshape(F, 3, 9)  # vec(R e_k^)
+    J = np.zeros((E, 25, 13))
+    J[:, 0:3, 0:3] = J[:, 3:6, 3:6] = a * _I3
+    if problem.unknown_scale:
+        J[:, 0:3, 6] = t[fx]
+        J[:, 3:6, 6] = t[fy]
+        J[:, 6, 6] = 1.0
+    J[:, 7:16, 7:10] = np.swapaxes(basis[fx], 1, 2)
+    J[:, 16:25, 10:13] = np.swapaxes(basis[fy], 1, 2)
+    Jt = np.swapaxes(J, 1, 2)
+    hess = 2.0 * (Jt @ (full @ J))
+    H, Qee = _scatter_blocks(layout, problem.edge_x, problem.edge_y, hess, full[:, :7, :7])
+    G = np.swapaxes(g[st.r0:].reshape(F, 3, 3), 1, 2)  # unvec of the rotation gradient blocks
+    GtR = np.swapaxes(G, 1, 2) @ R
+    curv = _sym(GtR) - np.trace(GtR, axis1=1, axis2=2)[:, None, None] * _I3
+    rot = layout.r0 + 3 * np.arange(F)[:, None] + np.arange(3)
+    H[rot[:, :, None], rot[:, None, :]] += curv
+    if layout.alpha is not None:  # d2 (alpha t) / (dt d alpha) = I, contracted with g_t
+        H[: 3 * F, layout.alpha] += g[: 3 * F]
+        H[layout.alpha, : 3 * F] += g[: 3 * F]
+    return Information(
+        layout=layout, names=problem.frame_names, R=R.copy(), t=t.copy(), alpha=a,
+        H=_sym(H), Q_ee=Qee, chi2=float(edge_chi2.sum()), n_pairs=problem.n_measurements,
+        edge_chi2=edge_chi2)
 
 
 def information_from_cost_matrix(

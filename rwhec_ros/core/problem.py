@@ -199,6 +199,11 @@ class Problem:
             raise ValueError(f"frames not touched by any edge: {untouched}")
         self.edge_x = np.array([x_index[e.x] for e in self.edges], dtype=int)
         self.edge_y = np.array([y_index[e.y] for e in self.edges], dtype=int)
+        #: The cost's edge blocks ``(full, rot, idx)`` of these edges when computed ahead
+        #: (:class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`, the live re-solve's), used by
+        #: :func:`~rwhec_ros.core.cost.edge_blocks` instead of assembling them; ``None``: built
+        #: when needed. Only valid while the edges' arrays are not changed in place.
+        self.precomputed_blocks: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     # --- sizes -------------------------------------------------------------------------------
     @property

@@ -45,7 +45,12 @@ import numpy as np
 import scipy.linalg
 
 from .gauge import GaugeOptions, axis_words, build_gauge_fix, unobservable_directions_of_block
-from .information import Information, check_result_frames, information_matrix
+from .information import (
+    Information,
+    check_result_frames,
+    information_from_edge_blocks,
+    information_matrix,
+)
 from .problem import Problem
 from .solve import blas_threads
 
@@ -70,6 +75,9 @@ CONVENTION = (
 
 _AXES = ("x", "y", "z")
 
+#: Values of :attr:`UncertaintyOptions.information`.
+INFORMATION_FORMS = ("pairs", "edge_blocks")
+
 
 @dataclass
 class UncertaintyOptions:
@@ -91,14 +99,25 @@ class UncertaintyOptions:
         BLAS threads while computing (1, as :attr:`~rwhec_ros.core.solve.SolveOptions.
         blas_threads`: a 145x145 Cholesky took 0.4 s with multi-threaded OpenBLAS on the busy
         2-core machine, against 1 ms single-threaded); ``None`` leaves the library's setting.
+    information : str
+        How the information matrix is assembled: ``"pairs"`` (default,
+        :func:`~rwhec_ros.core.information.information_matrix`: summed over the pairs, ``chi2``
+        from the residuals) or ``"edge_blocks"``
+        (:func:`~rwhec_ros.core.information.information_from_edge_blocks`: from the cost's edge
+        blocks, the problem's ``precomputed_blocks`` when set; the same matrix to rounding,
+        ``chi2`` from the quadratic form; the live re-solve's, several times faster).
     """
 
     gauge: GaugeOptions = field(default_factory=GaugeOptions)
     null_tol: float = 1e-8
     axis_tol: float = 1e-3
     blas_threads: int | None = 1
+    information: str = "pairs"
 
     def __post_init__(self) -> None:
+        if self.information not in INFORMATION_FORMS:
+            raise ValueError(f"information: expected one of {INFORMATION_FORMS}, got "
+                             f"{self.information!r}")
         for name in ("null_tol", "axis_tol"):
             v = getattr(self, name)
             if not (np.isfinite(v) and 0 < v < 1):
@@ -512,8 +531,11 @@ def frame_uncertainty(problem: Problem, result, options: UncertaintyOptions | No
     """
     t0 = time.perf_counter()
     check_result_frames(problem, result)
-    with blas_threads((options or UncertaintyOptions()).blas_threads):
-        info = information_matrix(problem, result.X, result.Y, result.scale)
+    opts = options or UncertaintyOptions()
+    assemble = (information_from_edge_blocks if opts.information == "edge_blocks"
+                else information_matrix)
+    with blas_threads(opts.blas_threads):
+        info = assemble(problem, result.X, result.Y, result.scale)
         unc = uncertainty_from_information(info, problem, options)
     n_res = len(getattr(result, "unobservable", []) or [])
     n_gauge = sum(1 for w in unc.unobservable if w.startswith("translation"))

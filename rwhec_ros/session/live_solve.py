@@ -48,6 +48,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..core.edge_cache import EdgeBlockCache
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
 from ..core.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
@@ -121,7 +122,8 @@ def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = Non
     if result is None:
         result = solve(problem, options)
     result.notes.extend(notes)
-    return result, frame_uncertainty(problem, result, UncertaintyOptions(gauge=options.gauge))
+    return result, frame_uncertainty(problem, result, UncertaintyOptions(
+        gauge=options.gauge, information="edge_blocks"))
 
 
 def warm_start_of(estimate: LiveEstimate | None, problem: Problem) -> tuple | None:
@@ -333,6 +335,7 @@ class LiveSolver:
         self._thread: threading.Thread | None = None
         self._s = _State()
         self._s.idle.set()
+        self._blocks = EdgeBlockCache()  # used by the worker thread only
 
     # --- driving -------------------------------------------------------------------------------
     def tick(self, now: float | None = None) -> str:
@@ -416,6 +419,8 @@ class LiveSolver:
                 problem, excluded = problem_from_edges(
                     snap.edges, c.x_names, c.y_names, c.tags.unknown_scale, c.solver.min_pairs,
                     snap.rotation_tol, validate=False)  # validated when they were offered
+                # the cost's edge blocks, reusing the sums of the pairs the last re-solve had
+                problem.precomputed_blocks = self._blocks.blocks(problem)
             except ValueError:
                 with self._lock:
                     self._s.waiting_for_data += 1

@@ -72,6 +72,54 @@ def test_information_from_the_cost_matrix_agrees(unknown_scale):
     assert b.chi2 == pytest.approx(a.chi2, rel=1e-9)
 
 
+@pytest.mark.parametrize("unknown_scale", [False, True])
+@pytest.mark.parametrize("offset", [0.0, 0.05])
+def test_information_from_the_edge_blocks_agrees(unknown_scale, offset):
+    """Edge-block assembly (the live path) against the pair-by-pair one, at the optimum and away
+    from it (the curvature terms of a non-zero gradient), with precomputed blocks too."""
+    from rwhec_ros.core.edge_cache import EdgeBlockCache
+    from rwhec_ros.core.information import information_from_edge_blocks
+
+    problem, _ = _instance(5, unknown_scale)
+    res = solve(problem)
+    T = np.concatenate([res.X, res.Y])
+    T[:, :3, 3] += offset
+    a = information_matrix(problem, T[:2], T[2:], res.scale)
+    b = information_from_edge_blocks(problem, T[:2], T[2:], res.scale)
+    problem.precomputed_blocks = EdgeBlockCache().blocks(problem)
+    c = information_from_edge_blocks(problem, T[:2], T[2:], res.scale)
+    for got in (b, c):
+        # both exact; differences are rounding of sums of ~100 terms
+        assert np.abs(a.H - got.H).max() <= 1e-12 * np.abs(a.H).max()
+        assert np.abs(a.Q_ee - got.Q_ee).max() <= 1e-12 * np.abs(a.Q_ee).max()
+        # chi2 from x^T Q x: rounding u |x|^T |Q| |x|, here ~1e-12 of chi2
+        assert got.chi2 == pytest.approx(a.chi2, rel=1e-9)
+        np.testing.assert_allclose(got.edge_chi2, a.edge_chi2, rtol=1e-9)
+        assert got.n_pairs == a.n_pairs and got.names == a.names
+
+
+def test_edge_block_uncertainty_is_the_pair_uncertainty_with_a_gauge():
+    """frame_uncertainty with information="edge_blocks" against the default on a planar problem
+    (an unobservable direction: the gauge analysis and NaN axes must come out the same)."""
+    rng = np.random.default_rng(2)
+    problem, _ = planar_instance(rng, 2, 2, n_per_edge=15, sigma=0.02, kappa=100.0)
+    res = solve(problem)
+    a = frame_uncertainty(problem, res)
+    b = frame_uncertainty(problem, res, UncertaintyOptions(information="edge_blocks"))
+    # the words end with the std of the null direction's eigenvalue, rounding noise (~1e5 m,
+    # or "no information" when it rounds to <= 0): compare the directions named
+    assert [w.rsplit(" (", 1)[0] for w in a.unobservable] == \
+        [w.rsplit(" (", 1)[0] for w in b.unobservable]
+    assert a.unobservable and a.rank == b.rank and a.dof == b.dof
+    for fa, fb in zip(a.frames, b.frames, strict=True):
+        np.testing.assert_array_equal(np.isnan(fa.covariance), np.isnan(fb.covariance))
+        # the same matrices to rounding, through a 2-4 digit condition number
+        np.testing.assert_allclose(fb.covariance, fa.covariance, rtol=1e-8, atol=1e-14)
+    assert b.variance_factor == pytest.approx(a.variance_factor, rel=1e-9)
+    with pytest.raises(ValueError, match="information"):
+        UncertaintyOptions(information="pair")
+
+
 def test_worst_direction_matches_the_numeric_identifiability_check():
     """numeric_check inverts its own Hessian (state coordinates, other code): its worst-direction
     stds are the largest eigenvalues of our per-frame blocks."""

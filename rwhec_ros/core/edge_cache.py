@@ -1,0 +1,140 @@
+"""Edge blocks of the cost reused from one problem to the next (the live re-solve's cache).
+
+The cost matrix ``Q`` of eq. (42) is the sum, edge by edge, of 25x25 blocks that are themselves
+sums over the edge's pairs (:func:`~rwhec_ros.core.cost.edge_blocks`). While data arrive, each
+re-solve of the live solver (:mod:`rwhec_ros.session.live_solve`) sees the same edges with a few
+more pairs each; :class:`EdgeBlockCache` keeps the per-edge sums of the previous problem and, for
+an edge whose first pairs are exactly those of the previous problem (same ``A``, ``B``,
+``sigma``, ``kappa``, compared value by value), adds the sums of the new pairs only. Any other
+edge (new, fewer pairs, a pair replaced, the stated noise changed) is summed afresh. The result
+equals the freshly assembled blocks up to the rounding of the sums (split in two runs instead of
+one); ``test/core/test_edge_cache.py`` checks it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cost import StateLayout, _blocks_from_sums, _edge_sums, _edge_sums_few, _local_to_global
+from .problem import Problem
+
+__all__ = ["EdgeBlockCache", "FEW_PAIRS"]
+
+#: New pairs up to this many (next to reused ones) are summed per pair and reduced per edge
+#: (temporaries ~2.7 kB per pair); more, or nothing reused, one matrix product per edge
+#: (:func:`~rwhec_ros.core.cost.edge_blocks`'s way: a first call gives exactly its blocks).
+FEW_PAIRS = 2048
+
+
+@dataclass
+class _Previous:
+    """The pairs (own copies, concatenated edge by edge) and per-edge sums of the last call."""
+
+    index: dict[tuple[str, str], int]
+    starts: np.ndarray
+    counts: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    sigma: np.ndarray
+    kappa: np.ndarray
+    G: np.ndarray
+    K: np.ndarray
+    ksum: np.ndarray
+
+
+def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Concatenated ``arange(starts[e], starts[e] + lengths[e])`` over ``e``."""
+    total = int(lengths.sum())
+    offsets = np.arange(total) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    return np.repeat(starts, lengths) + offsets
+
+
+class EdgeBlockCache:
+    """Per-edge sums of the previous problem, reused for the pairs it shares with the next.
+
+    Not thread-safe: one owner (the live solver's worker thread). Holds a copy of the last
+    problem's pairs (about 300 bytes per pair).
+
+    Attributes
+    ----------
+    reused_pairs, summed_pairs : int
+        Pairs of the last :meth:`blocks` call taken from the previous sums and summed afresh.
+    """
+
+    def __init__(self) -> None:
+        self._prev: _Previous | None = None
+        self.reused_pairs = 0
+        self.summed_pairs = 0
+
+    def clear(self) -> None:
+        """Forget the previous problem."""
+        self._prev = None
+
+    def blocks(self, problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(full, rot, idx)`` of ``problem`` as :func:`~rwhec_ros.core.cost.edge_blocks`
+        returns them (to set ``problem.precomputed_blocks``), reusing the previous call's sums
+        for every edge that only gained pairs at its end."""
+        edges = problem.edges
+        E = len(edges)
+        counts = np.fromiter((e.n for e in edges), dtype=np.int64, count=E)
+        starts = np.cumsum(counts) - counts
+        cat = np.concatenate
+        A = cat([e.A for e in edges]) if E else np.zeros((0, 4, 4))
+        B = cat([e.B for e in edges]) if E else np.zeros((0, 4, 4))
+        sigma = cat([e.sigma for e in edges]).astype(float) if E else np.zeros(0)
+        kappa = cat([e.kappa for e in edges]).astype(float) if E else np.zeros(0)
+        reuse, src = self._reusable(edges, A, B, sigma, kappa, starts, counts)
+        fresh = counts - reuse
+        active = np.flatnonzero(fresh)
+        sel = _ranges(starts[active] + reuse[active], fresh[active])
+        # nothing reused (the first call): exactly the fresh assembly's sums
+        sums = _edge_sums_few if reuse.any() and sel.size <= FEW_PAIRS else _edge_sums
+        Gn, Kn, kn = sums(A[sel], B[sel], sigma[sel], kappa[sel], fresh[active])
+        G = np.zeros((E, 16, 16))
+        K = np.zeros((E, 9, 9))
+        ksum = np.zeros(E)
+        old = np.flatnonzero(reuse)
+        if old.size:
+            prev = self._prev
+            G[old] = prev.G[src[old]]
+            K[old] = prev.K[src[old]]
+            ksum[old] = prev.ksum[src[old]]
+        G[active] += Gn
+        K[active] += Kn
+        ksum[active] += kn
+        self._prev = _Previous({(e.x, e.y): i for i, e in enumerate(edges)}, starts, counts,
+                               A, B, sigma, kappa, G, K, ksum)
+        self.reused_pairs = int(reuse.sum())
+        self.summed_pairs = int(fresh.sum())
+        full, rot = _blocks_from_sums(G, K, ksum)
+        full = 0.5 * (full + np.swapaxes(full, 1, 2))  # exact symmetry, as edge_blocks
+        rot = 0.5 * (rot + np.swapaxes(rot, 1, 2))
+        layout = StateLayout(problem.M, problem.P)
+        return full, rot, _local_to_global(layout, problem.edge_x, problem.edge_y)
+
+    def _reusable(self, edges, A, B, sigma, kappa, starts, counts
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Per edge, how many of its first pairs equal all the pairs of the same edge last time
+        (0: none reusable) and that edge's index last time."""
+        E = len(edges)
+        reuse = np.zeros(E, dtype=np.int64)
+        src = np.zeros(E, dtype=np.int64)
+        prev = self._prev
+        if prev is None:
+            return reuse, src
+        for i, e in enumerate(edges):
+            j = prev.index.get((e.x, e.y))
+            if j is not None and prev.counts[j] <= counts[i]:
+                reuse[i], src[i] = prev.counts[j], j
+        if not reuse.any():
+            return reuse, src
+        new = _ranges(starts, reuse)
+        old = _ranges(prev.starts[src], reuse)
+        same = ((A.reshape(-1, 16)[new] == prev.A.reshape(-1, 16)[old]).all(axis=1)
+                & (B.reshape(-1, 16)[new] == prev.B.reshape(-1, 16)[old]).all(axis=1)
+                & (sigma[new] == prev.sigma[old]) & (kappa[new] == prev.kappa[old]))
+        differs = np.bincount(np.repeat(np.arange(E), reuse), weights=~same, minlength=E)
+        reuse[differs > 0] = 0
+        return reuse, src

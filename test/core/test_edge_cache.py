@@ -1,0 +1,135 @@
+"""The live re-solve's cache of the cost's edge blocks (:mod:`rwhec_ros.core.edge_cache`): the
+cached blocks equal the freshly assembled ones whatever happened to the pairs since (pairs
+added, a pair replaced, the noise changed, edges added or dropped), and a solve from cached
+blocks equals a solve from scratch."""
+
+import numpy as np
+import pytest
+
+from rwhec_ros.core.cost import _edge_sums, _edge_sums_few, build_cost_matrices, edge_blocks
+from rwhec_ros.core.edge_cache import EdgeBlockCache
+from rwhec_ros.core.problem import Edge, Problem
+from rwhec_ros.core.solve import SolveOptions, solve
+from rwhec_ros.core.synthetic import random_instance, random_transforms
+
+# The cached sums add two runs of each edge's pairs where a fresh assembly sums them in one:
+# they differ by the rounding of sums of ~100 terms of size <= max|block| (~1e-14 relative).
+REL = 1e-12
+
+
+def _instance(seed, n_per_edge=12, unknown_scale=False):
+    rng = np.random.default_rng(seed)
+    problem, _ = random_instance(rng, 3, 2, n_per_edge=n_per_edge, sigma=0.02, kappa=50.0,
+                                 unknown_scale=unknown_scale)
+    return problem
+
+
+def _first(problem, counts, order=None):
+    """The problem with only the first ``counts[e]`` pairs of every edge (edges in ``order``)."""
+    edges = [Edge(e.x, e.y, e.A[:k], e.B[:k], e.sigma[:k], e.kappa[:k])
+             for e, k in zip(problem.edges, counts, strict=True) if k]
+    if order is not None:
+        edges = [edges[i] for i in order]
+    return problem.with_edges(edges)
+
+
+def _fresh(problem):
+    p = Problem(problem.x_names, problem.y_names, problem.edges,
+                unknown_scale=problem.unknown_scale)
+    return edge_blocks(p)
+
+
+def _assert_blocks_equal(got, want):
+    for g, w in zip(got, want, strict=True):
+        assert g.shape == w.shape
+        assert np.abs(g - w).max() <= REL * max(np.abs(w).max(), 1.0)
+    np.testing.assert_array_equal(got[2], want[2])  # indices: exact
+
+
+def test_first_call_is_the_fresh_assembly_exactly():
+    problem = _instance(0)
+    cache = EdgeBlockCache()
+    got = cache.blocks(problem)
+    for g, w in zip(got, _fresh(problem), strict=True):
+        np.testing.assert_array_equal(g, w)
+    assert cache.reused_pairs == 0 and cache.summed_pairs == problem.n_measurements
+
+
+def test_pairs_added_to_some_edges_reuse_the_rest():
+    problem = _instance(1)
+    n = np.array([e.n for e in problem.edges])
+    cache = EdgeBlockCache()
+    before = n - np.array([4, 0, 1, 0, 7, 2])[: len(n)]
+    cache.blocks(_first(problem, before))
+    got = cache.blocks(problem)
+    _assert_blocks_equal(got, _fresh(problem))
+    assert cache.reused_pairs == before.sum()
+    assert cache.summed_pairs == (n - before).sum()
+
+
+def test_replaced_pair_noise_change_and_fewer_pairs_are_summed_again():
+    problem = _instance(2)
+    cache = EdgeBlockCache()
+    cache.blocks(problem)
+    # edge 0: one pair replaced (same count); edge 1: sigma changed; edge 2: fewer pairs
+    e0, e1, e2 = problem.edges[:3]
+    B = e0.B.copy()
+    B[3] = random_transforms(np.random.default_rng(9), 1)[0]
+    edges = [Edge(e0.x, e0.y, e0.A, B, e0.sigma, e0.kappa),
+             Edge(e1.x, e1.y, e1.A, e1.B, 2.0 * e1.sigma, e1.kappa),
+             Edge(e2.x, e2.y, e2.A[:5], e2.B[:5], e2.sigma[:5], e2.kappa[:5]),
+             *problem.edges[3:]]
+    changed = problem.with_edges(edges)
+    got = cache.blocks(changed)
+    _assert_blocks_equal(got, _fresh(changed))
+    assert cache.summed_pairs == e0.n + e1.n + 5
+    assert cache.reused_pairs == sum(e.n for e in problem.edges[3:])
+
+
+def test_edges_added_dropped_and_reordered():
+    problem = _instance(3)
+    E = len(problem.edges)
+    cache = EdgeBlockCache()
+    cache.blocks(_first(problem, [6] * (E - 1) + [0]))  # the last edge is new next time
+    counts = [8] * E
+    counts[0] = 0  # the first edge disappears
+    later = _first(problem, counts, order=list(reversed(range(E - 1))))
+    _assert_blocks_equal(cache.blocks(later), _fresh(later))
+
+
+@pytest.mark.parametrize("seed", [4, 5])
+def test_few_pair_sums_equal_the_per_edge_products(seed):
+    """The per-pair + reduceat sums of new pairs against the one-product-per-edge reference."""
+    problem = _instance(seed, n_per_edge=7)
+    st = problem.stacked()
+    counts = np.array([e.n for e in problem.edges])
+    for a, b in zip(_edge_sums_few(st["A"], st["B"], st["sigma"], st["kappa"], counts),
+                    _edge_sums(st["A"], st["B"], st["sigma"], st["kappa"], counts), strict=True):
+        assert np.abs(a - b).max() <= REL * np.abs(b).max()
+
+
+@pytest.mark.parametrize("unknown_scale", [False, True])
+def test_solve_from_cached_blocks_is_the_solve_from_scratch(unknown_scale):
+    problem = _instance(6, n_per_edge=15, unknown_scale=unknown_scale)
+    cache = EdgeBlockCache()
+    cache.blocks(_first(problem, [10] * len(problem.edges)))
+    cached = _first(problem, [15] * len(problem.edges))
+    cached.precomputed_blocks = cache.blocks(cached)
+    assert cache.reused_pairs > 0
+    opts = SolveOptions(mode="fast", fallback_to_sdp=False)
+    a, b = solve(cached, opts), solve(problem, opts)
+    assert a.certificate.status == b.certificate.status
+    # the same optimum of (to rounding) the same cost matrix
+    np.testing.assert_allclose(a.X, b.X, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.Y, b.Y, rtol=0, atol=1e-9)
+    assert a.certificate.primal_cost == pytest.approx(b.certificate.primal_cost, rel=1e-10)
+    Qa, Qb = build_cost_matrices(cached)[0], build_cost_matrices(problem)[0]
+    assert np.abs(Qa - Qb).max() <= REL * np.abs(Qb).max()
+
+
+def test_precomputed_blocks_of_another_problem_are_refused():
+    problem = _instance(7)
+    other = _first(problem, [5] * (len(problem.edges) - 1) + [0])
+    problem.precomputed_blocks = EdgeBlockCache().blocks(other)
+    with pytest.raises(ValueError, match="precomputed_blocks"):
+        edge_blocks(problem)
