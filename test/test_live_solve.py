@@ -518,3 +518,51 @@ def test_live_uncertainty_and_cached_blocks_match_the_reference_path(tmp_path):
             np.testing.assert_allclose(fl.covariance, fr.covariance, rtol=1e-9, atol=1e-16)
     finally:
         session.close()
+
+
+def _convergence_reference(unc, expected, max_t, max_r):
+    """The frame-by-frame loop convergence_of replaced (its verdict, worst stds and names)."""
+    import math
+
+    s0 = unc.variance_factor
+    ratio = max(1.0, math.sqrt(s0)) if (s0 is not None and math.isfinite(s0)) else 1.0
+    worst = {"translation": (float("nan"), ""), "rotation": (float("nan"), "")}
+    unobservable = []
+    for f in unc.frames:
+        for kind, stds, bad in (("translation", f.std_translation_m, f.unobservable_translation),
+                                ("rotation", f.std_rotation_deg, f.unobservable_rotation)):
+            for axis, std, unobs in zip("xyz", ratio * np.asarray(stds, float), bad,
+                                        strict=True):
+                if unobs or not np.isfinite(std):
+                    unobservable.append(f"{f.name} {kind} {axis}")
+                elif not (worst[kind][0] >= std):
+                    worst[kind] = (float(std), f"{f.name} {axis}")
+    return worst["translation"], worst["rotation"], unobservable
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_convergence_of_is_the_frame_by_frame_verdict(seed):
+    """The vectorised convergence_of against the loop it replaced, with ties, NaN
+    (unobservable) axes and a variance factor above and below 1."""
+    from rwhec_ros.core.uncertainty import FrameUncertainty, Uncertainty
+
+    rng = np.random.default_rng(seed)
+    frames = []
+    for i in range(5):
+        cov = np.diag(rng.choice([1e-6, 4e-6, 9e-6], size=6))  # repeated values: ties
+        ut, ur = rng.random(3) < 0.15, rng.random(3) < 0.15
+        bad = np.r_[ut, ur]
+        cov[bad, :] = np.nan
+        cov[:, bad] = np.nan
+        frames.append(FrameUncertainty(f"f{i}", "X", cov, 1.0, ut, ur))
+    for s0 in (0.5, 2.0, float("nan")):
+        unc = Uncertainty(frames=frames, scale_std=None, variance_factor=s0, chi2=1.0, dof=1,
+                          rank=1)
+        c = convergence_of(unc, ["f0", "f9"], 3e-3, 0.2)
+        wt, wr, unobs = _convergence_reference(unc, ["f0", "f9"], 3e-3, 0.2)
+        # the same floating-point operations: equal bits (NaN where nothing is observed)
+        np.testing.assert_array_equal([c.worst_translation_m, c.worst_rotation_deg],
+                                      [wt[0], wr[0]])
+        assert c.worst_translation_frame == wt[1] and c.worst_rotation_frame == wr[1]
+        assert list(c.unobservable) == unobs
+        assert c.missing == ("f9",) and not c.converged

@@ -108,23 +108,22 @@ def convergence_of(uncertainty: Uncertainty, expected: tuple[str, ...] | list[st
     frames without an estimate never converge)."""
     s0 = uncertainty.variance_factor
     ratio = max(1.0, math.sqrt(s0)) if (s0 is not None and math.isfinite(s0)) else 1.0
-    worst_t, worst_r = (float("nan"), ""), (float("nan"), "")
-    unobservable = []
-    for f in uncertainty.frames:
-        for kind, stds, bad in (("translation", f.std_translation_m, f.unobservable_translation),
-                                ("rotation", f.std_rotation_deg, f.unobservable_rotation)):
-            for axis, std, unobs in zip(_AXES, ratio * np.asarray(stds, float), bad,
-                                        strict=True):
-                if unobs or not np.isfinite(std):
-                    unobservable.append(f"{f.name} {kind} {axis}")
-                    continue
-                cur = worst_t if kind == "translation" else worst_r
-                if not (cur[0] >= std):  # NaN start: the first value wins
-                    cur = (float(std), f"{f.name} {axis}")
-                    if kind == "translation":
-                        worst_t = cur
-                    else:
-                        worst_r = cur
+    frames = uncertainty.frames
+    # (frame, kind, axis): the stds times the ratio, and the axes that are not observed
+    std = np.array([[f.std_translation_m, f.std_rotation_deg] for f in frames],
+                   dtype=float).reshape(len(frames), 2, 3) * ratio
+    bad = np.array([[f.unobservable_translation, f.unobservable_rotation] for f in frames],
+                   dtype=bool).reshape(len(frames), 2, 3) | ~np.isfinite(std)
+    kinds = ("translation", "rotation")
+    unobservable = [f"{frames[i].name} {kinds[k]} {_AXES[a]}"
+                    for i, k, a in zip(*np.nonzero(bad), strict=True)]
+    worst = []
+    for k in range(2):  # the largest observed std, the first frame and axis on a tie
+        v = np.where(bad[:, k], -np.inf, std[:, k]).ravel()
+        i = int(np.argmax(v)) if v.size else 0
+        worst.append((float(v[i]), f"{frames[i // 3].name} {_AXES[i % 3]}")
+                     if v.size and np.isfinite(v[i]) else (float("nan"), ""))
+    worst_t, worst_r = worst
     have = {f.name for f in uncertainty.frames}
     missing = tuple(n for n in expected if n not in have)
     if uncertainty.scale_std is not None and not np.isfinite(uncertainty.scale_std):
