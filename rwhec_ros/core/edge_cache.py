@@ -30,15 +30,13 @@ FEW_PAIRS = 2048
 
 @dataclass
 class _Previous:
-    """The pairs (own copies, concatenated edge by edge) and per-edge sums of the last call."""
+    """The pairs (own copy: one row ``[A (16), B (16), sigma, kappa]`` per pair, edge by edge)
+    and the per-edge sums of the last call."""
 
     index: dict[tuple[str, str], int]
     starts: np.ndarray
-    counts: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
-    sigma: np.ndarray
-    kappa: np.ndarray
+    counts: list[int]
+    rows: np.ndarray
     G: np.ndarray
     K: np.ndarray
     ksum: np.ndarray
@@ -78,20 +76,23 @@ class EdgeBlockCache:
         for every edge that only gained pairs at its end."""
         edges = problem.edges
         E = len(edges)
-        counts = np.fromiter((e.n for e in edges), dtype=np.int64, count=E)
-        starts = np.cumsum(counts) - counts
-        cat = np.concatenate
-        A = cat([e.A for e in edges]) if E else np.zeros((0, 4, 4))
-        B = cat([e.B for e in edges]) if E else np.zeros((0, 4, 4))
-        sigma = cat([e.sigma for e in edges]).astype(float) if E else np.zeros(0)
-        kappa = cat([e.kappa for e in edges]).astype(float) if E else np.zeros(0)
-        reuse, src = self._reusable(edges, A, B, sigma, kappa, starts, counts)
-        fresh = counts - reuse
+        counts = [e.n for e in edges]
+        starts = np.cumsum(counts, dtype=np.int64) - counts
+        N = int(sum(counts))
+        rows = np.empty((N, 34))  # one copy of every pair: [A, B, sigma, kappa]
+        if E:
+            rows[:, 0:16] = np.concatenate([e.A for e in edges]).reshape(N, 16)
+            rows[:, 16:32] = np.concatenate([e.B for e in edges]).reshape(N, 16)
+            rows[:, 32] = np.concatenate([e.sigma for e in edges])
+            rows[:, 33] = np.concatenate([e.kappa for e in edges])
+        reuse, src = self._reusable(edges, rows, starts, counts)
+        fresh = np.asarray(counts, dtype=np.int64) - reuse
         active = np.flatnonzero(fresh)
-        sel = _ranges(starts[active] + reuse[active], fresh[active])
+        new = rows[_ranges(starts[active] + reuse[active], fresh[active])]
         # nothing reused (the first call): exactly the fresh assembly's sums
-        sums = _edge_sums_few if reuse.any() and sel.size <= FEW_PAIRS else _edge_sums
-        Gn, Kn, kn = sums(A[sel], B[sel], sigma[sel], kappa[sel], fresh[active])
+        sums = _edge_sums_few if reuse.any() and new.shape[0] <= FEW_PAIRS else _edge_sums
+        Gn, Kn, kn = sums(new[:, 0:16].reshape(-1, 4, 4), new[:, 16:32].reshape(-1, 4, 4),
+                          new[:, 32], new[:, 33], fresh[active])
         G = np.zeros((E, 16, 16))
         K = np.zeros((E, 9, 9))
         ksum = np.zeros(E)
@@ -105,7 +106,7 @@ class EdgeBlockCache:
         K[active] += Kn
         ksum[active] += kn
         self._prev = _Previous({(e.x, e.y): i for i, e in enumerate(edges)}, starts, counts,
-                               A, B, sigma, kappa, G, K, ksum)
+                               rows, G, K, ksum)
         self.reused_pairs = int(reuse.sum())
         self.summed_pairs = int(fresh.sum())
         full, rot = _blocks_from_sums(G, K, ksum)
@@ -114,27 +115,24 @@ class EdgeBlockCache:
         layout = StateLayout(problem.M, problem.P)
         return full, rot, _local_to_global(layout, problem.edge_x, problem.edge_y)
 
-    def _reusable(self, edges, A, B, sigma, kappa, starts, counts
+    def _reusable(self, edges, rows: np.ndarray, starts: np.ndarray, counts: list[int]
                   ) -> tuple[np.ndarray, np.ndarray]:
         """Per edge, how many of its first pairs equal all the pairs of the same edge last time
         (0: none reusable) and that edge's index last time."""
         E = len(edges)
-        reuse = np.zeros(E, dtype=np.int64)
-        src = np.zeros(E, dtype=np.int64)
         prev = self._prev
         if prev is None:
-            return reuse, src
+            return np.zeros(E, dtype=np.int64), np.zeros(E, dtype=np.int64)
+        reuse, src = [0] * E, [0] * E
         for i, e in enumerate(edges):
             j = prev.index.get((e.x, e.y))
             if j is not None and prev.counts[j] <= counts[i]:
                 reuse[i], src[i] = prev.counts[j], j
+        reuse, src = np.array(reuse, dtype=np.int64), np.array(src, dtype=np.int64)
         if not reuse.any():
             return reuse, src
-        new = _ranges(starts, reuse)
-        old = _ranges(prev.starts[src], reuse)
-        same = ((A.reshape(-1, 16)[new] == prev.A.reshape(-1, 16)[old]).all(axis=1)
-                & (B.reshape(-1, 16)[new] == prev.B.reshape(-1, 16)[old]).all(axis=1)
-                & (sigma[new] == prev.sigma[old]) & (kappa[new] == prev.kappa[old]))
+        same = (rows[_ranges(starts, reuse)] == prev.rows[_ranges(prev.starts[src], reuse)]
+                ).all(axis=1)
         differs = np.bincount(np.repeat(np.arange(E), reuse), weights=~same, minlength=E)
         reuse[differs > 0] = 0
         return reuse, src

@@ -316,6 +316,18 @@ def _null_words(info: Information, v: np.ndarray) -> str:
             "information matrix; axes in the frames' parents)")
 
 
+def _inverse_from_cholesky(A: np.ndarray) -> np.ndarray:
+    """``A^-1`` of a symmetric positive definite ``A`` from its Cholesky factor (LAPACK
+    ``potrf`` + ``potri``: a third of the work of solving for the identity's columns);
+    ``LinAlgError`` when ``A`` is not positive definite."""
+    factor, lower = scipy.linalg.cho_factor(A, check_finite=False)
+    inv, info = scipy.linalg.lapack.dpotri(factor, lower=lower)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"potri: info {info}")
+    tri = np.tril(inv) if lower else np.triu(inv)
+    return tri + np.swapaxes(np.tril(inv, -1) if lower else np.triu(inv, 1), 0, 1)
+
+
 def covariance_of(info: Information, problem: Problem,
                   options: UncertaintyOptions | None = None) -> Covariance:
     """The covariance of the estimate from ``info`` (module docstring): the gauge analysis of
@@ -351,8 +363,7 @@ def covariance_of(info: Information, problem: Problem,
     eye = np.eye(Hn.shape[0])
     try:  # usual case: every normalised eigenvalue above null_tol (one shifted factorisation)
         scipy.linalg.cholesky(Hn - opts.null_tol * eye, check_finite=False)
-        Cn = scipy.linalg.cho_solve(scipy.linalg.cho_factor(Hn, check_finite=False), eye,
-                                    check_finite=False)
+        Cn = _inverse_from_cholesky(Hn)
         extra = np.zeros((Hn.shape[0], 0))
     except (np.linalg.LinAlgError, ValueError):
         lam, U = np.linalg.eigh(Hn)
