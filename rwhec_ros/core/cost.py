@@ -81,6 +81,23 @@ class StateLayout:
         return slice(self.r0 + 9 * frame, self.r0 + 9 * frame + 9)
 
 
+def _translation_rows(A: np.ndarray, B: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """The weighted translation rows ``M_t / (sqrt(2) sigma_i)`` (N, 3, 16) of ``N`` pairs on the
+    16 columns ``[t_X, t_Y, alpha, r_Y]`` (see :func:`_edge_blocks`)."""
+    N = A.shape[0]
+    tA, tB = A[:, :3, 3], B[:, :3, 3]
+    Mt = np.zeros((N, 3, 16))
+    Mt[:, :, 0:3] = A[:, :3, :3]
+    Mt[:, 0, 3] = Mt[:, 1, 4] = Mt[:, 2, 5] = -1.0
+    Mt[:, :, 6] = tA
+    for c in range(3):  # -(t_B^T (x) I): column block c of vec(R_Y) multiplies t_B[c]
+        Mt[:, 0, 7 + 3 * c] = -tB[:, c]
+        Mt[:, 1, 8 + 3 * c] = -tB[:, c]
+        Mt[:, 2, 9 + 3 * c] = -tB[:, c]
+    Mt *= np.sqrt(0.5 / np.asarray(sigma, dtype=float) ** 2)[:, None, None]
+    return Mt
+
+
 def _edge_sums(
     A: np.ndarray, B: np.ndarray, sigma: np.ndarray, kappa: np.ndarray,
     counts: np.ndarray | None = None,
@@ -95,20 +112,9 @@ def _edge_sums(
     E = counts.shape[0]
     ends = np.cumsum(counts)
     starts = ends - counts
-    RA, tA = A[:, :3, :3], A[:, :3, 3]
-    RB, tB = B[:, :3, :3], B[:, :3, 3]
+    RA, RB = A[:, :3, :3], B[:, :3, :3]
     half_k = 0.5 * np.asarray(kappa, dtype=float)
-    # translation rows on the 16 columns [t_X, t_Y, alpha, r_Y]
-    Mt = np.zeros((N, 3, 16))
-    Mt[:, :, 0:3] = RA
-    Mt[:, 0, 3] = Mt[:, 1, 4] = Mt[:, 2, 5] = -1.0
-    Mt[:, :, 6] = tA
-    for c in range(3):  # -(t_B^T (x) I): column block c of vec(R_Y) multiplies t_B[c]
-        Mt[:, 0, 7 + 3 * c] = -tB[:, c]
-        Mt[:, 1, 8 + 3 * c] = -tB[:, c]
-        Mt[:, 2, 9 + 3 * c] = -tB[:, c]
-    Mt *= np.sqrt(0.5 / np.asarray(sigma, dtype=float) ** 2)[:, None, None]
-    Mt2 = Mt.reshape(3 * N, 16)
+    Mt2 = _translation_rows(A, B, sigma).reshape(3 * N, 16)
     # sum k/2 R_B^T (x) R_A^T per edge: K[b a, j i] = sum k/2 RB[b, a] RA[j, i]
     U = (RB * half_k[:, None, None]).reshape(N, 9)
     V = RA.reshape(N, 9)
@@ -134,18 +140,9 @@ def _edge_sums_few(
     counts = np.asarray(counts, dtype=int)
     starts = np.cumsum(counts) - counts
     N = A.shape[0]
-    RA, tA = A[:, :3, :3], A[:, :3, 3]
-    RB, tB = B[:, :3, :3], B[:, :3, 3]
+    RA, RB = A[:, :3, :3], B[:, :3, :3]
     half_k = 0.5 * np.asarray(kappa, dtype=float)
-    Mt = np.zeros((N, 3, 16))  # the rows of _edge_sums
-    Mt[:, :, 0:3] = RA
-    Mt[:, 0, 3] = Mt[:, 1, 4] = Mt[:, 2, 5] = -1.0
-    Mt[:, :, 6] = tA
-    for c in range(3):
-        Mt[:, 0, 7 + 3 * c] = -tB[:, c]
-        Mt[:, 1, 8 + 3 * c] = -tB[:, c]
-        Mt[:, 2, 9 + 3 * c] = -tB[:, c]
-    Mt *= np.sqrt(0.5 / np.asarray(sigma, dtype=float) ** 2)[:, None, None]
+    Mt = _translation_rows(A, B, sigma)
     G = np.add.reduceat(np.swapaxes(Mt, 1, 2) @ Mt, starts, axis=0)
     U = (RB * half_k[:, None, None]).reshape(N, 9)
     K = np.add.reduceat(U[:, :, None] * RA.reshape(N, 1, 9), starts, axis=0)
