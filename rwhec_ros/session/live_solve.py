@@ -33,6 +33,12 @@ and no closed-form initialisation. The certificate is the same whatever the star
 that does not certify is solved again from the closed form, so the statuses are those of a cold
 start (``test/test_live_solve.py`` checks estimates and certificates against cold solves).
 
+The cost's edge blocks are kept from one re-solve to the next
+(:class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`: an edge that only gained pairs at its end
+has only those summed) and set as the problem's ``precomputed_blocks``, which the solve and the
+uncertainty (``information="edge_blocks"``: the information matrix from the blocks, not from
+the pairs) both use; the results equal the fresh, pair-by-pair ones to rounding.
+
 Each estimate carries its convergence verdict (:mod:`.convergence`: every configured frame
 estimated, every std at or below ``convergence.*``) and the ``~/estimate`` document
 (:func:`~rwhec_ros.session.convergence.estimate_document`).
