@@ -285,3 +285,107 @@ def test_compressed_images_through_the_handlers(tmp_path):
     assert session.camera_counters()["cam1"]["rejected"] == 3
     assert [k for k, _ in warnings] == ["bad_image_message"] * 3
     assert "truncated" in warnings[0][1]
+
+
+def tags_image(intr: CameraIntrinsics, tag_ids) -> np.ndarray:
+    """Tags of 25 cm side by side, 1 m in front of the camera, facing it."""
+    tags = []
+    for k, tag_id in enumerate(tag_ids):
+        T_cam_tag = np.diag([1.0, -1.0, -1.0, 1.0])
+        T_cam_tag[:3, 3] = [-0.2 + 0.4 * k, 0.0, 1.0]
+        tags.append(RenderedTag(tag_id, T_cam_tag, 0.25))
+    return render_tags(intr, tags)
+
+
+def test_a_tag_coming_into_view_in_a_skipped_image_gets_its_pair_there(tmp_path):
+    """The look-back: a tag that the search after some skipped images finds, and the search
+    before them had not, is searched for in them, oldest first, so that its edge keeps its
+    first pair where examining every image would (not up to a discovery step later)."""
+    intr = demo_rig().intrinsics["cam0"]
+    # the rig slides along x: 0, 2 cm (a quarter of the 8 cm keyframe step: skipped), 6 cm
+    # (beyond half a step from the last search: searched, and tag 5 found there for the first
+    # time), 7 cm (skipped: tag 5 has its pair, tag 3 not a step away from its own yet)
+    frames = [(0.0, (3,)), (0.02, (3, 5)), (0.06, (3, 5)), (0.07, (3, 5))]
+    images = {ids: tags_image(intr, ids) for _, ids in frames}
+    runs = {}
+    for gate in (True, False):
+        session = CalibrationSession(config(tmp_path / str(gate), ["cam0"], [3, 5], **GATED,
+                                            **{"detection.motion_gate": gate,
+                                               "detection.discovery_step": 0.5}))
+        session.set_camera_info("cam0", intr)
+        decoders = []
+        for k, (x, ids) in enumerate(frames):
+            T = np.eye(4)
+            T[0, 3] = x
+            decoders.append(Decoder(images[ids]))
+            session.add_image("cam0", (k + 1) * NS // 10, decoders[-1], T_parent_child=T)
+        runs[gate] = session, [d.calls for d in decoders]
+    (gated, calls), (every, _) = runs[True], runs[False]
+    c = gated.counters()
+    # image 1 was skipped, then decoded once more by the look-back; image 3 never
+    assert calls == [1, 1, 1, 0]
+    assert c["images_skipped_no_motion"] == 2 and c["images_searched_back"] == 1, c
+    # the same pairs as examining every image: tag 5 at the stamp of image 1, bit for bit
+    a, b = saved_pairs(gated, tmp_path / "g.yaml"), saved_pairs(every, tmp_path / "e.yaml")
+    assert a.keys() == b.keys() == {("tag_3", "cam0"), ("tag_5", "cam0")}
+    assert list(a[("tag_5", "cam0")].stamps_ns) == [2 * NS // 10]
+    for key in a:
+        for field in ("stamps_ns", "A", "B", "sigma", "kappa"):
+            np.testing.assert_array_equal(getattr(a[key], field), getattr(b[key], field))
+    counts = gated.camera_counters()["cam0"]
+    assert counts["pairs_kept"] == c["pairs_kept"] == 2
+    assert counts["images"] == counts["skipped_no_motion"] + counts["detected"] \
+        + counts["rejected"]
+
+
+def test_bag_replay_decodes_only_the_searched_images_the_same_on_one_and_two_threads(
+        streams, tmp_path, monkeypatch):
+    """``rwhec-calibrate bag``'s replay (:class:`ReplayFeeder`, JPEG messages) with the default
+    discovery step: a skipped image is never decoded (except by the look-back, counted), and
+    one and two detection threads keep the same pairs."""
+    import threading
+
+    import rwhec_ros.session.handlers as handlers_module
+    from rwhec_ros.session.replay import ReplayFeeder
+
+    rig, tag_ids, samples = streams("turning_fast")
+    messages = list(simulation_messages(rig, samples, image_transport="compressed"))
+    real, lock = handlers_module.compressed_image_to_gray, threading.Lock()
+    runs = {}
+    for threads in (1, 2):
+        decoded = []
+
+        def counting(msg, decoded=decoded):
+            with lock:
+                decoded.append(msg.header.stamp)
+            return real(msg)
+
+        monkeypatch.setattr(handlers_module, "compressed_image_to_gray", counting)
+        session = CalibrationSession(config(tmp_path / str(threads), rig.cameras, tag_ids,
+                                            **GATED))
+        for cam in rig.cameras:
+            session.set_camera_info(cam, rig.intrinsics[cam])
+        feeder = ReplayFeeder(MessageHandlers(session), threads=threads, queue_size=4)
+        for topic, _, _, msg in messages:
+            if topic == "/demo/rig/pose":
+                feeder.pose(msg)
+            elif topic.endswith("/compressed"):
+                feeder.image(topic.split("/")[2], msg, compressed=True)
+        feeder.close(timeout=60.0)
+        assert not feeder.errors
+        runs[threads] = session, len(decoded)
+    (one, n_one), (two, n_two) = runs[1], runs[2]
+    for session, n_decoded in runs.values():
+        c = session.counters()
+        per_camera = session.camera_counters().values()
+        searched = sum(n["detected"] for n in per_camera)
+        # skipped images (measured: about half) are decoded only when searched back
+        assert c["images_skipped_no_motion"] > c["images"] // 3, c
+        assert n_decoded == searched + c.get("images_searched_back", 0), c
+        assert sum(n["images"] for n in per_camera) == c["images"]
+    assert n_one == n_two
+    a, b = saved_pairs(one, tmp_path / "1.yaml"), saved_pairs(two, tmp_path / "2.yaml")
+    assert a.keys() == b.keys() and sum(e.n for e in a.values()) >= 10
+    for key in a:
+        for field in ("stamps_ns", "A", "B", "sigma", "kappa"):
+            np.testing.assert_array_equal(getattr(a[key], field), getattr(b[key], field))

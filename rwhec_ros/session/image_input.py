@@ -28,18 +28,26 @@ Order of the work for one image of camera ``c`` at stamp ``s``:
    <rwhec_ros.vision.target_detector.TargetDetector.detect>`; the others are counted
    ``tags_skipped_no_motion``);
 5. one pair per target -- a board is one ``B`` from all its corners -- is offered to the
-   accumulator (which applies the same keyframe test again).
+   accumulator (which applies the same keyframe test again);
+6. **look-back** (discovery step > 0): the targets this search found and the camera's previous
+   search had not (they came into view meanwhile) are searched for in the images of the camera
+   that the gate skipped in between (at most :data:`LOOK_BACK_IMAGES`, held undecoded), oldest
+   first and only where such a target's edge would keep a pair, and their pairs offered before
+   those of this image (counted ``images_searched_back``).
 
 With ``detection.discovery_step: 0`` (every edge counts) the gate changes no pair: a tag left out
 would have been refused by its edge (its edge's state, the stamp and ``A`` decide, not ``B``), and
 each tag is refined and solved on its own, so the kept pairs are those of examining every tag of
 every image, provided the images of one camera are added one at a time in stamp order (what the
 node's per-camera queue and the ``bag`` replay do): an edge's decision depends on the pairs kept
-before it. With a discovery step (default 0.5) a tag coming into view between two searches gets
-its first pair at the next search, at most that fraction of a keyframe step later, so its edge's
-later pairs shift too: in the camera-rate benchmark (``benchmarks/session_load.md``, 8 cameras
-among 16 tags) 44 % of the images are searched instead of 100 %, for about 2 % fewer pairs and a
-calibration within noise of examining every image. What the gate also changes are the counters
+before it. With a discovery step (default 0.5) a target coming into view between two searches is
+found at the next search, at most that fraction of a keyframe step later; the look-back then
+finds it in the skipped images since the previous search, so that its edge keeps its first pair
+(and so all later ones) where examining every image would. What the discovery step still loses
+is a target that enters and leaves the view between two searches, and one first seen more than
+:data:`LOOK_BACK_IMAGES` skipped images back: in the camera-rate benchmark
+(``benchmarks/session_load.md``, 8 cameras among 16 tags) RESULT_PLACEHOLDER.
+What the gate also changes are the counters
 of refused pairs (``pairs:skipped_no_motion`` counts only examined tags) and that a skipped image
 is never decoded, so bad data in it goes unnoticed.
 """
@@ -57,12 +65,17 @@ from ..vision.detection import RejectReason
 from ..vision.target_detector import TargetDetector
 from .outcomes import ImageOutcome
 
-__all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS"]
+__all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS", "LOOK_BACK_IMAGES"]
 
 #: An image as the session takes it: a (H, W) uint8 array, or a callable returning one (decoded
 #: only when the motion gate lets the image through; ``ValueError``/``TypeError`` from it counts
 #: as ``bad_image_message``).
 ImageSource = np.ndarray | Callable[[], np.ndarray]
+
+#: Skipped images of a camera held for the look-back (module docstring, step 6), newest kept:
+#: references to the undecoded messages (at 30 Hz with the default discovery step a camera is
+#: searched every 1-3 images; 8 covers a quarter of a second).
+LOOK_BACK_IMAGES = 8
 
 #: Per-camera counters of :meth:`ImageInput.camera_counters` (all present from the start).
 CAMERA_COUNTERS = ("images", "skipped_no_motion", "detected", "used", "rejected", "pairs_kept")
@@ -269,26 +282,66 @@ class ImageInput:
             if gate and not self._worth_searching(camera, A, wanted):
                 self._count("images_skipped_no_motion")
                 self._camera_count(camera, "skipped_no_motion")
+                if self.config.detection.discovery_step > 0:
+                    self._skipped_since_search[camera].append((stamp, A, image, intrinsics))
                 return ImageOutcome(camera, stamp, "skipped")
-        if callable(image):
-            try:
-                gray = image()
-            except (ValueError, TypeError, AttributeError) as exc:
-                return self._reject(camera, stamp, "bad_image_message", str(exc))
-            reason = self._gray_problem(gray, intrinsics)
-            if reason:
-                return self._reject(camera, stamp, reason,
-                                    words=self._gray_words(reason, gray, intrinsics))
-        else:
-            gray = image
+            view = self._views.get(camera)
+            skipped = list(self._skipped_since_search.pop(camera, ()))
+        gray, reason, detail, words = self._decoded(image, intrinsics)
+        if gray is None:
+            return self._reject(camera, stamp, reason, detail, words=words)
         try:  # outside the lock: detection is the expensive part
             detection = self._detector().detect(gray, intrinsics, only=wanted)
         except Exception as exc:  # noqa: BLE001 - the live path never raises
             return self._reject(camera, stamp, f"image_detector_error:{type(exc).__name__}",
                                 str(exc))
+        if view is not None and skipped and self.config.detection.discovery_step > 0:
+            new = {name for name in detection.markers if name} - view[1]
+            if new:
+                self._look_back(camera, skipped, new)
         outcome = self._offer_detection(camera, stamp, A, detection)
         outcome.image = gray
         return outcome
+
+    def _decoded(self, image: ImageSource, intrinsics) -> tuple[np.ndarray | None, str, str, str]:
+        """``(gray, "", "", "")``, or ``(None, reason, detail, words)`` for :meth:`_reject` when
+        ``image`` (an array, or a callable decoding one) is unusable (lock NOT held)."""
+        if not callable(image):
+            return image, "", "", ""
+        try:
+            gray = image()
+        except (ValueError, TypeError, AttributeError) as exc:
+            return None, "bad_image_message", str(exc), ""
+        reason = self._gray_problem(gray, intrinsics)
+        if reason:
+            return None, reason, "", self._gray_words(reason, gray, intrinsics)
+        return gray, "", "", ""
+
+    def _look_back(self, camera: str, skipped: list[tuple], new: set[str]) -> None:
+        """Search the images of ``camera`` that the gate skipped since its last search for the
+        targets ``new`` that the search after them found and the one before them had not
+        (lock NOT held; module docstring, step 6): oldest first, an image only where the edge
+        of one of them would keep a pair. Counted ``images_searched_back``; an image that cannot
+        be decoded now is counted ``look_back_bad_image`` (it was counted skipped)."""
+        for stamp, A, image, intrinsics in skipped:
+            with self._lock:
+                wanted = [x for x in self._x_names
+                          if x in new and self._acc.would_keep(x, camera, stamp, A)]
+            if not wanted:
+                continue
+            gray, *_ = self._decoded(image, intrinsics)
+            try:
+                detection = (None if gray is None
+                             else self._detector().detect(gray, intrinsics, only=wanted))
+            except Exception:  # noqa: BLE001 - the live path never raises
+                detection = None
+            with self._lock:
+                if detection is None:
+                    self._count("look_back_bad_image")
+                    continue
+                self._count("images_searched_back")
+                kept = self._offer(camera, stamp, A, detection.observations)
+                self._camera_count(camera, "pairs_kept", len(kept))
 
     def _offer_detection(self, camera: str, stamp: int, A: np.ndarray, detection) -> ImageOutcome:
         reasons: list[str] = []

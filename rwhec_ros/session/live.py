@@ -28,7 +28,7 @@ from ..sync.buffer import PoseBuffer
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .accuracy import AccuracyOptions
-from .image_input import CAMERA_COUNTERS, ImageInput
+from .image_input import CAMERA_COUNTERS, LOOK_BACK_IMAGES, ImageInput
 from .live_solve import LiveSolver, PairsSnapshot
 from .outcomes import SolveOutcome, edge_rows
 from .outputs import publishable, session_dataset, summary, write_session_outputs
@@ -132,6 +132,9 @@ class CalibrationSession(ImageInput):
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()
         self._views: dict = {}  # camera -> (A, targets found) of its last searched image
+        # camera -> (stamp, A, image, intrinsics) the gate skipped since its last search
+        self._skipped_since_search = collections.defaultdict(
+            lambda: collections.deque(maxlen=LOOK_BACK_IMAGES))
         self._counters: collections.Counter = collections.Counter()
         self._camera_counts = {name: collections.Counter(dict.fromkeys(CAMERA_COUNTERS, 0))
                                for name in c.camera_names}
