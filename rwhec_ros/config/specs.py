@@ -159,7 +159,9 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="motion gate, targets out of view: an image whose pose is within this "
                   "fraction of the keyframe thresholds of its camera's last searched image "
                   "counts only the targets found there, so a target coming into view is found "
-                  "within this fraction of a keyframe step; 0 = every edge counts, also of "
+                  "within this fraction of a keyframe step, and then looked for in the images "
+                  "skipped since the previous search (up to 8 per camera held); 0 = every edge "
+                  "counts, also of "
                   "targets out of view (exactly the pairs of examining every image, few images "
                   "skipped)"),
     ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),

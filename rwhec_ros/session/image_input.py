@@ -46,9 +46,10 @@ finds it in the skipped images since the previous search, so that its edge keeps
 (and so all later ones) where examining every image would. What the discovery step still loses
 is a target that enters and leaves the view between two searches, and one first seen more than
 :data:`LOOK_BACK_IMAGES` skipped images back: in the camera-rate benchmark
-(``benchmarks/session_load.md``, 8 cameras among 16 tags) RESULT_PLACEHOLDER.
-What the gate also changes are the counters
-of refused pairs (``pairs:skipped_no_motion`` counts only examined tags) and that a skipped image
+(``benchmarks/session_load.md``, 8 cameras among 16 tags) the default searches 49 % of the
+images (4 % of them searched back) and keeps exactly the pairs of examining every image (without
+the look-back: 44 % searched, 1.7 % fewer pairs). What the gate also changes are the counters of
+refused pairs (``pairs:skipped_no_motion`` counts only examined tags) and that a skipped image
 is never decoded, so bad data in it goes unnoticed.
 """
 
