@@ -73,7 +73,8 @@ TESTS = {
                                    "test/core/test_verified.py", "test/core/test_certificate.py"],
     "rwhec_ros/core/solve.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
                                 "test/core/test_solve.py"],
-    "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_path.py",
+    "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_certificate_paths.py",
+                                             "test/core/test_sparse_path.py",
                                              "test/core/test_gauge.py"],
     "rwhec_ros/core/sparse_fast.py": ["test/core/test_sparse_path.py", "test/core/test_gauge.py"],
 }
