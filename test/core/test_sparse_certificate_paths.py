@@ -148,14 +148,16 @@ def _indefinite_rotation(c, eta=1e-2):
 
 
 # exact equality below: the test repeats the same floating-point operations in the same order
-@pytest.mark.parametrize("variant", ["optimum", "negative_lambda_s", "no_primal_point",
-                                     "indefinite_rotation", "large_mu0"])
+@pytest.mark.parametrize("variant", ["optimum", "negative_lambda_s", "small_lambda_s",
+                                     "no_primal_point", "indefinite_rotation", "large_mu0"])
 def test_bound_is_the_documented_formula(variant):
     c = _case("star")
     pattern, data, err, lam_s, z = c["pattern"], c["data"], c["err"], c["lam_s"], c["z"]
     mu0 = _mu0(pattern, data)
     if variant == "negative_lambda_s":  # only d depends on lambda_s: |lambda_s| in the rounding
         lam_s = -lam_s - 1.0
+    elif variant == "small_lambda_s":  # d ~ 1e-11: the 4 u rounding of every term shows
+        lam_s = 1e-10
     elif variant == "no_primal_point":  # no z: mu is the floor alone
         z = None
     elif variant == "indefinite_rotation":  # mu grows 8-fold 6 times, then 64-fold
@@ -328,6 +330,14 @@ def test_certificate_with_default_arguments_matches_the_dense_reference():
     assert cert.suboptimality_bound == (c["p"] - d) / d
     assert cert.null_space_dim == 1 and cert.tolerance == 1e-6
     assert "sign of s" not in cert.message
+    # the same problem with the cost in other units (times 1e-4, so d < 1): no floor by default,
+    # rho_hat = (p - d) / d again
+    k = 1e-4
+    cert_k, _ = certify_sparse(c["prep"].form, c["prep"].Qs, pattern, c["R"], k * c["p"],
+                               k * c["prep"].scale)
+    d_k = ref[0] * (k * c["prep"].scale)
+    assert cert_k.dual_bound == d_k < 1.0
+    assert cert_k.suboptimality_bound == (k * c["p"] - d_k) / d_k
     # 1e-9: the Lanczos accuracy (test_reduced_eigenvalues_against_eigvalsh)
     np.testing.assert_allclose(cert.eigenvalues, np.linalg.eigvalsh(_reduced(pattern,
                                                                              c["data"]))[:6],
@@ -470,16 +480,19 @@ def test_matrix_data_ignores_the_direction_at_t_zero_and_counts_lambda_s_magnitu
     d0, e0 = pattern.matrix_data(Gamma, lam_s)
     d1, e1 = pattern.matrix_data(Gamma, lam_s, 0.0, hand)
     assert np.array_equal(d0, d1) and np.array_equal(e0, e1)
-    _, e_pos = pattern.matrix_data(Gamma, 2.0)
-    _, e_neg = pattern.matrix_data(Gamma, -2.0)
     n = pattern.n
     # s row: gamma_2 (|Q_s| 1 + |lambda_s - tr|) + gamma_{3n+1} (|lambda_s| + sum |diag Gamma|)
-    tr = float(np.trace(Gamma, axis1=1, axis2=2).sum())
-    dg = float(np.abs(np.diagonal(Gamma, axis1=1, axis2=2)).sum())
-    for e, ls in ((e_pos, 2.0), (e_neg, -2.0)):
-        want = gamma(2) * (pattern.abs_rows_Q[-1] + abs(ls - tr)) + gamma(3 * n + 1) * (
-            abs(ls) + dg)
-        assert e[-1] == pytest.approx(want, rel=1e-14)  # summation order only
+    # (the optimum's Gamma has a positive diagonal: also its negative, and both signs of
+    # lambda_s)
+    for G in (Gamma, -Gamma):
+        assert np.any(np.diagonal(G, axis1=1, axis2=2) < 0) or G is Gamma
+        tr = float(np.trace(G, axis1=1, axis2=2).sum())
+        dg = float(np.abs(np.diagonal(G, axis1=1, axis2=2)).sum())
+        for ls in (2.0, -2.0):
+            _, e = pattern.matrix_data(G, ls)
+            want = gamma(2) * (pattern.abs_rows_Q[-1] + abs(ls - tr)) + gamma(3 * n + 1) * (
+                abs(ls) + dg)
+            assert e[-1] == pytest.approx(want, rel=1e-14)  # summation order only
 
 
 def _replay_strengthening(c, v2):
@@ -539,3 +552,40 @@ def test_strengthening_matches_its_dense_replay():
                                c["prep"].scale, cost_floor=c["prep"].cost_floor,
                                strengthen=False)
     assert not s0 and cert0.status is Status.NOT_TIGHT and cert0.dual_bound == plain.dual_bound
+
+
+def test_first_shift_is_gamma64_times_the_mean_y_diagonal():
+    """At a dual point whose primal translations are zero (so z asks for no shift), the bound
+    starts from mu0 = gamma_64 mean |Z_ii| over y (+ 1e-300), as documented: the certificate's
+    bound equals the reference bound from that start."""
+    c = _case("star")
+    pattern, nf = c["pattern"], c["pattern"].nf
+    z0 = c["z"].copy()
+    z0[:nf] = 0.0
+    dual = _Dual(c["Gamma"], c["lam_s"], z0, c["p"], c["prep"].scale, False,
+                 c["prep"].cost_floor, CertificateOptions())
+    cert, _ = _certificate_at(pattern, dual)
+    mu0 = _mu0(pattern, c["data"])
+    ref = _reference_bound(pattern, c["data"], c["err"], c["lam_s"], mu0, z0)
+    assert ref[4] / mu0 in (1.0, 8.0, 64.0)  # mu is mu0 or a few 8-fold steps of it
+    assert cert.dual_bound == ref[0] * c["prep"].scale
+    assert cert.lambda_min_lower == ref[1]
+
+
+def test_strengthening_in_a_lowering_direction_certifies_nothing():
+    """A direction u (orthogonal to y) with u^T D u > 0 makes the search step t < 0, which
+    lowers the planar rig's second null direction (its v2^T D v2 < 0): no t leaves a single
+    eigenvalue below null_tol; the search stops at |t| > t_max and returns None."""
+    from rwhec_ros.core.sparse_certificate import _strengthen
+
+    c = _case("planar")
+    pattern = c["pattern"]
+    y = c["z"][pattern.nf:] / np.linalg.norm(c["z"][pattern.nf:])
+    D = handedness_direction(c["R"])
+    P = np.eye(len(y)) - np.outer(y, y)
+    w, V = np.linalg.eigh(P @ D @ P)
+    u = V[:, -1]
+    assert w[-1] > 0 and abs(u @ y) < 1e-12
+    _, v2 = _certificate_at(pattern, _dual(c))
+    assert v2 @ D @ v2 < 0
+    assert _strengthen(pattern, _dual(c), c["R"], u) is None
