@@ -173,6 +173,8 @@ _SC_SLOPE = "if not np.isfinite(slope) or abs(slope) < 1e-300:"
 _SC_TMAX = ("t_max = float(np.abs(data0).max()) / max(float(np.abs(hand[0]).max()), "
             "1e-300)")
 _SC_BELOW = "below = -1 if probe is None else probe.n_negative"
+_SC_TARGET = ("target = np.array([slot.get((int(a), int(b)), -1) for a, b in zip(P, Qi, "
+              "strict=True)])")
 EQUIVALENT.update({
     (_SC, "self.abs_rows_Q = np.asarray(abs(Qs).sum(axis=1)).ravel()", "1 -> 0"):
         "Q_s is stored exactly symmetric (sparse_problem: U + triu(U, 1)^T): column sums = row "
@@ -221,6 +223,14 @@ EQUIVALENT.update({
         "differs only when |t| = t0 4^k equals the ratio of two maxima t_max exactly",
     **{(_SC, _SC_BELOW, d): "any value other than 1 fails the screen `below == 1`: -2 and 0 "
        "act as -1" for d in ("1 -> 2", "1 -> 0")},
+    (_SC, "slot = {(int(a), int(b)): k for k, (a, b) in enumerate(zip(pp, qq, strict=True))}",
+     "True -> False"):
+        "pp and qq come from one np.triu_indices call: the same length, so strict= never raises",
+    (_SC, _SC_TARGET, "True -> False"):
+        "P and Qi are the parallel index arrays of one constraint pattern: the same length",
+    (_SC, _SC_TARGET, "1 -> 2"):
+        "the marker of a lower-half entry only has to be negative: keep = target >= 0 drops -2 "
+        "as it drops -1",
     (_SC, "and cert.lambda_min >= -opts.null_tol):", "GtE -> Gt"):
         "differs only when the estimated lambda_min equals -null_tol exactly (as for the same "
         "test in solve.py)",
