@@ -73,7 +73,8 @@ TESTS = {
                                    "test/core/test_verified.py", "test/core/test_certificate.py"],
     "rwhec_ros/core/solve.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
                                 "test/core/test_solve.py"],
-    "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_path.py",
+    "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_certificate_paths.py",
+                                             "test/core/test_sparse_path.py",
                                              "test/core/test_gauge.py"],
     "rwhec_ros/core/sparse_fast.py": ["test/core/test_sparse_path.py", "test/core/test_gauge.py"],
 }
@@ -163,6 +164,77 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     (_CERT, "z_err_rows = np.zeros(Z.shape[0])", "0 -> -1"):
         "Z is square: shape[-1] = shape[0]",
 }
+
+# the large-rig certificate (issue 19): rwhec_ros/core/sparse_certificate.py
+_SC = "rwhec_ros/core/sparse_certificate.py"
+_SC_EY = "e_y = float(min(c_y.sum(), ny * c_y.max(initial=0.0)) * (1.0 + gamma(ny)))"
+_SC_MU0 = "mu0 = gamma(64) * float(np.abs(data[pattern.diag[nf:]]).mean()) + 1e-300"
+_SC_SLOPE = "if not np.isfinite(slope) or abs(slope) < 1e-300:"
+_SC_TMAX = ("t_max = float(np.abs(data0).max()) / max(float(np.abs(hand[0]).max()), "
+            "1e-300)")
+_SC_BELOW = "below = -1 if probe is None else probe.n_negative"
+_SC_TARGET = ("target = np.array([slot.get((int(a), int(b)), -1) for a, b in zip(P, Qi, "
+              "strict=True)])")
+EQUIVALENT.update({
+    (_SC, "self.abs_rows_Q = np.asarray(abs(Qs).sum(axis=1)).ravel()", "1 -> 0"):
+        "Q_s is stored exactly symmetric (sparse_problem: U + triu(U, 1)^T): column sums = row "
+        "sums up to the summation order's rounding, far below gamma_2",
+    (_SC, "def matrix_data(self, Gamma: np.ndarray, lambda_s: float, t: float = 0.0,",
+     "0.0 -> 1.0"):
+        "t is read only under `t != 0.0 and hand is not None`; every call that omits t also "
+        "omits hand",
+    (_SC, "k_rows[nf: nf + 9 * n] = np.repeat(np.abs(Gamma).sum(axis=2), 3, axis=1).ravel()",
+     "2 -> 1"):
+        "Gamma = 0.5 (A + A^T) is exactly symmetric in floating point (asserted in "
+        "test_sparse_certificate_paths): row sums = column sums",
+    (_SC, "c *= 1.0 + gamma(4)", "4 -> 3"):
+        "1 + gamma_3 and 1 + gamma_4 are the same double (asserted in "
+        "test_sparse_certificate_paths)",
+    (_SC, "eig_term = float(ny * mu * (1.0 + gamma(2)))", "2 -> 1"):
+        "1 + gamma_1 and 1 + gamma_2 are the same double (asserted in "
+        "test_sparse_certificate_paths)",
+    (_SC, "short = c[:nf] > delta", "Gt -> GtE"):
+        "differs only when a rounding bound equals its shift exactly (then one more refit; the "
+        "theorem needs delta >= c, true either way)",
+    (_SC, _SC_EY, "0.0 -> 1.0"):
+        "ny = len(c_y), so sum(c_y) <= ny max(c_y) <= ny max(c_y, 1): the min is the sum either "
+        "way (initial= only matters for an empty c_y, and y is never empty)",
+    **{(_SC, _SC_MU0, d): "gamma_64 mean|Z_yy| >= 1e-284 for any cost with a rotation term "
+       "(the y diagonal holds the rotations' squared-residual weights): adding 1e-298, 1e-300, "
+       "1e-302 or subtracting 1e-300 gives the same double"
+       for d in ("Add -> Sub", "1e-300 -> x100", "1e-300 -> /100")},
+    (_SC, "null_dim, trivial_s = -1, False", "False -> True"):
+        "without a bound the status is ill_conditioned; trivial_s only adds a phrase to a "
+        "certified message",
+    (_SC, "c = V[:, :2].T @ (y / np.linalg.norm(y))", "2 -> 3"):
+        "only c[0] and c[1] are read: a third entry changes nothing",
+    (_SC, "c = V[:, :2].T @ (y / np.linalg.norm(y))", "Div -> Mult"):
+        "v is normalised and the test nv > 0 is scale-free: scaling y by |y|^2 instead of "
+        "1/|y| gives the same direction (up to rounding)",
+    **{(_SC, _SC_SLOPE, d): "the guard is redundant: a NaN slope gives a NaN t and |slope| < "
+       "1e-298 a first t = 2 null_tol/|slope| > 1e292 > t_max = max|Z| / max|D| (max|D| >= "
+       "1/2, the column-norm weights): the loop does not run and None is returned either way "
+       "(the slope is finite: v2 is a unit vector, D's entries are bounded by |R_ij| <= 1)"
+       for d in ("Or -> And", "Lt -> LtE", "1e-300 -> x100", "1e-300 -> /100")},
+    **{(_SC, _SC_TMAX, d): "max|D| >= 1/2 (the -1/2 weights of the column-norm constraints): "
+       "the 1e-300 floor of max(., 1e-300) never applies" for d in ("1e-300 -> x100",
+                                                                   "1e-300 -> /100")},
+    (_SC, "while abs(t) <= t_max:", "LtE -> Lt"):
+        "differs only when |t| = t0 4^k equals the ratio of two maxima t_max exactly",
+    **{(_SC, _SC_BELOW, d): "any value other than 1 fails the screen `below == 1`: -2 and 0 "
+       "act as -1" for d in ("1 -> 2", "1 -> 0")},
+    (_SC, "slot = {(int(a), int(b)): k for k, (a, b) in enumerate(zip(pp, qq, strict=True))}",
+     "True -> False"):
+        "pp and qq come from one np.triu_indices call: the same length, so strict= never raises",
+    (_SC, _SC_TARGET, "True -> False"):
+        "P and Qi are the parallel index arrays of one constraint pattern: the same length",
+    (_SC, _SC_TARGET, "1 -> 2"):
+        "the marker of a lower-half entry only has to be negative: keep = target >= 0 drops -2 "
+        "as it drops -1",
+    (_SC, "and cert.lambda_min >= -opts.null_tol):", "GtE -> Gt"):
+        "differs only when the estimated lambda_min equals -null_tol exactly (as for the same "
+        "test in solve.py)",
+})
 
 
 @dataclass

@@ -247,7 +247,7 @@ def test_large_rig_certified_on_the_sparse_path():
 
 
 
-@pytest.mark.parametrize("t", [0.0, 0.37])
+@pytest.mark.parametrize("t", [0.0, 0.37, -0.37])
 def test_sparse_certificate_matrix_and_its_rounding_rows(t):
     """``matrix_data`` against dense matrices built entry by entry from the module docstring:
     ``Z = Q_s - K(Gamma, lambda_s) - t D`` (K holds Gamma_l[a, b] at (3a+i, 3b+i) of block l and
