@@ -690,18 +690,43 @@ def main(argv: list[str] | None = None) -> int:
     mutants = [m for f in files for m in generate(f, TARGETS[f])]
     if args.limit:
         mutants = mutants[: args.limit]
-    # keyed without the line number (edits above a line move it); the latest record of a key
-    # wins (logs of successive runs may be concatenated); only killed mutants are skipped
-    earlier: dict[tuple[str, str, str], tuple[str, float]] = {}
+    # A mutant's record in earlier logs: the latest one with the same file, line number, source
+    # text, mutation and occurrence (the k-th such mutant of that line: one line can hold the
+    # same mutation twice); failing that (records written before the occurrence was logged), the
+    # latest one of that line; failing that (edits above the line moved it), the latest one with
+    # the same text, which may sit on another line. Logs of successive runs may be concatenated;
+    # only killed mutants are skipped.
+    occurrence: list[int] = []
+    seen: dict[tuple[str, int, str, str], int] = {}
+    for m in mutants:
+        k = (m.file, m.lineno, m.source, m.description)
+        occurrence.append(seen.get(k, 0))
+        seen[k] = occurrence[-1] + 1
+    earlier_by: tuple[dict, dict, dict] = ({}, {}, {})
     if args.rerun_survivors:
         for line in args.rerun_survivors.read_text().splitlines():
             r = json.loads(line)
-            earlier[(r["file"], r["source"], r["description"])] = (r["outcome"], r["seconds"])
+            got = (r["outcome"], r["seconds"])
+            text_key = (r["file"], r["source"], r["description"])
+            earlier_by[2][text_key] = got
+            earlier_by[1][(r["lineno"], *text_key)] = got
+            if "occurrence" in r:
+                earlier_by[0][(r["occurrence"], r["lineno"], *text_key)] = got
+
+    def earlier(i: int) -> tuple[str, float] | None:
+        m = mutants[i]
+        text_key = (m.file, m.source, m.description)
+        for table, key in zip(earlier_by, ((occurrence[i], m.lineno, *text_key),
+                                           (m.lineno, *text_key), text_key), strict=True):
+            if key in table:
+                return table[key]
+        return None
+
     if args.report_only:
         # the report of earlier runs' logs (latest record per mutant), nothing is run
         results = []
-        for m in mutants:
-            got = earlier.get((m.file, m.source, m.description))
+        for i, m in enumerate(mutants):
+            got = earlier(i)
             outcome, dt = got if got is not None else ("not run", 0.0)
             results.append((m, outcome, dt, -1))
         cover = CoverageMap.load(args.coverage_map) if args.coverage_map else None
@@ -741,7 +766,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def task(i: int):
         m = mutants[i]
-        before, before_s = earlier.get((m.file, m.source, m.description), (None, 0.0))
+        before, before_s = earlier(i) or (None, 0.0)
         tests = None
         if before is not None and before.startswith("killed"):
             outcome, dt = "killed (earlier run)", before_s  # the earlier run's test time
@@ -760,7 +785,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.log:
             with log_lock, args.log.open("a") as fh:
                 fh.write(json.dumps({"file": m.file, "lineno": m.lineno, "source": m.source,
-                                     "description": m.description, "outcome": outcome,
+                                     "description": m.description,
+                                     "occurrence": occurrence[i], "outcome": outcome,
                                      "seconds": round(dt, 1), "tests": n_tests}) + "\n")
         done = sum(r is not None for r in results)
         print(f"[{done}/{len(mutants)}] {m.file}:{m.lineno} {m.description}: {outcome} "
