@@ -114,13 +114,6 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
        "the rounding differs)" for d in ("Gt -> GtE", "drop abs", "drop USub", "1 -> 2",
                                           "1 -> 0", "Mult -> Div", "1e-08 -> x100",
                                           "1e-08 -> /100")},
-    ("rwhec_ros/core/solve.py", "if cert.status is Status.NOT_TIGHT and cert.lambda_min >= "
-     "-options.certificate.null_tol:", "GtE -> Gt"):
-        "differs only when a computed eigenvalue equals -null_tol exactly (then the extra "
-        "strengthening attempt of the other side is harmless: it is itself certified or ignored)",
-    ("rwhec_ros/core/solve.py", "if problem.unknown_scale and not res.scale > options.min_scale:",
-     "Gt -> GtE"):
-        "differs only when the estimated scale equals min_scale exactly",
     **{("rwhec_ros/core/verified.py", src, d): why for src, d, why in [
         ("if n == 0 or not np.any(A):", "Or -> And",
          "for a zero A the power iteration stops at once (top = 0) and returns 0 as well"),

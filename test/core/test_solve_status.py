@@ -3,6 +3,7 @@ form runs, what a failed or unstrengthened fast solve reports, which rotations a
 determined (crafted Hessian eigenpairs at the thresholds), when that analysis runs at all, and the
 notes on the translation priors (issue 19: each of these once changed without a test noticing)."""
 
+import dataclasses
 import time
 from types import SimpleNamespace
 
@@ -238,3 +239,48 @@ def test_priors_that_disagree_are_reported_beyond_a_tenth_of_a_millimetre():
             assert "[0.0, 0.447, 0.894]" in notes[1]
         else:
             assert notes == []
+
+
+def test_strengthening_is_tried_down_to_minus_null_tol(monkeypatch):
+    """An inconclusive fast certificate whose smallest eigenvalue is at -null_tol (the tolerance
+    counts as positive semidefinite) gets the handedness multipliers; just below, a negative
+    eigenvalue, it does not (no SDP fallback here, so the first certificate is returned)."""
+    rng = np.random.default_rng(12)
+    problem, _ = random_instance(rng, 3, 2, n_per_edge=15, sigma=0.01, kappa=125)
+    real = solve_module._certify
+    for lam_min, strengthened in ((-NULL_TOL, True), (np.nextafter(-NULL_TOL, -1.0), False)):
+        calls = []
+
+        def first_inconclusive(*args, **kwargs):
+            cert = real(*args, **kwargs)
+            calls.append(cert)
+            if len(calls) == 1:
+                cert = dataclasses.replace(cert, status=Status.NOT_TIGHT, lambda_min=lam_min,
+                                           message="crafted: not tight")
+            return cert
+
+        monkeypatch.setattr(solve_module, "_certify", first_inconclusive)
+        res = solve(problem, SolveOptions(fallback_to_sdp=False))
+        assert len(calls) == (2 if strengthened else 1)
+        assert ("strengthen" in res.timing_s) is strengthened
+        if strengthened:  # the second certificate (of the real Z) is certified and replaces it
+            assert res.certified and res.notes == [
+                "fast certificate strengthened with handedness multipliers"]
+        else:
+            assert res.certificate.status is Status.NOT_TIGHT and res.notes == []
+
+
+def test_unknown_scale_at_the_floor_is_not_identifiable():
+    """``min_scale`` is exclusive: an estimate equal to it is never certified, the next double
+    below it as the floor leaves the certificate alone."""
+    rng = np.random.default_rng(11)
+    problem, _ = random_instance(rng, 2, 1, n_per_edge=20, sigma=0.01, kappa=125,
+                                 unknown_scale=True, alpha=0.5)
+    res = solve(problem)
+    assert res.certified and 0.4 < res.scale < 0.6  # alpha = 0.5, 1 cm noise
+    at = solve(problem, SolveOptions(min_scale=res.scale))
+    assert at.scale == res.scale  # the same deterministic solve; only the floor differs
+    assert at.certificate.status is Status.NOT_IDENTIFIABLE
+    assert f"alpha = {res.scale:.4g} is not above the floor" in at.certificate.message
+    below = solve(problem, SolveOptions(min_scale=float(np.nextafter(res.scale, 0.0))))
+    assert below.certified, below.certificate.message
