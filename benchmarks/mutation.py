@@ -152,29 +152,31 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
          "False -> True", "the right-hand sides of ARPACK are finite"),
     ]},
     # -- the status decisions of solve.py (issue 19, second pass) --
-    (_SOLVE, 'if form == "arrow" and split is None:', "And -> Or"):
-        "arrow_split returns None only below 2 frames and every Problem has an X and a Y frame: "
-        "the split then computed for the full or reduced form is never used",
-    (_SOLVE, "if abs(v[-1]) > 1e-8 * np.linalg.norm(v):", "Gt -> Lt"):
-        "dividing only when |s| <= 1e-8 |v| is again a common factor (removed by "
-        "rotations_from_vector, as for this line's other mutants) unless s is exactly 0.0",
     **{(_SOLVE, "v = v / v[-1]", d):
        "a common factor of the null vector (s, or the entry v[1], v[-2], v[0]), removed by "
        "rotations_from_vector's mean cube-root determinant with its sign; only an entry that is "
        "exactly 0.0 would differ" for d in ("Div -> Mult", "drop USub", "1 -> 2", "1 -> 0")},
-    (_SOLVE, "t = np.concatenate([res.X, res.Y])[:, :3, 3].reshape(-1)", "1 -> 2"):
-        "numpy reads any negative size as the inferred one: reshape(-2) is reshape(-1)",
-    (_SOLVE, "v = V[:, i].reshape(-1, 3)", "1 -> 2"):
-        "numpy reads any negative size as the inferred one: reshape(-2, 3) is reshape(-1, 3)",
-    (_SOLVE, "problem.frame_names, np.concatenate([res.X, res.Y]), strict=True)}", "True -> False"):
-        "frame_names has M + P names and X, Y hold M + P transforms by construction: zip never "
-        "sees unequal lengths",
-    (_SOLVE, "if abs(got - p.value_m) > 1e-4:", "Gt -> GtE"):
-        "differs only when a prior is missed by exactly 1e-4 m",
-    (_SOLVE, "weak = np.where(np.abs(w) <= 10.0 * null_tol)[0]", "0 -> -1"):
-        "np.where of one condition returns a 1-tuple: [-1] is [0]",
-    (_SOLVE, "if par and par[0][int(np.argmax(np.abs(par[0])))] < 0:", "Lt -> LtE"):
-        "the largest-magnitude component of an axis of norm >= 0.1 is never 0",
+    **{(_SOLVE, src, d): why for src, d, why in [
+        ('if form == "arrow" and split is None:', "And -> Or",
+         "arrow_split returns None only below 2 frames and every Problem has an X and a Y frame: "
+         "the split then computed for the full or reduced form is never used"),
+        ("if abs(v[-1]) > 1e-8 * np.linalg.norm(v):", "Gt -> Lt",
+         "dividing only when |s| <= 1e-8 |v| is again a common factor (removed by "
+         "rotations_from_vector, as for this line's other mutants) unless s is exactly 0.0"),
+        ("t = np.concatenate([res.X, res.Y])[:, :3, 3].reshape(-1)", "1 -> 2",
+         "numpy reads any negative size as the inferred one: reshape(-2) is reshape(-1)"),
+        ("v = V[:, i].reshape(-1, 3)", "1 -> 2",
+         "numpy reads any negative size as the inferred one: reshape(-2, 3) is reshape(-1, 3)"),
+        ("problem.frame_names, np.concatenate([res.X, res.Y]), strict=True)}", "True -> False",
+         "frame_names has M + P names and X, Y hold M + P transforms by construction: zip never "
+         "sees unequal lengths"),
+        ("if abs(got - p.value_m) > 1e-4:", "Gt -> GtE",
+         "differs only when a prior is missed by exactly 1e-4 m"),
+        ("weak = np.where(np.abs(w) <= 10.0 * null_tol)[0]", "0 -> -1",
+         "np.where of one condition returns a 1-tuple: [-1] is [0]"),
+        ("if par and par[0][int(np.argmax(np.abs(par[0])))] < 0:", "Lt -> LtE",
+         "the largest-magnitude component of an axis of norm >= 0.1 is never 0"),
+    ]},
     (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> 1"):
         "Z is square (the eigensolver refuses anything else): shape[1] = shape[0]",
     (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> -1"):
