@@ -176,6 +176,10 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
          "np.where of one condition returns a 1-tuple: [-1] is [0]"),
         ("if par and par[0][int(np.argmax(np.abs(par[0])))] < 0:", "Lt -> LtE",
          "the largest-magnitude component of an axis of norm >= 0.1 is never 0"),
+        ("if par and par[0][int(np.argmax(np.abs(par[0])))] < 0:", "0 -> -1",
+         "(of this line's two '0 -> -1' mutants the one surviving: par[-1][i], i the first axis' "
+         "largest component; test_solve_status kills the other) the sign shows only when every "
+         "axis reads the same, and then par[-1][i] has the sign of par[0][i] (|.| >= 1/sqrt 3)"),
     ]},
     (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> 1"):
         "Z is square (the eigensolver refuses anything else): shape[1] = shape[0]",

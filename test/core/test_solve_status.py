@@ -143,6 +143,14 @@ def test_rotation_gauge_words_name_the_frames_and_a_canonical_axis(two_frames):
     V[:, 0] = [0.1, 0, 0, 0, 0, np.sqrt(1 - 0.1**2)]  # exactly 0.1 on the tag: both, two axes
     assert _words(two_frames, _FLAT, V) == ("rotation of x0, y0 about different axes (in "
                                             "their carriers) not determined by the data")
+    # a near tie between two components: the first frame's largest one (x) decides the sign,
+    # although the second frame's largest is y (both axes read the same to two decimals)
+    V[:, 0] = [0.7072, -0.7070, 0.01, 0.7070, -0.7072, 0.01] / np.sqrt(2.0)
+    assert _words(two_frames, _FLAT, V) == ("rotation of x0, y0 about [+0.71, -0.71, +0.01] (in "
+                                            "their carriers) not determined by the data")
+    V[:, 0] = -V[:, 0]
+    assert _words(two_frames, _FLAT, V) == ("rotation of x0, y0 about [+0.71, -0.71, +0.01] (in "
+                                            "their carriers) not determined by the data")
 
 
 @pytest.mark.parametrize("status,null_dim,analysed", [
