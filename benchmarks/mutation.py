@@ -71,16 +71,19 @@ TESTS = {
                                       "test/core/test_solve.py"],
     "rwhec_ros/core/verified.py": ["test/core/test_verified_rounding.py",
                                    "test/core/test_verified.py", "test/core/test_certificate.py"],
-    "rwhec_ros/core/solve.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
-                                "test/core/test_solve.py"],
+    "rwhec_ros/core/solve.py": ["test/core/test_solve_status.py", "test/core/test_certificate.py",
+                                "test/core/test_gauge.py", "test/core/test_solve.py"],
     "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_certificate_paths.py",
                                              "test/core/test_sparse_path.py",
                                              "test/core/test_gauge.py"],
-    "rwhec_ros/core/sparse_fast.py": ["test/core/test_sparse_path.py", "test/core/test_gauge.py"],
+    "rwhec_ros/core/sparse_fast.py": ["test/core/test_sparse_fast.py",
+                                      "test/core/test_sparse_path.py",
+                                      "test/core/test_gauge.py"],
 }
 
 #: Mutants argued equivalent (no observable change), keyed by (file, source line, mutation).
 _CERT = "rwhec_ros/core/certificate.py"
+_SOLVE = "rwhec_ros/core/solve.py"
 _TERMS = "terms = int(np.diff(constraints.C.tocsr().indptr).max(initial=1))"
 EQUIVALENT: dict[tuple[str, str, str], str] = {
     (_CERT, "block_lower: float = 1.0", "1.0 -> x100"):
@@ -111,13 +114,6 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
        "the rounding differs)" for d in ("Gt -> GtE", "drop abs", "drop USub", "1 -> 2",
                                           "1 -> 0", "Mult -> Div", "1e-08 -> x100",
                                           "1e-08 -> /100")},
-    ("rwhec_ros/core/solve.py", "if cert.status is Status.NOT_TIGHT and cert.lambda_min >= "
-     "-options.certificate.null_tol:", "GtE -> Gt"):
-        "differs only when a computed eigenvalue equals -null_tol exactly (then the extra "
-        "strengthening attempt of the other side is harmless: it is itself certified or ignored)",
-    ("rwhec_ros/core/solve.py", "if problem.unknown_scale and not res.scale > options.min_scale:",
-     "Gt -> GtE"):
-        "differs only when the estimated scale equals min_scale exactly",
     **{("rwhec_ros/core/verified.py", src, d): why for src, d, why in [
         ("if n == 0 or not np.any(A):", "Or -> And",
          "for a zero A the power iteration stops at once (top = 0) and returns 0 as well"),
@@ -154,6 +150,36 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         ("check_finite=False)", "False -> True", "Z is finite here (checked by the callers)"),
         ("(d, d), matvec=lambda b: scipy.linalg.cho_solve(factor, b, check_finite=False),",
          "False -> True", "the right-hand sides of ARPACK are finite"),
+    ]},
+    # -- the status decisions of solve.py (issue 19, second pass) --
+    **{(_SOLVE, "v = v / v[-1]", d):
+       "a common factor of the null vector (s, or the entry v[1], v[-2], v[0]), removed by "
+       "rotations_from_vector's mean cube-root determinant with its sign; only an entry that is "
+       "exactly 0.0 would differ" for d in ("Div -> Mult", "drop USub", "1 -> 2", "1 -> 0")},
+    **{(_SOLVE, src, d): why for src, d, why in [
+        ('if form == "arrow" and split is None:', "And -> Or",
+         "arrow_split returns None only below 2 frames and every Problem has an X and a Y frame: "
+         "the split then computed for the full or reduced form is never used"),
+        ("if abs(v[-1]) > 1e-8 * np.linalg.norm(v):", "Gt -> Lt",
+         "dividing only when |s| <= 1e-8 |v| is again a common factor (removed by "
+         "rotations_from_vector, as for this line's other mutants) unless s is exactly 0.0"),
+        ("t = np.concatenate([res.X, res.Y])[:, :3, 3].reshape(-1)", "1 -> 2",
+         "numpy reads any negative size as the inferred one: reshape(-2) is reshape(-1)"),
+        ("v = V[:, i].reshape(-1, 3)", "1 -> 2",
+         "numpy reads any negative size as the inferred one: reshape(-2, 3) is reshape(-1, 3)"),
+        ("problem.frame_names, np.concatenate([res.X, res.Y]), strict=True)}", "True -> False",
+         "frame_names has M + P names and X, Y hold M + P transforms by construction: zip never "
+         "sees unequal lengths"),
+        ("if abs(got - p.value_m) > 1e-4:", "Gt -> GtE",
+         "differs only when a prior is missed by exactly 1e-4 m"),
+        ("weak = np.where(np.abs(w) <= 10.0 * null_tol)[0]", "0 -> -1",
+         "np.where of one condition returns a 1-tuple: [-1] is [0]"),
+        ("if par and par[0][int(np.argmax(np.abs(par[0])))] < 0:", "Lt -> LtE",
+         "the largest-magnitude component of an axis of norm >= 0.1 is never 0"),
+        ("if par and par[0][int(np.argmax(np.abs(par[0])))] < 0:", "0 -> -1",
+         "(of this line's two '0 -> -1' mutants the one surviving: par[-1][i], i the first axis' "
+         "largest component; test_solve_status kills the other) the sign shows only when every "
+         "axis reads the same, and then par[-1][i] has the sign of par[0][i] (|.| >= 1/sqrt 3)"),
     ]},
     (_CERT, "reduced = ExactReduction(Z.shape[0])", "0 -> 1"):
         "Z is square (the eigensolver refuses anything else): shape[1] = shape[0]",

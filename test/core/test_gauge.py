@@ -190,8 +190,15 @@ def test_local_solver_exception_falls_back_or_fails(monkeypatch):
     res = solve(problem)
     assert res.certified and any("local solver failed" in n for n in res.notes)
     assert any("SDP form" in n for n in res.notes)  # the SDP took over
+    t0 = time.perf_counter()
     res = solve(problem, SolveOptions(fallback_to_sdp=False))
+    wall = time.perf_counter() - t0
     assert res.certificate.status is Status.SOLVER_FAILED
+    assert res.certificate.message == "the local solver failed: singular matrix"
+    assert res.notes == ["local solver failed (LinAlgError: singular matrix)"]
+    assert res.solver_status == "failed" and res.mode == "fast"
+    assert np.all(np.isfinite(res.X)) and np.all(np.isfinite(res.Y))
+    _assert_failed_result(res, wall)
 
 
 def test_nan_sdp_multipliers_become_solver_failed(monkeypatch):
