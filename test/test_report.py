@@ -308,3 +308,45 @@ def test_cross_validation_labels_never_overlap():
             assert not a.overlaps(b), (a, b)
     frame = ax.get_window_extent(renderer)
     assert all(frame.x0 <= b.x0 and b.x1 <= frame.x1 + 1 for b in boxes)  # inside the axes
+
+
+def test_row_cuts_fall_in_the_blank_space_between_rows():
+    from rwhec_ros.report.images import row_cuts
+
+    # 100 rows, white; rows 10-29 and 60-89 drawn (the axes 12-27 and 62-87, their titles and
+    # labels reaching 2 rows further); a drawn line across the space at row 40
+    img = np.full((100, 8, 4), 255, dtype=np.uint8)
+    img[10:30, 2:6] = 0
+    img[60:90, 1:7] = 0
+    img[40] = 0
+    cells = [(1 - 12 / 100, 1 - 28 / 100), (1 - 62 / 100, 1 - 88 / 100)]  # (top, bottom)
+    cuts = row_cuts(img, cells)
+    # the middle of the longer blank run between the rows (41-59, not 30-39)
+    assert cuts == [0, 50, 100]
+    # nothing blank between the axes: the middle of the space
+    img[28:62] = 0
+    assert row_cuts(img, cells) == [0, 45, 100]
+
+
+def test_one_draw_gives_the_png_the_page_figure_and_the_sections(assessed):
+    from rwhec_ros.report import edge_residuals, fit_of_document
+    from rwhec_ros.report.figure import BANNER_COLORS
+    from rwhec_ros.report.images import render_report
+
+    problem, doc, _ = assessed
+    X, Y, scale = estimates_from_document(doc, problem)
+    images = render_report(doc, problem, edge_residuals(problem, X, Y, scale),
+                           fit_of_document(doc, problem), None, "t", 80)
+    assert set(images.sections) == {"edges"}  # no corners: no reprojection section
+    pictures = [images.png, images.page, images.sections["edges"]]
+    assert all(p.shape[1] == 1440 and p.shape[2] == 4 for p in pictures)  # 18 inches at 80 dpi
+    # the page's figure and the section are parts of the PNG: together not taller than it
+    assert images.page.shape[0] + images.sections["edges"].shape[0] < images.png.shape[0]
+    # the banner (its background colour) is in the PNG only; the page gives it as text
+    bg = np.array([int(BANNER_COLORS[doc["verdict"]][1][i:i + 2], 16) for i in (1, 3, 5)])
+    has_banner = [bool(np.all(p[..., :3] == bg, axis=-1).sum() > 1440 * 20) for p in pictures]
+    assert has_banner == [True, False, False]
+    # the page's rows are the PNG's, pixel for pixel (cut from the same draw): its last row (the
+    # cross-validation) ends the PNG too
+    tail = images.page[-200:]
+    assert np.array_equal(tail, images.png[-200:])

@@ -132,10 +132,17 @@ def fed_session(recording, tmp_path_factory):
     return session, outcomes
 
 
+@pytest.fixture(scope="module")
+def calibrated(fed_session):
+    """``calibrate()`` of the fed session, once (the tests below read its outputs)."""
+    session, _ = fed_session
+    return session.calibrate()
+
+
 # --- end to end --------------------------------------------------------------------------------
 
 
-def test_end_to_end_with_ros_messages(fed_session, recording):
+def test_end_to_end_with_ros_messages(fed_session, recording, calibrated):
     rig, poses, frames = recording
     session, outcomes = fed_session
     counters = session.counters()
@@ -147,7 +154,7 @@ def test_end_to_end_with_ros_messages(fed_session, recording):
     assert counters["pairs_kept"] > 100
     assert {o.status for o in outcomes} <= {"pending", "no_tags"}
 
-    out = session.calibrate()
+    out = calibrated
     assert out.success, out.message
     result = out.result
     assert result.certified, out.message
@@ -186,9 +193,9 @@ def test_end_to_end_with_ros_messages(fed_session, recording):
     assert f"{used} pairs on" in out.message
 
 
-def test_static_transform_launch_reproduces_the_result(fed_session):
+def test_static_transform_launch_reproduces_the_result(fed_session, calibrated):
     session, _ = fed_session
-    out = session.calibrate()
+    out = calibrated
     assert out.success, out.message
     parsed = launch_transforms(Path(out.files["launch"]).read_text())
     expected = session.published_transforms(out.result)
@@ -200,7 +207,7 @@ def test_static_transform_launch_reproduces_the_result(fed_session):
         assert np.allclose(T_launch, T, atol=1e-12)
 
 
-def test_robot_description_files_reproduce_the_published_frames(fed_session):
+def test_robot_description_files_reproduce_the_published_frames(fed_session, calibrated):
     """Issue 12 item 4: beside the launch file, a URDF/xacro snippet and a frames YAML of the
     same frames; read back independently (xml.etree / yaml + scipy), each transform to 1e-9."""
     import xml.etree.ElementTree as ET
@@ -209,7 +216,7 @@ def test_robot_description_files_reproduce_the_published_frames(fed_session):
     from scipy.spatial.transform import Rotation
 
     session, _ = fed_session
-    out = session.calibrate()
+    out = calibrated
     assert out.success, out.message
     expected = {child: (parent, T) for parent, child, T in session.published_transforms(
         out.result, out.verdict)}
@@ -239,11 +246,12 @@ def test_robot_description_files_reproduce_the_published_frames(fed_session):
         assert np.allclose(f["xyz"], T[:3, 3], atol=1e-9) and np.allclose(R, T[:3, :3], atol=1e-9)
 
 
-def test_outputs_are_never_overwritten(fed_session):
+def test_outputs_are_never_overwritten(fed_session, calibrated):
     session, _ = fed_session
     root = Path(session.config.output.directory)
+    first = calibrated  # written before: its files are among those that must stay
     before = {p: p.read_bytes() for p in root.rglob("*") if p.is_file()}
-    first = session.calibrate()
+    assert Path(first.files["result"]) in before
     second = session.calibrate()
     d1, d2 = Path(first.files["result"]).parent, Path(second.files["result"]).parent
     assert d1 != d2  # same clock reading, still two directories

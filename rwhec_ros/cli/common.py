@@ -460,6 +460,8 @@ def calibrate_session(say: Printer, session, paths, *, force: bool,
     if report and "dataset" in outcome.files and "result" in outcome.files:
         problem = Dataset.load(outcome.files["dataset"]).to_problem(min_pairs=solver.min_pairs)
         written = session_output_paths(Path(outcome.files["result"]).parent)
-        write_report(say, yaml.safe_load(outcome.result_yaml), problem, written.report_png,
-                     written.report_html)
+        # PyYAML's C loader where it has one: the same mapping as safe_load, ~4x faster
+        doc = yaml.load(outcome.result_yaml,
+                        Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        write_report(say, doc, problem, written.report_png, written.report_html)
     return exit_code(outcome.verdict), outcome

@@ -11,7 +11,8 @@ the per-edge boxes and the reprojection bars in their own sections.
 
 Modules: :mod:`.residuals` (the numbers), :mod:`.figure` (the PNG), :mod:`.edges` (per-edge
 boxes, reprojection per camera), :mod:`.accuracy` (stds, cross-validation, guidance),
-:mod:`.labels` (labels that do not overlap), :mod:`.page` (the HTML).
+:mod:`.labels` (labels that do not overlap), :mod:`.images` (one draw of the figure, cut into
+the PNG's, the page's and the sections' pictures), :mod:`.page` (the HTML).
 """
 
 from __future__ import annotations
@@ -23,8 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.problem import Problem
-from .edges import write_section_figures
-from .figure import draw_report
+from .images import render_report, save_png
 from .page import render_page
 from .residuals import (
     EdgeResiduals,
@@ -90,12 +90,12 @@ def write_report(
         from ..core.identifiability import analyze
 
         identifiability = analyze(problem, solution=(X, Y, scale))
-    draw_report(png_path, doc, problem, residuals, fit, identifiability, title, dpi)
+    images = render_report(doc, problem, residuals, fit, identifiability, title, dpi)
+    save_png(png_path, images.png, dpi)
     with tempfile.TemporaryDirectory() as tmp:
-        figure = Path(tmp) / "figure.png"  # without the banner and summary: the page has them
-        draw_report(figure, doc, problem, residuals, fit, identifiability, title, dpi,
-                    with_text=False)
-        sections = write_section_figures(Path(tmp), doc, residuals, fit, dpi)
+        figure = save_png(Path(tmp) / "figure.png", images.page, dpi)
+        sections = {name: save_png(Path(tmp) / f"{name}.png", image, dpi)
+                    for name, image in images.sections.items()}
         page = render_page(doc, problem, residuals, fit, identifiability, figure, title,
                            sections=sections)
     html_path.write_text(page, encoding="utf-8")

@@ -58,18 +58,23 @@ def draw_std_bars(ax, doc: Mapping[str, Any], what: str) -> None:
                         ("std_rotation_deg", 1.0, "deg"))
     n = len(frames)
     h = 0.26
-    finite_max = 0.0
-    for i, f in enumerate(frames):
-        pred = scale * _values(f[key])
-        post = scale * _values((f.get("a_posteriori") or {}).get(key, [None] * 3))
-        for a in range(3):
-            y = i + (a - 1) * h
-            if np.isfinite(pred[a]):
-                ax.barh(y, pred[a], height=h, color=_AXIS_COLORS[a])
-                finite_max = max(finite_max, pred[a])
-                if np.isfinite(post[a]):
-                    ax.plot([post[a]] * 2, [y - h / 2, y + h / 2], color="black", lw=1.5)
-                    finite_max = max(finite_max, post[a])
+    pred = scale * np.array([_values(f[key]) for f in frames]).reshape(n, 3)
+    post = scale * np.array([_values((f.get("a_posteriori") or {}).get(key, [None] * 3))
+                             for f in frames]).reshape(n, 3)
+    post[~np.isfinite(pred)] = np.nan  # a tick only on a bar
+    y = np.arange(n)[:, None] + (np.arange(3)[None, :] - 1) * h  # rows: frames, columns: axes
+    for a in range(3):  # one bar container per axis colour
+        bar = np.isfinite(pred[:, a])
+        if bar.any():
+            ax.barh(y[bar, a], pred[bar, a], height=h, color=_AXIS_COLORS[a])
+    tick = np.isfinite(post)
+    if tick.any():  # the a-posteriori ticks as one line, NaN between the ticks
+        xs = np.repeat(post[tick], 3)
+        ys = np.stack([y[tick] - h / 2, y[tick] + h / 2, np.full(tick.sum(), np.nan)], axis=1)
+        xs[2::3] = np.nan
+        ax.plot(xs, ys.ravel(), color="black", lw=1.5)
+    finite_max = float(np.max(np.concatenate([pred[np.isfinite(pred)], post[tick]]),
+                              initial=0.0))
     xmax = 1.4 * finite_max if finite_max > 0 else 1.0  # the right part: the legend
     for i, f in enumerate(frames):
         pred = _values(f[key])

@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,8 +22,7 @@ from ..core.verdict import FitStatistics
 from .residuals import EdgeResiduals, natural_key
 
 __all__ = ["EDGE_ROWS", "ranked_edges", "edge_rows", "edge_boxes_height", "draw_edge_boxes",
-           "has_reprojection", "reprojection_height", "draw_reprojection", "indented_axes",
-           "write_section_figures"]
+           "has_reprojection", "reprojection_height", "draw_reprojection", "indented_axes"]
 
 #: Most edges drawn as boxes (the worst ones); the rest are in the page's table.
 EDGE_ROWS = 24
@@ -67,36 +65,6 @@ def indented_axes(fig, cell, inches: float):
     box = cell.get_position(fig)
     dx = inches / fig.get_figwidth()
     return fig.add_axes((box.x0 + dx, box.y0, box.width - dx, box.height))
-
-
-def write_section_figures(directory: Path, doc: Mapping[str, Any],
-                          residuals: Sequence[EdgeResiduals], fit: FitStatistics,
-                          dpi: int) -> dict[str, Path]:
-    """The HTML page's section figures in ``directory``: ``"edges"`` (the per-edge residual
-    boxes, translation and rotation side by side) and, with a reprojection error in ``doc``,
-    ``"reprojection"``; returns their paths by name."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    out = {}
-    h = edge_boxes_height(edge_rows(residuals)) + 0.9
-    fig = Figure(figsize=(18, h))
-    FigureCanvasAgg(fig)
-    gs = fig.add_gridspec(1, 2, left=0.03, right=0.98, top=1 - 0.45 / h, bottom=0.6 / h,
-                          wspace=0.12)
-    for col, what in ((0, "translation"), (1, "rotation")):
-        draw_edge_boxes(indented_axes(fig, gs[0, col], 1.0), residuals, fit, what)
-    out["edges"] = Path(directory) / "edges.png"
-    fig.savefig(str(out["edges"]), dpi=dpi)
-    if has_reprojection(doc):
-        h = reprojection_height(len(doc["reprojection"])) + 0.9
-        fig = Figure(figsize=(13, h))
-        FigureCanvasAgg(fig)
-        ax = fig.add_axes((0.1, 0.6 / h, 0.6, 1 - 1.05 / h))
-        draw_reprojection(ax, doc)
-        out["reprojection"] = Path(directory) / "reprojection.png"
-        fig.savefig(str(out["reprojection"]), dpi=dpi)
-    return out
 
 
 def draw_edge_boxes(ax, residuals: Sequence[EdgeResiduals], fit: FitStatistics, what: str,

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import textwrap
 from collections.abc import Mapping, Sequence
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -48,7 +48,7 @@ from .edges import (
 from .labels import place_labels
 from .residuals import EdgeResiduals, natural_key
 
-__all__ = ["BANNER_COLORS", "draw_report", "place_labels"]
+__all__ = ["BANNER_COLORS", "ReportFigure", "build_report_figure", "place_labels"]
 
 #: Banner colours (text, background) of each verdict level.
 BANNER_COLORS = {
@@ -125,17 +125,26 @@ def _color_ticks(ax, levels: Mapping[str, str]) -> None:
 
 
 def _grid(ax, x_names, y_names, colors, title: str, *, hatch=None, frame=None) -> None:
+    from matplotlib.collections import PatchCollection
     from matplotlib.patches import Rectangle
 
     M, P = len(x_names), len(y_names)
+    # one collection per hatch (and one of the frames): a patch per cell draws far slower
+    cells: dict[Any, tuple[list, list]] = {}
+    framed = []
     for k in range(P):
         for j in range(M):
-            ax.add_patch(Rectangle((j, k), 1, 1, facecolor=colors[k][j], edgecolor="0.55",
-                                   linewidth=0.5,
-                                   hatch=None if hatch is None else hatch[k][j]))
+            group = cells.setdefault(None if hatch is None else hatch[k][j], ([], []))
+            group[0].append(Rectangle((j, k), 1, 1))
+            group[1].append(colors[k][j])
             if frame is not None and frame[k][j]:
-                ax.add_patch(Rectangle((j + 0.06, k + 0.06), 0.88, 0.88, fill=False,
-                                       edgecolor="black", linewidth=2.2))
+                framed.append(Rectangle((j + 0.06, k + 0.06), 0.88, 0.88))
+    for h, (rects, faces) in cells.items():
+        ax.add_collection(PatchCollection(rects, facecolors=faces, edgecolors="0.55",
+                                          linewidths=0.5, hatch=h), autolim=False)
+    if framed:
+        ax.add_collection(PatchCollection(framed, facecolors="none", edgecolors="black",
+                                          linewidths=2.2), autolim=False)
     ax.set_xlim(0, M)
     ax.set_ylim(P, 0)
     ax.set_aspect("equal")
@@ -337,13 +346,36 @@ def _text(ax, lines: list[str]) -> None:
             transform=ax.transAxes)
 
 
-def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
-                residuals: list[EdgeResiduals], fit: FitStatistics, ident, title: str,
-                dpi: int, *, with_text: bool = True) -> None:
-    """Write the report figure to ``path`` (PNG). ``with_text``: the banner, the summary, the
-    per-edge residual boxes and the reprojection error per camera (the stand-alone PNG); without
-    them for the HTML page, which gives the text as text and those two figures in their own
-    sections (:func:`~rwhec_ros.report.edges.write_section_figures`)."""
+@dataclass
+class ReportFigure:
+    """The report figure, built but not drawn (:func:`build_report_figure`).
+
+    Attributes
+    ----------
+    figure : matplotlib.figure.Figure
+        On an Agg canvas, at the report's dpi.
+    rows : list of str
+        What each row of the grid holds, top to bottom: ``"banner"``, ``"identifiability"``,
+        ``"fit"``, ``"ranked"``, ``"frames"``, ``"histograms"``, then as present ``"edges"``,
+        ``"reprojection"``, ``"std"``, ``"validation"``.
+    cells : list of (float, float)
+        Per row, the top and bottom of its axes (figure fraction, top > bottom).
+    text_axes : list of Axes
+        The banner and the two summary texts: the stand-alone PNG only (the page gives them as
+        text).
+    """
+
+    figure: Any
+    rows: list[str]
+    cells: list[tuple[float, float]]
+    text_axes: list[Any]
+
+
+def build_report_figure(doc: Mapping[str, Any], problem: Problem,
+                        residuals: list[EdgeResiduals], fit: FitStatistics, ident, title: str,
+                        dpi: int) -> ReportFigure:
+    """The whole report figure (module docstring), ready for one draw: the 3D labels are
+    placed from the final layout's projections, computed without drawing."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -357,63 +389,68 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
     grid_h = max(3.0, 0.3 * len(y_names) + 2.0)
     banner = banner_lines(doc)
     n_ranked = min(15, sum(np.isfinite(e.ratio) for e in fit.edges))
-    text = _summary_lines(doc, problem, residuals) if with_text else []
-    fit_text = _fit_lines(fit) if with_text else []
+    text = _summary_lines(doc, problem, residuals)
+    fit_text = _fit_lines(fit)
     line_h = 0.18  # inches per line of 10 pt monospace text
-    heights = ([1.0 + 0.2 * max(len(banner), 1)] if with_text else []) + [
-        max(grid_h, line_h * len(text) + 0.3), max(grid_h, line_h * len(fit_text) + 0.3),
-        max(2.5, 0.3 * n_ranked + 1.0), 6.5, 3.2]
-    std_rows = has_accuracy(doc)
-    cv_rows = has_validation(doc)
-    # the page gives the per-edge boxes and the reprojection in their own sections
-    box_rows = edge_rows(residuals) if with_text else 0
+    rows = ["banner", "identifiability", "fit", "ranked", "frames", "histograms"]
+    heights = [1.0 + 0.2 * max(len(banner), 1),
+               max(grid_h, line_h * len(text) + 0.3), max(grid_h, line_h * len(fit_text) + 0.3),
+               max(2.5, 0.3 * n_ranked + 1.0), 6.5, 3.2]
+    box_rows = edge_rows(residuals)
     if box_rows:
+        rows.append("edges")
         heights.append(edge_boxes_height(box_rows))
-    rep_rows = len(doc.get("reprojection") or {}) if with_text and has_reprojection(doc) else 0
+    rep_rows = len(doc.get("reprojection") or {}) if has_reprojection(doc) else 0
     if rep_rows:
+        rows.append("reprojection")
         heights.append(reprojection_height(rep_rows))
-    if std_rows:  # three bars per frame
+    if has_accuracy(doc):  # three bars per frame
+        rows.append("std")
         heights.append(max(3.0, 0.33 * len(doc["frames"]) + 1.2))
-    if cv_rows:
+    if has_validation(doc):
+        rows.append("validation")
         heights.append(5.0)
     total = sum(heights) + 0.9 * len(heights) + 1.0
-    fig = Figure(figsize=(18, total))
+    fig = Figure(figsize=(18, total), dpi=dpi)
     FigureCanvasAgg(fig)
     # the space between rows: 0.9 inch, as a fraction of the mean row height
     gs = fig.add_gridspec(len(heights), 4, height_ratios=heights,
                           hspace=0.9 / (sum(heights) / len(heights)), wspace=0.3, left=0.06,
                           right=0.97, top=1 - 0.8 / total, bottom=0.4 / total)
+    cells = []
+    for i in range(len(rows)):
+        box = gs[i, :].get_position(fig)
+        cells.append((float(box.y1), float(box.y0)))
+    at = {name: i for i, name in enumerate(rows)}
     edge_ratio = float(((doc.get("verdict_details") or {}).get("options") or {}).get(
         "edge_ratio", 5.0))
-    row = 0
-    if with_text:
-        _banner(fig.add_subplot(gs[0, :]), doc)
-        row = 1
-        _text(fig.add_subplot(gs[row, 0]), text)
-        _text(fig.add_subplot(gs[row + 1, 0]), fit_text)
-    ax = fig.add_subplot(gs[row, 1:3])
+    text_axes = [fig.add_subplot(gs[0, :])]
+    _banner(text_axes[0], doc)
+    text_axes.append(fig.add_subplot(gs[1, 0]))
+    _text(text_axes[1], text)
+    text_axes.append(fig.add_subplot(gs[2, 0]))
+    _text(text_axes[2], fit_text)
+    ax = fig.add_subplot(gs[1, 1:3])
     _identifiability(ax, ident, x_names, y_names)
     _color_ticks(ax, levels)
-    ax = fig.add_subplot(gs[row + 1, 1:3])
+    ax = fig.add_subplot(gs[2, 1:3])
     _fit_grid(fig, ax, fit, x_names, y_names, edge_ratio)
     _color_ticks(ax, levels)
-    _ranked(fig.add_subplot(gs[row + 2, 1:]), fit, edge_ratio)
-    row += 3
+    _ranked(fig.add_subplot(gs[3, 1:]), fit, edge_ratio)
     # only usable frames: a frame that is not calibrated is never shown as a pose
     frames = {f["name"]: f for f in doc["frames"] if f.get("usable", True)}
     views = []
     for col, names, what, default in ((slice(0, 2), y_names, "cameras Y_k", "camera carrier"),
                                       (slice(2, 4), x_names, "tags X_j", "tag carrier")):
         items = [(n, np.asarray(frames[n]["matrix"], dtype=float)) for n in names if n in frames]
-        ax = fig.add_subplot(gs[row, col], projection="3d")
+        ax = fig.add_subplot(gs[4, col], projection="3d")
         carrier = frames[items[0][0]].get("parent") if items else ""
         views.append((ax, _frames_3d(ax, items, carrier or default, what)))
-    row += 1
     t_mm = [1e3 * r.translation_m for r in residuals]
     r_deg = [np.degrees(r.rotation_rad) for r in residuals]
     for col, data, unit, what in ((slice(0, 2), t_mm, "mm", "translation"),
                                   (slice(2, 4), r_deg, "deg", "rotation")):
-        ax = fig.add_subplot(gs[row, col])
+        ax = fig.add_subplot(gs[5, col])
         pooled = np.concatenate(data)
         ax.hist(pooled, bins=min(60, max(10, pooled.size // 20)), color="tab:blue", alpha=0.8)
         ax.set_xlabel(f"{what} residual [{unit}]", fontsize=9)
@@ -424,23 +461,20 @@ def draw_report(path: Path, doc: Mapping[str, Any], problem: Problem,
         ax.set_title(f"{what} residuals of A X = Y B, all {pooled.size} pairs"
                      + (" (log count)" if log else ""), fontsize=11)
         ax.tick_params(labelsize=8)
-    if box_rows:
-        row += 1
+    if "edges" in at:
         for col, what in ((slice(0, 2), "translation"), (slice(2, 4), "rotation")):
-            draw_edge_boxes(indented_axes(fig, gs[row, col], 1.0), residuals, fit, what)
-    if rep_rows:
-        row += 1
-        draw_reprojection(fig.add_subplot(gs[row, 1:3]), doc)
-    if std_rows:
-        row += 1
-        draw_std_bars(fig.add_subplot(gs[row, 0:2]), doc, "translation")
-        draw_std_bars(fig.add_subplot(gs[row, 2:4]), doc, "rotation")
-    if cv_rows:
-        row += 1
-        draw_validation(fig.add_subplot(gs[row, 0:2]), doc, "translation")
-        draw_validation(fig.add_subplot(gs[row, 2:4]), doc, "rotation")
+            draw_edge_boxes(indented_axes(fig, gs[at["edges"], col], 1.0), residuals, fit, what)
+    if "reprojection" in at:
+        draw_reprojection(fig.add_subplot(gs[at["reprojection"], 1:3]), doc)
+    if "std" in at:
+        draw_std_bars(fig.add_subplot(gs[at["std"], 0:2]), doc, "translation")
+        draw_std_bars(fig.add_subplot(gs[at["std"], 2:4]), doc, "rotation")
+    if "validation" in at:
+        draw_validation(fig.add_subplot(gs[at["validation"], 0:2]), doc, "translation")
+        draw_validation(fig.add_subplot(gs[at["validation"], 2:4]), doc, "rotation")
     fig.suptitle(title, fontsize=15, y=1 - 0.25 / total)
-    fig.canvas.draw()  # the 3D projections of the final layout, for the labels
     for ax, labels in views:
+        # the projection of the final layout, as the draw computes it (the square box first)
+        ax.apply_aspect()
         _label_3d(fig, ax, labels)
-    fig.savefig(str(path), dpi=dpi)
+    return ReportFigure(fig, rows, cells, text_axes)

@@ -135,7 +135,7 @@ def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeRe
                 fit: FitStatistics, ident, png: Path, title: str,
                 sections: Mapping[str, Path] | None = None) -> str:
     """The HTML page, with the figure ``png`` and the section figures ``sections`` (``"edges"``,
-    ``"reprojection"``: :func:`~rwhec_ros.report.edges.write_section_figures`) embedded
+    ``"reprojection"``: :func:`~rwhec_ros.report.images.render_report`) embedded
     (base64)."""
     sections = sections or {}
     by_edge = {(e.x, e.y): e for e in fit.edges}
