@@ -105,6 +105,10 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
             ".sum(axis=1)", "2 -> 1"):
         "1.0 + gamma(1) and 1.0 + gamma(2) are the same double, 1 + 2^-52 (gamma(1) is just above "
         "half an ulp of 1 and rounds up): asserted in test_certificate",
+    (_CERT, "rows = (reduced.err_rows / scale) * (1.0 + gamma(2)) + UNIT_ROUNDOFF * np.abs(Z)"
+            ".sum(axis=1)", "1 -> 0"):
+        "sum(axis=0) of |Z|: Z is symmetric (formed as 0.5 (Z + Z^T) and documented so), its "
+        "column sums are its row sums (up to the summation order's rounding, far below gamma)",
     (_CERT, "rows = (rows + z_err_rows) * (1.0 + gamma(3))", "3 -> 4"):
         "1.0 + gamma(3) and 1.0 + gamma(4) are the same double, 1 + 2^-51: asserted in "
         "test_certificate",
@@ -686,6 +690,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rerun-survivors", type=Path, metavar="LOG",
                     help="take the outcomes of an earlier run's --log and run only its survivors "
                          "again (after new tests); the report covers every mutant")
+    ap.add_argument("--keep-argued", action="store_true",
+                    help="with --rerun-survivors LOG: a survivor argued equivalent in EQUIVALENT "
+                         "keeps its earlier outcome instead of running again")
     ap.add_argument("--report-only", action="store_true",
                     help="with --rerun-survivors LOG: print the report of LOG's outcomes (the "
                          "latest record of each mutant; logs of several runs concatenated), run "
@@ -796,6 +803,9 @@ def main(argv: list[str] | None = None) -> int:
         tests = None
         if before is not None and before.startswith("killed"):
             outcome, dt = "killed (earlier run)", before_s  # the earlier run's test time
+        elif (before is not None and args.keep_argued
+              and (m.file, m.source, m.description) in EQUIVALENT):
+            outcome, dt = before.removesuffix(" (re-run)"), before_s  # argued: not run again
         elif cover is not None and not (tests := cover.select(m, args.budget, args.max_files)):
             outcome, dt = "survived (no test executes it)", 0.0
         else:

@@ -478,6 +478,22 @@ def test_homogeneous_s_entries_equal_to_null_tol_are_zero(where):
     assert "sign of s" in c.message
 
 
+@pytest.mark.parametrize("row", [3, D - 2])
+def test_homogeneous_zero_corner_but_a_coupled_column_is_not_trivial(row):
+    """Z[s, s] = 0 is not enough: every entry of the s column counts (the slice ``Z[:-1, -1]``
+    must reach a middle and the last rotation entry). Z = diag(0, 1, ..., 1, 0) plus a coupling
+    c = 2e-3 of s to rotation entry ``row``: the block [[1, c], [c, 0]] has the eigenvalue
+    -c^2 / (1 + ...) ~ -4e-6 <= null_tol, so the whole Z has two eigenvalues <= null_tol (with
+    the rotation block's 0); set aside as trivial, e_s would leave one (on the rotations)."""
+    Z = np.diag(np.r_[0.0, np.ones(D - 2), 0.0])
+    Z[row, -1] = Z[-1, row] = 2e-3
+    w = np.linalg.eigvalsh(Z)
+    assert w[0] < -1e-6 and w[1] == 0.0 and w[2] > 0.5  # two null directions, exactly
+    c = certify_from_Z(Z, 1.0, 1.0, 1.0, N_ROT, homogeneous=True)
+    assert c.null_space_dim == 2 and not c.certified
+    assert "2 eigenvalues" in c.message and "sign of s" not in c.message
+
+
 def test_inflation_factors_that_are_the_same_double():
     """Why two mutants of the rounding term are equivalent (benchmarks/mutation.py): as doubles,
     1 + gamma_1 == 1 + gamma_2 (= 1 + 2^-52) and 1 + gamma_3 == 1 + gamma_4 (= 1 + 2^-51), while
@@ -515,6 +531,25 @@ def test_rho_hat_equal_to_the_tolerance_is_certified():
                                options=CertificateOptions(rho_tol=tol))
     assert c.suboptimality_bound == tol
     assert c.certified, c.message
+
+
+def test_rho_hat_equal_to_the_tolerance_is_not_a_reason():
+    """At rho_hat == rho_tol exactly (2^-20) but a two-dimensional null space, the message gives
+    the null space as the only reason: rho_hat is within the (inclusive) tolerance."""
+    tol = 2.0**-20
+    c = certificate_from_bound(_bound(1.0), W, 2, False, 1.0 + tol, 1.0,
+                               options=CertificateOptions(rho_tol=tol))
+    assert not c.certified
+    assert c.message.startswith("not certified: Z has 2 eigenvalues <= ")
+    assert "rho_hat" not in c.message
+
+
+def test_null_space_message_prints_eigenvalues_to_three_digits():
+    """The smallest eigenvalues in the 'not certified' message are printed with 3 decimals
+    (numpy's array2string precision=3): enough to tell 1e-3 from 1e-4 at a glance."""
+    w = np.array([0.00123456, 0.0456789, 0.987654])
+    c = certificate_from_bound(_bound(1.0), w, 2, False, 1.0, 1.0)
+    assert "(smallest [0.001 0.046 0.988])" in c.message
 
 
 def test_zero_dual_bound_without_floor_has_no_rho():
