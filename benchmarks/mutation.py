@@ -723,18 +723,18 @@ def main(argv: list[str] | None = None) -> int:
     mutants = [m for f in files for m in generate(f, TARGETS[f])]
     if args.limit:
         mutants = mutants[: args.limit]
-    # A mutant's record in earlier logs: the latest one with the same file, line number, source
-    # text, mutation and occurrence (the k-th such mutant of that line: one line can hold the
-    # same mutation twice); failing that (records written before the occurrence was logged), the
-    # latest one of that line; failing that (edits above the line moved it), the latest one with
-    # the same text, which may sit on another line. Logs of successive runs may be concatenated;
-    # only killed mutants are skipped.
-    occurrence: list[int] = []
-    seen: dict[tuple[str, int, str, str], int] = {}
+    # A mutant's record in earlier logs: the latest one with the same file, source text,
+    # mutation and ``nth`` (its index among the file's mutants with that text and mutation, in
+    # line order: one line can hold the same mutation twice, and one text can stand on several
+    # lines; unlike the line number, nth does not move when lines are added above). Records
+    # written before nth was logged fall back to the same line number, then to the same text.
+    # Logs of successive runs may be concatenated; only killed mutants are skipped.
+    nth: list[int] = []
+    seen: dict[tuple[str, str, str], int] = {}
     for m in mutants:
-        k = (m.file, m.lineno, m.source, m.description)
-        occurrence.append(seen.get(k, 0))
-        seen[k] = occurrence[-1] + 1
+        k = (m.file, m.source, m.description)
+        nth.append(seen.get(k, 0))
+        seen[k] = nth[-1] + 1
     earlier_by: tuple[dict, dict, dict] = ({}, {}, {})
     if args.rerun_survivors:
         for line in args.rerun_survivors.read_text().splitlines():
@@ -743,14 +743,14 @@ def main(argv: list[str] | None = None) -> int:
             text_key = (r["file"], r["source"], r["description"])
             earlier_by[2][text_key] = got
             earlier_by[1][(r["lineno"], *text_key)] = got
-            if "occurrence" in r:
-                earlier_by[0][(r["occurrence"], r["lineno"], *text_key)] = got
+            if "nth" in r:
+                earlier_by[0][(r["nth"], *text_key)] = got
 
     def earlier(i: int) -> tuple[str, float] | None:
         m = mutants[i]
         text_key = (m.file, m.source, m.description)
-        for table, key in zip(earlier_by, ((occurrence[i], m.lineno, *text_key),
-                                           (m.lineno, *text_key), text_key), strict=True):
+        for table, key in zip(earlier_by, ((nth[i], *text_key), (m.lineno, *text_key), text_key),
+                              strict=True):
             if key in table:
                 return table[key]
         return None
@@ -822,7 +822,7 @@ def main(argv: list[str] | None = None) -> int:
             with log_lock, args.log.open("a") as fh:
                 fh.write(json.dumps({"file": m.file, "lineno": m.lineno, "source": m.source,
                                      "description": m.description,
-                                     "occurrence": occurrence[i], "outcome": outcome,
+                                     "nth": nth[i], "outcome": outcome,
                                      "seconds": round(dt, 1), "tests": n_tests}) + "\n")
         done = sum(r is not None for r in results)
         print(f"[{done}/{len(mutants)}] {m.file}:{m.lineno} {m.description}: {outcome} "
