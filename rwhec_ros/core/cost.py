@@ -375,6 +375,28 @@ def _abs_rowsums(A) -> np.ndarray:
     return np.abs(A).sum(axis=1)
 
 
+def _dense_blocks(Qd: np.ndarray, layout: StateLayout, unknown_scale: bool
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``Q_ee``, ``Q_ek`` and ``Q_kk`` of the dense ``Qd`` (size, size) for :func:`reduce_cost`:
+    eliminated ``e`` = translations (and ``alpha`` for unknown scale), kept ``k`` = rotations
+    (then ``s`` = ``alpha`` for known scale). The same entries as ``Qd[np.ix_(elim, keep)]``
+    etc., copied from contiguous slices (a tenth of the time of the fancy index)."""
+    a, r0 = layout.alpha, layout.r0
+    if unknown_scale:  # e = [0, r0), k = [r0, size): plain slices
+        return (Qd[:r0, :r0].copy(), np.ascontiguousarray(Qd[:r0, r0:]),
+                np.ascontiguousarray(Qd[r0:, r0:]))
+    nr = layout.size - r0  # e = [0, a), k = [r0, size) then a
+    Qek = np.empty((a, nr + 1))
+    Qek[:, :nr] = Qd[:a, r0:]
+    Qek[:, nr] = Qd[:a, a]
+    Qkk = np.empty((nr + 1, nr + 1))
+    Qkk[:nr, :nr] = Qd[r0:, r0:]
+    Qkk[:nr, nr] = Qd[r0:, a]
+    Qkk[nr, :nr] = Qd[a, r0:]
+    Qkk[nr, nr] = Qd[a, a]
+    return Qd[:a, :a].copy(), Qek, Qkk
+
+
 def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> ReducedCost:
     """Eliminate translations (and ``alpha`` for unknown scale) from ``Q`` (eq. (47)-(48)).
 
@@ -402,10 +424,7 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> Red
         Qek = Qc[elim][:, keep].tocsc()
         Qkk = Qc[keep][:, keep].toarray()
     else:
-        Qd = np.asarray(Q, dtype=float)
-        Qee = Qd[np.ix_(elim, elim)]
-        Qek = Qd[np.ix_(elim, keep)]
-        Qkk = Qd[np.ix_(keep, keep)]
+        Qee, Qek, Qkk = _dense_blocks(np.asarray(Q, dtype=float), layout, unknown_scale)
     Qee = 0.5 * (Qee + Qee.T)
     m = Qee.shape[0]
     verified = False

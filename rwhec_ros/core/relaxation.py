@@ -34,6 +34,7 @@ translation block is ``Z_reduced`` with the same multipliers).
 
 from __future__ import annotations
 
+import functools
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -45,6 +46,7 @@ from .sparsity import ArrowSplit
 
 __all__ = [
     "so3_constraint_matrices",
+    "frame_constraints",
     "ConstraintSet",
     "DualSolution",
     "SdpOptions",
@@ -161,6 +163,20 @@ def so3_constraint_matrices(rotation_offsets: np.ndarray, d: int, s_index: int) 
     C = sp.csc_matrix((vals, (rows, cols)), shape=(d * d, 21 * n + 1))
     C.sum_duplicates()
     return ConstraintSet(C=C, d=d, s_index=s_index, n_rotations=n)
+
+
+@functools.lru_cache(maxsize=8)
+def frame_constraints(n_frames: int) -> ConstraintSet:
+    """:func:`so3_constraint_matrices` of ``n_frames`` rotations at offsets ``0, 9, ..`` of
+    ``z = [vec R_1; ..; vec R_n; s]`` (``d = 9 n + 1``, ``s`` last): the constraint set of the
+    reduced problem, which depends on the frame count only, so it is built once per count and
+    shared (its arrays are read-only). The same matrix as a fresh build, entry for entry."""
+    n = int(n_frames)
+    d = 9 * n + 1
+    cons = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
+    for a in (cons.C.data, cons.C.indices, cons.C.indptr):
+        a.flags.writeable = False
+    return cons
 
 
 @dataclass

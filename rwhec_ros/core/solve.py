@@ -61,6 +61,7 @@ from .problem import Problem
 from .relaxation import (
     ConstraintSet,
     SdpOptions,
+    frame_constraints,
     so3_constraint_matrices,
     solve_dual_sdp,
     solve_dual_sdp_arrow,
@@ -176,9 +177,7 @@ class _Prepared:
     def cons(self) -> ConstraintSet:
         """The constraints of eq. (50) on the reduced ``[vec R; s]`` (built once)."""
         if self.constraints is None:
-            n = self.problem.n_frames
-            d = 9 * n + 1
-            self.constraints = so3_constraint_matrices(np.arange(n) * 9, d, d - 1)
+            self.constraints = frame_constraints(self.problem.n_frames)  # cached per count
         return self.constraints
 
 
@@ -457,10 +456,15 @@ def _blas_controller() -> ThreadpoolController:
 
 def blas_threads(threads: int | None):
     """Context manager limiting BLAS to ``threads`` threads (``None``: leave it as it is); see
-    :attr:`SolveOptions.blas_threads` for why one thread is the default everywhere."""
+    :attr:`SolveOptions.blas_threads` for why one thread is the default everywhere. Nothing
+    to do (no set and restore) when every BLAS already runs ``threads`` threads, e.g. nested
+    inside a caller's limit."""
     if threads is None:
         return contextlib.nullcontext()
-    return _blas_controller().limit(limits=threads, user_api="blas")
+    ctl = _blas_controller()
+    if all(lib.num_threads == threads for lib in ctl.select(user_api="blas").lib_controllers):
+        return contextlib.nullcontext()
+    return ctl.limit(limits=threads, user_api="blas")
 
 
 def _solve(problem: Problem, options: SolveOptions) -> CalibrationResult:

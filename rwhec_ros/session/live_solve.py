@@ -108,7 +108,7 @@ def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = Non
     when the warm-started solve is not certified, the problem is solved again from the
     closed-form start and that result is returned, so a warm start never changes a status.
     """
-    from ..core.solve import solve
+    from ..core.solve import blas_threads, solve
     from .solving import solve_options
 
     c = config.solver
@@ -117,19 +117,22 @@ def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = Non
                                    min_scale=c.min_scale)
     options.fallback_to_sdp = False
     result = None
-    if initial is not None:
-        options.initial = initial
-        result = solve(problem, options)
-        options.initial = None
-        if result.certified:
-            notes = [*notes, "live: started from the previous live estimate"]
-        else:
-            result = None  # solved again from the closed-form start
-    if result is None:
-        result = solve(problem, options)
-    result.notes.extend(notes)
-    return result, frame_uncertainty(problem, result, UncertaintyOptions(
-        gauge=options.gauge, information="edge_blocks"))
+    # one BLAS thread limit around the whole re-solve: the solve's and the uncertainty's own
+    # (the same count, UncertaintyOptions' default) then find it set and skip set and restore
+    with blas_threads(options.blas_threads):
+        if initial is not None:
+            options.initial = initial
+            result = solve(problem, options)
+            options.initial = None
+            if result.certified:
+                notes = [*notes, "live: started from the previous live estimate"]
+            else:
+                result = None  # solved again from the closed-form start
+        if result is None:
+            result = solve(problem, options)
+        result.notes.extend(notes)
+        return result, frame_uncertainty(problem, result, UncertaintyOptions(
+            gauge=options.gauge, information="edge_blocks"))
 
 
 def warm_start_of(estimate: LiveEstimate | None, problem: Problem) -> tuple | None:

@@ -136,8 +136,15 @@ class _EdgeStore:
         return np.maximum(rot, trans)
 
     def copy(self) -> KeptPairs:
-        """The kept pairs sorted by stamp, as plain copies (no re-validation)."""
-        order = np.argsort(self.stamps[: self.n], kind="stable")
+        """The kept pairs sorted by stamp, as plain copies (no re-validation). Pairs stored in
+        stamp order (the usual case: they arrive in time order) are copied as they lie, the
+        same arrays as the stable sort's gather without the sort and the index."""
+        n = self.n
+        stamps = self.stamps[:n]
+        if n < 2 or not (stamps[1:] < stamps[:-1]).any():
+            return KeptPairs(self.x, self.y, stamps.copy(), self.A[:n].copy(),
+                             self.B[:n].copy(), self.sigma[:n].copy(), self.kappa[:n].copy())
+        order = np.argsort(stamps, kind="stable")
         return KeptPairs(self.x, self.y, self.stamps[: self.n][order], self.A[: self.n][order],
                          self.B[: self.n][order], self.sigma[: self.n][order],
                          self.kappa[: self.n][order])

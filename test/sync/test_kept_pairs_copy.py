@@ -1,0 +1,43 @@
+"""``_EdgeStore.copy`` (the live re-solve's snapshot under the session lock) copies pairs stored
+in stamp order as they lie: the same arrays as the stable sort's gather it replaced."""
+
+import numpy as np
+import pytest
+
+from rwhec_ros.sync.accumulator import _EdgeStore
+
+
+def _reference(store):
+    """The stable-sort gather ``copy`` used before (the reference)."""
+    order = np.argsort(store.stamps[: store.n], kind="stable")
+    return (store.stamps[: store.n][order], store.A[: store.n][order],
+            store.B[: store.n][order], store.sigma[: store.n][order],
+            store.kappa[: store.n][order])
+
+
+@pytest.mark.parametrize("stamps", [
+    [],  # empty
+    [5],  # one pair
+    [1, 2, 3, 7, 9],  # in time order: the shortcut
+    [1, 2, 2, 2, 5],  # ties in order: the stable sort keeps them as they lie, so does the copy
+    [3, 1, 2, 2, 0],  # out of order (e.g. a slot overwritten by a later keyframe): sorted
+    [1, 2, 3, 5, 4],  # only the last pair out of order
+])
+def test_copy_equals_the_stable_sort(stamps):
+    rng = np.random.default_rng(len(stamps))
+    store = _EdgeStore("tag_0", "cam_0", 64)
+    for i, s in enumerate(stamps):
+        store.write(i, s, rng.standard_normal((4, 4)), rng.standard_normal((4, 4)),
+                    float(rng.uniform(0.01, 0.1)), float(rng.uniform(10, 200)))
+    store.n = len(stamps)
+    got = store.copy()
+    ref = _reference(store)
+    for a, b in zip((got.stamps_ns, got.A, got.B, got.sigma, got.kappa), ref, strict=True):
+        assert a.dtype == b.dtype and a.shape == b.shape
+        assert np.array_equal(a, b)  # the same pairs in the same order, bit for bit
+    assert np.all(np.diff(got.stamps_ns) >= 0)
+    # copies: changing the store afterwards leaves the snapshot as it was
+    if stamps:
+        before = got.A.copy()
+        store.A[: store.n] += 1.0
+        assert np.array_equal(got.A, before)
