@@ -290,28 +290,41 @@ def test_mu_growth_without_a_primal_point():
     assert sb.bound.lambda_min_lower == pytest.approx(-(sb.mu + cy), rel=1e-15, abs=0)
 
 
+def _assert_lanczos_eigenvalues(actual, expected):
+    """Shift-invert Lanczos estimates against ``eigvalsh`` of the dense reduced matrix. The
+    (near-)null eigenvalues, the ones the status is decided on, to 1e-9 absolute. The others
+    (~4-5) to 1e-3 relative: Lanczos runs on (Z_red + mu)^{-1}, whose largest eigenvalues
+    (~1e12, the null space) set the rounding of its Krylov basis, eps * 1e12 ~ 1e-4 on the
+    inverse's small eigenvalues (~0.2); measured 4e-5 relative with scipy 1.11's ARPACK
+    (numpy-1.26 CI line), 1e-9 with the newest. Far from null_tol either way."""
+    actual, expected = np.asarray(actual), np.asarray(expected)
+    near = np.abs(expected) < 1e-3
+    np.testing.assert_allclose(actual[near], expected[near], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(actual[~near], expected[~near], rtol=1e-3, atol=0)
+
+
 @pytest.mark.parametrize("kind", ["star", "unknown_scale"])
 def test_reduced_eigenvalues_against_eigvalsh(kind):
     """Shift-invert Lanczos with the bound's factorisation against the dense reduced matrix
     (on y, and on the rotations only); asking for more eigenvalues than the size allows gives
-    m - 1 of them; the vectors are eigenvectors. Tolerance 1e-9: Lanczos converges to 1e-8
-    relative in (Z_red + mu)^{-1}, whose largest eigenvalues (~1e12) are the null space, so the
-    others (~5) come out far better; delta (~1e-13) moves them by less."""
+    m - 1 of them; the vectors are eigenvectors. Tolerances: see _assert_lanczos_eigenvalues."""
     c = _case(kind)
     pattern, data, nf, n = c["pattern"], c["data"], c["pattern"].nf, c["pattern"].n
     sb = sparse_dual_bound(pattern, data, c["err"], c["lam_s"], _mu0(pattern, data), c["z"])
     Zr = _reduced(pattern, data)
     w = reduced_eigenvalues(sb.factor, sb.mu, nf, n, 4, False)
     assert isinstance(w, np.ndarray) and w.shape == (4,)
-    np.testing.assert_allclose(w, np.linalg.eigvalsh(Zr)[:4], rtol=0, atol=1e-9)
+    _assert_lanczos_eigenvalues(w, np.linalg.eigvalsh(Zr)[:4])
     w_r, V = reduced_eigenvalues(sb.factor, sb.mu, nf, n, 4, True, vectors=True)
     # on the rotations only: s eliminated as well (its Schur complement)
     Zrr = Zr[:-1, :-1] - np.outer(Zr[:-1, -1], Zr[-1, :-1]) / Zr[-1, -1]
-    np.testing.assert_allclose(w_r, np.linalg.eigvalsh(Zrr)[:4], rtol=0, atol=1e-9)
-    assert np.abs(Zrr @ V - V * w_r).max() < 1e-7  # residuals of unit eigenvectors
+    _assert_lanczos_eigenvalues(w_r, np.linalg.eigvalsh(Zrr)[:4])
+    res = np.abs(Zrr @ V - V * w_r).max(axis=0)  # residuals of unit eigenvectors
+    assert res[0] < 1e-7  # the null direction: as accurate as its eigenvalue (1e-9)
+    assert res[1:].max() < 1e-2  # the others: ~ |w| times the 1e-3 of their eigenvalues
     all_w = reduced_eigenvalues(sb.factor, sb.mu, nf, n, 1000, False)
     assert all_w.shape == (9 * n,)  # m - 1 = 9 n of the m = 9 n + 1
-    np.testing.assert_allclose(all_w, np.linalg.eigvalsh(Zr)[:9 * n], rtol=0, atol=1e-8)
+    _assert_lanczos_eigenvalues(all_w, np.linalg.eigvalsh(Zr)[:9 * n])
 
 
 def test_certificate_with_default_arguments_matches_the_dense_reference():
@@ -338,10 +351,9 @@ def test_certificate_with_default_arguments_matches_the_dense_reference():
     d_k = ref[0] * (k * c["prep"].scale)
     assert cert_k.dual_bound == d_k < 1.0
     assert cert_k.suboptimality_bound == (k * c["p"] - d_k) / d_k
-    # 1e-9: the Lanczos accuracy (test_reduced_eigenvalues_against_eigvalsh)
-    np.testing.assert_allclose(cert.eigenvalues, np.linalg.eigvalsh(_reduced(pattern,
-                                                                             c["data"]))[:6],
-                               rtol=0, atol=1e-9)
+    # the Lanczos accuracy (_assert_lanczos_eigenvalues)
+    _assert_lanczos_eigenvalues(cert.eigenvalues,
+                                np.linalg.eigvalsh(_reduced(pattern, c["data"]))[:6])
 
 
 def test_unknown_scale_sets_the_trivial_s_aside():
@@ -357,7 +369,7 @@ def test_unknown_scale_sets_the_trivial_s_aside():
     assert cert.null_space_dim == 1 and "sign of s" in cert.message
     Zr = _reduced(pattern, c["data"])
     assert np.abs(Zr[-1, :-1]).max() < 1e-12 * np.abs(Zr).max()  # s decoupled (rounding)
-    np.testing.assert_allclose(cert.eigenvalues, np.linalg.eigvalsh(Zr)[:6], rtol=0, atol=1e-9)
+    _assert_lanczos_eigenvalues(cert.eigenvalues, np.linalg.eigvalsh(Zr)[:6])
     z_ss = c["data"][pattern.diag[-1]]
     assert abs(z_ss) < 1e-12 and np.min(np.abs(cert.eigenvalues - z_ss)) == 0.0
     # the estimate direction v2: unit, orthogonal to y, zero on s
