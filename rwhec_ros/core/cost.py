@@ -224,13 +224,20 @@ def edge_blocks(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     ``problem.precomputed_blocks`` (e.g. from :class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`)
     is returned as it is when set (after a check of its shapes and indices)."""
-    layout = StateLayout(problem.M, problem.P)
     pre = problem.precomputed_blocks
     if pre is not None:
-        return _checked_blocks(problem, layout, pre)
-    full, rot = _all_edge_blocks(problem)  # (E, 25, 25) each
+        return _checked_blocks(problem, StateLayout(problem.M, problem.P), pre)
+    return _finished_blocks(problem, *_all_edge_blocks(problem))
+
+
+def _finished_blocks(problem: Problem, full: np.ndarray, rot: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(full, rot, idx)`` as :func:`edge_blocks` returns them from summed blocks ``full`` and
+    ``rot`` (E, 25, 25) of ``problem``'s edges: both made exactly symmetric, and the edges'
+    state indices ``idx`` (E, 25)."""
     full = 0.5 * (full + np.swapaxes(full, 1, 2))  # exact symmetry
     rot = 0.5 * (rot + np.swapaxes(rot, 1, 2))
+    layout = StateLayout(problem.M, problem.P)
     return full, rot, _local_to_global(layout, problem.edge_x, problem.edge_y)
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cost import StateLayout, _blocks_from_sums, _edge_sums, _edge_sums_few, _local_to_global
+from .cost import _blocks_from_sums, _edge_sums, _edge_sums_few, _finished_blocks
 from .problem import Problem
 
 __all__ = ["EdgeBlockCache", "FEW_PAIRS"]
@@ -109,11 +109,7 @@ class EdgeBlockCache:
                                rows, G, K, ksum)
         self.reused_pairs = int(reuse.sum())
         self.summed_pairs = int(fresh.sum())
-        full, rot = _blocks_from_sums(G, K, ksum)
-        full = 0.5 * (full + np.swapaxes(full, 1, 2))  # exact symmetry, as edge_blocks
-        rot = 0.5 * (rot + np.swapaxes(rot, 1, 2))
-        layout = StateLayout(problem.M, problem.P)
-        return full, rot, _local_to_global(layout, problem.edge_x, problem.edge_y)
+        return _finished_blocks(problem, *_blocks_from_sums(G, K, ksum))
 
     def _reusable(self, edges, rows: np.ndarray, starts: np.ndarray, counts: list[int]
                   ) -> tuple[np.ndarray, np.ndarray]:

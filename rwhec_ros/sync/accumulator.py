@@ -145,9 +145,8 @@ class _EdgeStore:
             return KeptPairs(self.x, self.y, stamps.copy(), self.A[:n].copy(),
                              self.B[:n].copy(), self.sigma[:n].copy(), self.kappa[:n].copy())
         order = np.argsort(stamps, kind="stable")
-        return KeptPairs(self.x, self.y, self.stamps[: self.n][order], self.A[: self.n][order],
-                         self.B[: self.n][order], self.sigma[: self.n][order],
-                         self.kappa[: self.n][order])
+        return KeptPairs(self.x, self.y, stamps[order], self.A[:n][order], self.B[:n][order],
+                         self.sigma[:n][order], self.kappa[:n][order])
 
     def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float,
               corners=None) -> None:
