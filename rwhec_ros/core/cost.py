@@ -357,7 +357,9 @@ class ReducedCost:
         verified_min_eigenvalue`).
     residual_norm : float
         Upper bound on ``||Q_ee G + Q_ey||_2`` for the recovery ``t = G y`` actually used (the
-        backward error of the Cholesky solve, Higham Thm. 10.4).
+        backward error of the Cholesky solve, Higham Thm. 10.4; or, with ``residual=
+        "extended"``, the Frobenius norm of the extended-precision bound of
+        :mod:`rwhec_ros.core.extended_residual`).
     err_rows : ndarray, shape (9 (M + P) + 1,)
         Row sums of an entrywise bound ``E`` on ``|Qr - S_G|``, where ``S_G = Q_yy + G^T Q_ee G +
         G^T Q_ey + Q_ey^T G`` is the exact reduced cost *for this G* (for any ``G`` and ``u``,
@@ -404,16 +406,26 @@ def _dense_blocks(Qd: np.ndarray, layout: StateLayout, unknown_scale: bool
     return Qd[:a, :a].copy(), Qek, Qkk
 
 
-def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> ReducedCost:
+def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool, *,
+                residual: str = "cholesky") -> ReducedCost:
     """Eliminate translations (and ``alpha`` for unknown scale) from ``Q`` (eq. (47)-(48)).
 
     The eliminated block ``Q_ee`` is Cholesky-factored (after the unobservable directions have
     been fixed, see :mod:`rwhec_ros.core.gauge`, it is positive definite); the reduced matrix is
     ``Qr = Q_yy + Q_ey^T G`` with ``G = -Q_ee^{-1} Q_ey`` and comes with the bounds of
-    :class:`ReducedCost` that the certificate needs. All bounds are computed with matrix-vector
-    products (no extra matrix products). A singular block falls back to the pseudo-inverse, as
-    the paper's generalized Schur complement, flagged ``verified=False``.
+    :class:`ReducedCost` that the certificate needs. A singular block falls back to the
+    pseudo-inverse, as the paper's generalized Schur complement, flagged ``verified=False``.
+
+    ``residual`` chooses the bound on the residual ``F = Q_ee G + Q_ey`` of the recovery:
+    ``"cholesky"`` (default), the backward error of the solve, computed with matrix-vector
+    products only; ``"extended"``, ``F`` evaluated in extended precision with a proven bound
+    (:func:`~rwhec_ros.core.extended_residual.residual_bound`: a few matrix products, usually
+    hundreds of times tighter). ``Qr``, ``recover``, the block bound and the product terms are
+    the same either way (bit for bit); only ``err_rows`` and ``residual_norm`` differ.
     """
+    if residual not in ("cholesky", "extended"):
+        raise ValueError(f"residual: expected 'cholesky' or 'extended', got {residual!r}")
+    from .extended_residual import residual_bound
     from .verified import gamma, nonnegative_spectral_radius_bound, verified_min_eigenvalue
 
     nt = layout.n_t
@@ -453,14 +465,20 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> Red
         if vb.verified and vb.lower > 0:
             verified = True
             block_lower = vb.lower
-            # |F| <= gamma_{3m+1} |R^T||R| |G| (backward error of the Cholesky solve, per column)
-            gam_s = gamma(3 * m + 1)
-            absR = np.abs(Rf)
             absG = np.abs(G)
             g1 = absG.sum(axis=1)  # |G| 1        (m,)
-            F_rows = gam_s * (absR.T @ (absR @ g1))  # row sums of the bound on |F|   (m,)
-            residual_norm = gam_s * nonnegative_spectral_radius_bound(Rf) * float(
-                np.linalg.norm(G, "fro"))
+            if residual == "extended":  # |F| <= Fb, F evaluated in extended precision
+                Fb = residual_bound(Qee, G, Qek)
+                F_rows = Fb.sum(axis=1) * (1.0 + gamma(Fb.shape[1]))  # row sums of |F| bound
+                F_cols = (Fb.T @ g1) * (1.0 + gamma(m))  # |F|^T |G| 1 bound   (k,)
+                residual_norm = float(np.linalg.norm(Fb, "fro")) * (1.0 + gamma(Fb.size))
+            else:  # |F| <= gamma_{3m+1} |R^T||R| |G| (backward error of the Cholesky solve)
+                gam_s = gamma(3 * m + 1)
+                absR = np.abs(Rf)
+                F_rows = gam_s * (absR.T @ (absR @ g1))  # row sums of the bound on |F|   (m,)
+                F_cols = gam_s * (absG.T @ (absR.T @ (absR @ g1)))
+                residual_norm = gam_s * nonnegative_spectral_radius_bound(Rf) * float(
+                    np.linalg.norm(G, "fro"))
             gk = gamma(m + 1)
             Qkk_abs_rows = _abs_rowsums(Qkk)
             Qek_abs = abs(Qek) if sp.issparse(Qek) else np.abs(Qek)
@@ -468,9 +486,9 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool) -> Red
             e1_rows = gk * (Qkk_abs_rows + np.asarray(Qek_abs.T @ g1).ravel())
             e1_cols = gk * (Qkk_abs_rows + absG.T @ np.asarray(Qek_abs @ np.ones(len(keep))
                                                                   ).ravel())
-            # E2 = |G|^T |F|, |F| <= gamma_s |R^T||R||G|: rows |G|^T(|F| 1), cols |F|^T(|G| 1)
+            # E2 = |G|^T |F|: rows |G|^T(|F| 1), cols |F|^T(|G| 1)
             e2_rows = absG.T @ F_rows
-            e2_cols = gam_s * (absG.T @ (absR.T @ (absR @ g1)))
+            e2_cols = F_cols
             E_rows = 0.5 * (e1_rows + e1_cols + e2_rows + e2_cols)
             E_rows += UNIT_ROUNDOFF_COST * _abs_rowsums(Qr_keep)  # symmetrisation
             err = E_rows * (1.0 + gamma(2 * len(keep)))
