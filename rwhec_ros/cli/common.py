@@ -370,7 +370,13 @@ def solve_and_write(
     thresholds come from ``verdict_config`` (a configuration's ``verdict`` section, else the
     defaults); the launch file holds the usable frames only unless ``publish_unusable``."""
     from ..data.corners import corner_data
-    from ..data.results import new_output_dir, result_document, session_output_paths, write_outputs
+    from ..data.results import (
+        dump_document,
+        new_output_dir,
+        result_document,
+        session_output_paths,
+        write_outputs,
+    )
     from ..session import static_transforms_launch, summary
     from ..session.accuracy import AccuracyOptions
     from ..session.outputs import description_texts, launch_header, publishable
@@ -414,7 +420,7 @@ def solve_and_write(
     try:
         if paths is None:
             paths = session_output_paths(new_output_dir(settings.output_root))
-        files = write_outputs(paths, result_yaml=yaml.safe_dump(doc, sort_keys=False),
+        files = write_outputs(paths, result_yaml=dump_document(doc),
                               launch_text=launch, dataset=dataset, force=force,
                               urdf_text=urdf, frames_text=frames)
         if not report:

@@ -60,7 +60,6 @@ import threading
 import time
 
 import tf2_ros
-import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -80,6 +79,7 @@ from std_srvs.srv import Trigger
 
 from ..config import DEFAULT_NODE_NAME
 from ..config.live_parameters import review_changes
+from ..data.results import dump_document
 from ..messages import (
     bgr_to_image_fields,
     diagnostic_rows,
@@ -424,7 +424,7 @@ class CalibratorNode(Node):
         if est is None:
             return
         try:
-            text = yaml.safe_dump(est.document, sort_keys=False)
+            text = dump_document(est.document)
         except Exception as exc:  # noqa: BLE001 - never into the executor
             self._warn_throttled("live_estimate", f"live estimate not published: "
                                  f"{type(exc).__name__}: {exc}")

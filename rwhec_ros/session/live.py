@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from ..config import CalibratorConfig
 from ..config.live_parameters import restart_only_differences
@@ -21,7 +20,14 @@ from ..core.lie import invert_transform
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict
 from ..data.corners import corner_data
-from ..data.results import FrameNaming, new_output_dir, plain, result_document, utc_stamp
+from ..data.results import (
+    FrameNaming,
+    dump_document,
+    new_output_dir,
+    plain,
+    result_document,
+    utc_stamp,
+)
 from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
 from ..sync.buffer import PoseBuffer
@@ -132,6 +138,10 @@ class CalibrationSession(ImageInput):
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()
         self._views: dict = {}  # camera -> (A, targets found) of its last searched image
+        # the motion gate's remembered verdicts (image_input.gate_would_skip), valid while the
+        # camera's epoch is unchanged: (camera, stamp) -> (epoch, skip)
+        self._gate_memo: dict = {}
+        self._gate_epochs = collections.Counter()
         # camera -> (stamp, A, image, intrinsics) the gate skipped since its last search
         self._skipped_since_search = collections.defaultdict(
             lambda: collections.deque(maxlen=LOOK_BACK_IMAGES))
@@ -165,6 +175,7 @@ class CalibrationSession(ImageInput):
                 self.output_root = plain_output_root(config.output.directory)
             if old.convergence != config.convergence:
                 self._data_version += 1  # the live re-solve judges again with the new limits
+            self._gate_memo.clear()  # new keyframe thresholds or gate settings
             self._acc.keyframe_rotation_rad = config.keyframe.min_rotation_rad
             self._acc.keyframe_translation_m = config.keyframe.min_translation_m
             noise = config.noise
@@ -385,8 +396,8 @@ class CalibrationSession(ImageInput):
         result, verdict = solved.result, solved.verdict
         excl.update(solved.dropped)
         ident = solved.identifiability_dict or ident
-        text = yaml.safe_dump(self.result_document(result, excl, ident, verdict,
-                                                   solved.accuracy), sort_keys=False)
+        text = dump_document(self.result_document(result, excl, ident, verdict,
+                                                  solved.accuracy))
         try:
             files = self._write_outputs(result, text, dataset, output_dir, force, verdict)
             write_error = ""
