@@ -147,3 +147,35 @@ def test_validation():
         FairImageQueue(["a", "a"], 1)
     with pytest.raises(ValueError, match="keys"):
         FairImageQueue([], 1)
+
+
+def test_a_slow_expendable_predicate_does_not_hold_up_the_consumers():
+    """The drop decision of a full camera's queue runs outside the queue's lock: while it
+    judges (here: blocked until released), a consumer takes another camera's image, and a
+    victim a consumer took meanwhile is not dropped twice (the oldest goes instead)."""
+    judging, release = threading.Event(), threading.Event()
+
+    def expendable(key, item):
+        judging.set()
+        release.wait(5.0)
+        return item == "a1"
+
+    q = FairImageQueue(["a", "b"], 2, expendable=expendable)
+    q.put("a", "a0")
+    q.put("a", "a1")
+    q.put("b", "b0")
+    done = []
+    t = threading.Thread(target=lambda: done.append(q.put("a", "a2")))
+    t.start()
+    assert judging.wait(5.0)
+    t0 = time.monotonic()
+    first = q.get(1.0)  # round robin: a's oldest, while the put is still judging
+    assert first == ("a", "a0") and time.monotonic() - t0 < 0.5
+    second = q.get(1.0)
+    assert second == ("b", "b0")
+    release.set()
+    t.join(5.0)
+    assert done == [True]  # a consumer made room meanwhile: nothing dropped
+    assert q.stats()["a"]["dropped"] == 0
+    q.task_done(first)
+    assert q.get(1.0) == ("a", "a1")

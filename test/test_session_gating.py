@@ -389,3 +389,32 @@ def test_bag_replay_decodes_only_the_searched_images_the_same_on_one_and_two_thr
     for key in a:
         for field in ("stamps_ns", "A", "B", "sigma", "kappa"):
             np.testing.assert_array_equal(getattr(a[key], field), getattr(b[key], field))
+
+
+def test_gate_verdicts_are_remembered_until_the_camera_changes(tmp_path, monkeypatch):
+    """The live queue asks again about the same queued images while a camera's queue is full:
+    the verdict is computed once per change of the camera (a kept pair, a search), and a kept
+    pair renews it."""
+    session = CalibrationSession(config(tmp_path, ["cam0"], [3]))
+    intr = demo_rig().intrinsics["cam0"]
+    session.set_camera_info("cam0", intr)
+    gray = one_tag_image(intr, 3)
+    session.add_pose(0, np.eye(4))
+    session.add_pose(NS // 10, np.eye(4))
+    calls = []
+    keepable = session._keepable_targets
+    monkeypatch.setattr(session, "_keepable_targets",
+                        lambda *a: calls.append(a[1]) or keepable(*a))
+    s1 = NS // 20
+    assert not session.gate_would_skip("cam0", s1)  # edge not seen yet: it would keep
+    assert not session.gate_would_skip("cam0", s1)
+    assert calls == [s1]  # the second answer was remembered
+    # a pair kept at the same pose (another stamp) renews the verdict: nothing to gain now
+    assert session.add_image("cam0", s1 + 1, Decoder(gray)).status == "used"
+    calls.clear()
+    assert session.gate_would_skip("cam0", s1)
+    assert calls == [s1]
+    session.reset()  # forgets the pairs and the remembered verdicts
+    session.add_pose(0, np.eye(4))
+    session.add_pose(NS // 10, np.eye(4))
+    assert not session.gate_would_skip("cam0", s1)

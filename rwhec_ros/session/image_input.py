@@ -77,6 +77,10 @@ ImageSource = np.ndarray | Callable[[], np.ndarray]
 #: references to the undecoded messages (at 30 Hz with the default discovery step a camera is
 #: searched every 1-3 images; 8 covers a quarter of a second).
 LOOK_BACK_IMAGES = 8
+#: Verdicts of :meth:`ImageInput.gate_would_skip` remembered (then forgotten all at once): a
+#: verdict holds while its camera's epoch (a pair kept for the camera, a search of it, a new
+#: configuration, a reset) is unchanged; the queue asks again for the same images while full.
+_GATE_MEMO_SIZE = 4096
 
 #: Per-camera counters of :meth:`ImageInput.camera_counters` (all present from the start).
 CAMERA_COUNTERS = ("images", "skipped_no_motion", "detected", "used", "rejected", "pairs_kept")
@@ -193,13 +197,23 @@ class ImageInput:
                 or camera not in self.config.camera_names):
             return False
         with self._lock:
-            if self._waits(stamp):
+            epoch = self._gate_epochs[camera]
+            memo = self._gate_memo.get((camera, stamp))
+            if memo is not None and memo[0] == epoch:
+                return memo[1]
+            if memo is not None:
+                A = memo[2]  # the pose at a bracketed stamp does not change
+            elif self._waits(stamp):
                 return False
-            A = self._buffer.lookup(stamp, count=False)
-            if A is None:
-                return False
-            return not self._worth_searching(camera, A,
-                                             self._keepable_targets(camera, stamp, A))
+            else:
+                A = self._buffer.lookup(stamp, count=False)
+                if A is None:
+                    return False
+            skip = not self._worth_searching(camera, A, self._keepable_targets(camera, stamp, A))
+            if len(self._gate_memo) >= _GATE_MEMO_SIZE:
+                self._gate_memo.clear()
+            self._gate_memo[(camera, stamp)] = (epoch, skip, A)
+            return skip
 
     def camera_counters(self) -> dict[str, dict[str, int]]:
         """Per camera (configuration order): ``images`` taken, ``skipped_no_motion`` (motion
@@ -273,6 +287,7 @@ class ImageInput:
         """The configured targets whose markers the search of an image of ``camera`` at ``A``
         found (lock held)."""
         self._views[camera] = (A, frozenset(name for name in detection.markers if name))
+        self._gate_epochs[camera] += 1
 
     def _examine(self, camera: str, stamp: int, image: ImageSource, intrinsics,
                  A: np.ndarray) -> ImageOutcome:
@@ -400,6 +415,7 @@ class ImageInput:
         self._count("pairs_kept", len(kept))
         if kept:
             self._data_version += 1
+            self._gate_epochs[camera] += 1
         return kept
 
     # --- helpers -------------------------------------------------------------------------------

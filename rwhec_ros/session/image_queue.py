@@ -111,8 +111,9 @@ class FairImageQueue(_Closable):
         key's oldest item (live).
     expendable : callable(key, item) -> bool, optional
         Live, on a full key: the oldest item for which it returns True is dropped instead of the
-        key's oldest item (e.g. an image the motion gate would skip anyway). Called with the
-        queue's lock held, like ``ready``.
+        key's oldest item (e.g. an image the motion gate would skip anyway). Called by
+        :meth:`put` WITHOUT the queue's lock (it may be slow or take other locks); it must not
+        call back into the queue.
     recheck_s : float
         Longest wait of :meth:`get` before it looks at readiness again.
     """
@@ -151,29 +152,46 @@ class FairImageQueue(_Closable):
     def put(self, key: Hashable, item: Any) -> bool:
         """Enqueue ``item`` for ``key``; returns False when the key's oldest item had to be
         dropped (counted). With ``block`` it waits for room instead (returns False only when
-        the queue was closed meanwhile, the item not enqueued)."""
+        the queue was closed meanwhile, the item not enqueued).
+
+        Live, on a full key with an ``expendable`` predicate, the key's items are judged
+        outside the queue's lock (the predicate may take the session's lock and does real
+        work), so that the consumers are never held up by a drop decision."""
         q = self._queues[key]
         with self._cond:
             self._stats[key]["received"] += 1
-            dropped = False
             if self.block:
                 while len(q) >= self.maxsize and not self._closed:
                     self._cond.wait()
                 if self._closed:
                     return False
-            elif len(q) >= self.maxsize:
-                self._drop_one(key, q)
+            elif len(q) >= self.maxsize and self._expendable is None:
+                q.popleft()
                 self._stats[key]["dropped"] += 1
-                dropped = True
+                q.append(item)
+                self._cond.notify_all()
+                return False
+            if len(q) < self.maxsize:
+                q.append(item)
+                self._cond.notify_all()
+                return True
+            candidates = list(q)
+        victim = next((c for c in candidates if self._expendable(key, c)), None)
+        with self._cond:
+            dropped = len(q) >= self.maxsize  # a consumer may have made room meanwhile
+            if dropped:
+                self._drop_one(key, q, victim)
             q.append(item)
             self._cond.notify_all()
             return not dropped
 
-    def _drop_one(self, key: Hashable, q: collections.deque) -> None:
-        """Drop the oldest expendable item of a full key, else its oldest (lock held)."""
-        if self._expendable is not None:
-            for i, item in enumerate(q):
-                if self._expendable(key, item):
+    def _drop_one(self, key: Hashable, q: collections.deque, victim: Any) -> None:
+        """Drop ``victim`` (an expendable item) from the full ``q`` if it is still queued, else
+        the key's oldest item; counted (lock held)."""
+        self._stats[key]["dropped"] += 1
+        if victim is not None:
+            for i, queued in enumerate(q):
+                if queued is victim:
                     del q[i]
                     self._stats[key]["dropped_expendable"] += 1
                     return

@@ -139,7 +139,7 @@ class CalibrationSession(ImageInput):
         self._pending: collections.deque = collections.deque()
         self._views: dict = {}  # camera -> (A, targets found) of its last searched image
         # the motion gate's remembered verdicts (image_input.gate_would_skip), valid while the
-        # camera's epoch is unchanged: (camera, stamp) -> (epoch, skip)
+        # camera's epoch is unchanged: (camera, stamp) -> (epoch, skip, A at the stamp)
         self._gate_memo: dict = {}
         self._gate_epochs = collections.Counter()
         # camera -> (stamp, A, image, intrinsics) the gate skipped since its last search
