@@ -232,8 +232,27 @@ def run_offline(scene: Scene, seconds: float, flat: dict) -> dict:
             "detect_cpu": timer.cpu, "detect_calls": timer.calls, "dropped": set()}
 
 
+def cpu_times() -> tuple[int, int] | None:
+    """``(steal, total)`` CPU jiffies of the machine so far (``/proc/stat``), or None: the
+    share of CPU time the hypervisor gave to other machines during a run (a virtual machine's
+    2 cores are not always 2 cores)."""
+    try:
+        fields = [int(v) for v in Path("/proc/stat").read_text().split("\n")[0].split()[1:]]
+    except (OSError, ValueError, IndexError):
+        return None
+    return (fields[7] if len(fields) > 7 else 0), sum(fields[:8])
+
+
+def steal_share(t0: tuple[int, int] | None, t1: tuple[int, int] | None) -> float:
+    """Stolen share of the CPU time between two :func:`cpu_times` (NaN when unknown)."""
+    if t0 is None or t1 is None or t1[1] <= t0[1]:
+        return float("nan")
+    return (t1[0] - t0[0]) / (t1[1] - t0[1])
+
+
 def run_live(scene: Scene, seconds: float, flat: dict) -> dict:
     session = new_session(scene, flat)
+    steal0 = cpu_times()
     cfg = session.config
     queue = FairImageQueue(cfg.camera_names, cfg.sync.image_queue_size,
                            ready=lambda item: session.pose_ready(item[0]),
@@ -269,7 +288,7 @@ def run_live(scene: Scene, seconds: float, flat: dict) -> dict:
     return {"session": session, "images": len(produced), "wall": wall, "cpu": cpu,
             "feed_wall": t_end - t0, "detect_cpu": float("nan"), "detect_calls": timer.calls,
             "dropped": dropped, "max_lag": max_lag, "threads": threads,
-            "queue": queue.stats()}
+            "queue": queue.stats(), "steal": steal_share(steal0, cpu_times())}
 
 
 def write_compressed_bag(scene: Scene, seconds: float, path: Path) -> tuple[Path, int]:
@@ -469,7 +488,8 @@ def section(seconds: float, cache: Path | None, seed: int = 0,
         lines.append(
             f"- {names[key]}: the producer fed {live['images']} images in "
             f"{live['feed_wall']:.1f} s ({live['images'] / live['feed_wall']:.0f} images/s "
-            f"offered; lag behind its clock at most {1e3 * live['max_lag']:.0f} ms); per camera "
+            f"offered; lag behind its clock at most {1e3 * live['max_lag']:.0f} ms); CPU "
+            f"stolen by the hypervisor during the run {100 * live['steal']:.1f} %; per camera "
             "received / dropped: "
             + ", ".join(f"{k} {v['received']}/{v['dropped']}" for k, v in live["queue"].items()))
     lines += [
