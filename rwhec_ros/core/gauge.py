@@ -209,7 +209,8 @@ def axis_words(vec: np.ndarray) -> str:
     i = int(np.argmax(np.abs(v)))
     if abs(v[i]) >= np.cos(np.deg2rad(2.0)):
         return ("-" if v[i] < 0 else "") + _AXIS_NAMES[i]
-    return "[" + ", ".join(f"{x:+.2f}" for x in v) + "]"
+    # + 0.0 turns -0.0 into 0.0, and a component that rounds to zero prints without a sign
+    return "[" + ", ".join("+0.00" if round(x, 2) == 0 else f"{x + 0.0:+.2f}" for x in v) + "]"
 
 
 def _eliminated(layout: StateLayout, unknown_scale: bool) -> np.ndarray:

@@ -339,3 +339,10 @@ def test_exact_single_axis_rotation_only_problem_names_the_rotation(fast_form):
     assert not res.certified
     assert res.certificate.status is Status.NOT_IDENTIFIABLE, res.certificate.message
     assert "rotation of tag_0, cam0 about z" in res.certificate.message
+
+
+def test_axis_words_prints_no_negative_zero():
+    """A component that rounds to zero (e.g. after an axis sign flip) prints as +0.00."""
+    words = axis_words(np.array([0.6, -0.001, -0.8]))
+    assert words == "[+0.60, +0.00, -0.80]"
+    assert axis_words(np.array([-0.0, 0.7, 0.7])) == "[+0.00, +0.71, +0.71]"
