@@ -26,7 +26,7 @@ Runs (same stream each):
   since the camera's previous search): fewer images searched, slightly different pairs.
 * **live** -- a producer thread paced to the wall clock adds the poses (as the node's pose
   callback, then ``FairImageQueue.notify``) and puts the images (arrays, the raw transport) into
-  the node's :class:`~rwhec_ros.session.FairImageQueue` (4 per camera, images held until their
+  the node's :class:`~rwhec_ros.session.FairImageQueue` (8 per camera, images held until their
   pose is there, a full queue dropping first an image the gate would skip);
   ``sync.detection_threads: auto`` :class:`~rwhec_ros.session.QueueWorker` threads call
   ``add_image``. With the node's
@@ -200,7 +200,7 @@ def config_flat(rig, out_dir: str, *, gate: bool, decimate, threads) -> dict:
     flat.update({"sync.max_gap_s": 0.05, "sync.extrapolation_tolerance_s": 0.005,
                  "sync.pose_buffer_size": 4000, "detection.motion_gate": gate,
                  "detection.decimate": decimate, "sync.detection_threads": threads})
-    flat.pop("sync.image_queue_size", None)  # the default: 4 per camera
+    flat.pop("sync.image_queue_size", None)  # the default: 8 per camera
     return flat
 
 

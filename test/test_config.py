@@ -145,7 +145,7 @@ def test_defaults_and_derived_values():
 def test_auto_or_integer_parameters_and_image_transport():
     cfg = CalibratorConfig.from_parameters(minimal())
     assert cfg.sync.detection_threads == "auto" and cfg.detection.decimate == "auto"
-    assert cfg.detection.motion_gate is True and cfg.sync.image_queue_size == 4
+    assert cfg.detection.motion_gate is True and cfg.sync.image_queue_size == 8
     # auto: the cores available, at most one thread per camera (2 cameras here)
     assert cfg.detection_thread_count(available_cores=1) == 1
     assert cfg.detection_thread_count(available_cores=16) == 2

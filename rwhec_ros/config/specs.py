@@ -124,8 +124,10 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("sync.extrapolation_tolerance_s", "double", 0.01,
               doc="how far [s] an image stamp may lie outside the pose buffer"),
     ParamSpec("sync.pose_buffer_size", "int", 4000, doc="poses kept for lookups"),
-    ParamSpec("sync.image_queue_size", "int", 4,
-              doc="images waiting for detection per camera; the oldest is dropped (and counted)"),
+    ParamSpec("sync.image_queue_size", "int", 8,
+              doc="images waiting for detection per camera; the oldest is dropped (and counted); "
+                  "8 hold about a quarter of a second at 30 Hz, the slack a camera needs while a "
+                  "worker searches back or the machine hiccups"),
     ParamSpec("sync.detection_threads", "int_or_auto", "auto",
               doc="threads running tag detection (node and bag replay): 'auto' = the cores "
                   "available to the process, at most one per camera; or an integer >= 1"),
