@@ -298,16 +298,26 @@ def _with_corners(rng):
                    carriers=ds.carriers, intrinsics=intr, tag_sizes_m={"x0": 0.16, "x1": 0.08})
 
 
+def _round_trip(ds, path, arrays):
+    """``ds`` saved and loaded again: pairs bit-exact, corners and board points equal."""
+    back = Dataset.load(ds.save(path, arrays=arrays))
+    assert_bit_exact(ds, back)
+    for e1, e2 in zip(ds.edges, back.edges, strict=True):
+        # NaN rows stay NaN (the sign bit of a NaN is not kept by YAML), the others exact
+        for key in ("corners_px", "corner_points_m"):
+            a, b = getattr(e1, key), getattr(e2, key)
+            assert (a is None) == (b is None), key
+            if a is not None:
+                np.testing.assert_array_equal(a, b)
+    return back
+
+
 @pytest.mark.parametrize("arrays", ["inline", "npz"])
 def test_corners_intrinsics_and_tag_sizes_round_trip(tmp_path, arrays):
     from rwhec_ros.data.corners import corner_observations
 
     ds = _with_corners(np.random.default_rng(4))
-    back = Dataset.load(ds.save(tmp_path / "c.yaml", arrays=arrays))
-    assert_bit_exact(ds, back)
-    for e1, e2 in zip(ds.edges, back.edges, strict=True):
-        # NaN rows stay NaN (the sign bit of a NaN is not kept by YAML), the others exact
-        np.testing.assert_array_equal(e1.corners_px, e2.corners_px)
+    back = _round_trip(ds, tmp_path / "c.yaml", arrays)
     assert back.intrinsics == ds.intrinsics and back.tag_sizes_m == {"x0": 0.16, "x1": 0.08}
     obs = corner_observations(back)
     # the pairs with corners, of cameras with intrinsics (y0 only) and tags with a size
@@ -384,14 +394,7 @@ def test_board_corners_round_trip(tmp_path, arrays):
     from rwhec_ros.data.corners import corner_observations
 
     ds = _with_board_corners(np.random.default_rng(7))
-    back = Dataset.load(ds.save(tmp_path / "b.yaml", arrays=arrays))
-    assert_bit_exact(ds, back)
-    for e1, e2 in zip(ds.edges, back.edges, strict=True):
-        np.testing.assert_array_equal(e1.corners_px, e2.corners_px)
-        if e1.corner_points_m is None:
-            assert e2.corner_points_m is None
-        else:
-            np.testing.assert_array_equal(e1.corner_points_m, e2.corner_points_m)
+    back = _round_trip(ds, tmp_path / "b.yaml", arrays)
     board = back.edge("x1", "y0")
     assert board.corners_px.shape == (board.n, 12, 2)
     obs = [o for o in corner_observations(back) if o.x == "x1"]
