@@ -247,5 +247,5 @@ def test_reprojection_per_camera_from_a_data_set_with_corners():
         assert doc["reprojection"][cam]["rms_px"] < 1e-3
     text = summary(solved.result, solved.problem, {}, _naming(problem), solved.verdict,
                    solved.accuracy)
-    assert "reprojection error of the tag corners through the calibration (RMS): y0 " in text
+    assert "reprojection error of the detected corners through the calibration (RMS): y0 " in text
     assert "reprojection y0" in dict(solved.accuracy.diagnostic_values())

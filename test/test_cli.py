@@ -361,6 +361,36 @@ def test_demo_parameters_match_the_demo_config_file():
     assert CalibratorConfig.from_parameters(ours) == CalibratorConfig.from_parameters(flat)
 
 
+def test_demo_parameters_with_boards_match_the_demo_boards_config_file():
+    """config/demo_boards.yaml (the calibrator of ``demo.launch.py boards:=true``) describes the
+    rig the simulator node renders with ``boards: [aprilgrid, charuco]``, which is the CLI
+    demo's ``--board aprilgrid --board charuco``: one rig construction for all three."""
+    from rwhec_ros.simulation import demo_board_rig
+
+    flat = read_parameter_file(REPO / "config" / "demo_boards.yaml")
+    ours = demo_parameters(demo_board_rig(["aprilgrid", "charuco"]))
+    config = CalibratorConfig.from_parameters(flat)
+    assert CalibratorConfig.from_parameters(ours) == config
+    assert config.x_names == ("tag_2", "tag_3", "tag_4", "tag_5", "board_0", "board_1")
+
+
+def test_demo_launch_file_pairs_the_simulator_boards_with_their_config():
+    """launch/demo.launch.py (read as text: no ROS here): boards:=true gives the simulator the
+    boards that config/demo_boards.yaml describes."""
+    import ast
+
+    text = (REPO / "launch" / "demo.launch.py").read_text()
+    tree = ast.parse(text)
+    boards = next(ast.literal_eval(n.value) for n in ast.walk(tree)
+                  if isinstance(n, ast.Assign) and getattr(n.targets[0], "id", "") == "DEMO_BOARDS")
+    from rwhec_ros.simulation import demo_board_rig
+
+    flat = read_parameter_file(REPO / "config" / "demo_boards.yaml")
+    assert CalibratorConfig.from_parameters(demo_parameters(demo_board_rig(boards))) == \
+        CalibratorConfig.from_parameters(flat)
+    assert '"demo_boards.yaml"' in text and '"demo.yaml"' in text
+
+
 def test_demo_end_to_end_and_report_subcommand(tmp_path):
     # settings from a parameter file (noise.sigma 0.006 instead of the built-in 0.005) and
     # --min-pairs over both; the rig's frames, topics and tags stay the simulation's
@@ -391,7 +421,8 @@ def test_demo_end_to_end_and_report_subcommand(tmp_path):
     # pixels (rendered tags, detector noise of a few tenths of a pixel; measured ~0.4 px)
     assert set(doc["reprojection"]) == {"cam0", "cam1", "cam2"}
     assert all(0 < r["rms_px"] < 1.5 for r in doc["reprojection"].values())
-    assert "reprojection error of the tag corners through the calibration (RMS): cam0 " in stdout
+    assert ("reprojection error of the detected corners through the calibration (RMS): cam0 "
+            in stdout)
     # and the saved data set gives it again
     code, again, stderr = run(["dataset", out / "dataset.yaml", "-o", tmp_path / "again", "-q",
                                "--min-pairs", "2", "--folds", "0", "--no-guidance"])

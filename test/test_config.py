@@ -63,6 +63,7 @@ def test_examples_present():
         "mobile_rig_mocap.yaml",
         "mobile_robot_floor.yaml",
         "demo.yaml",
+        "demo_boards.yaml",
         "arm_charuco.yaml",
         "rig_aprilgrid.yaml",
     } <= names

@@ -129,3 +129,25 @@ def test_render_with_boards_puts_each_board_at_its_tag_pose():
     assert seen == {"board0", "board1", "tag_2"}
     with pytest.raises(ValueError, match="boards"):
         rig.render("cam0", rig.T_world_rig(0.0), boards={17: boards[0]})
+
+
+def test_demo_board_rig_is_the_cli_demo_and_the_node_rig():
+    from rwhec_ros.simulation import DEMO_RIG_FRAME, DEMO_WORLD_FRAME, demo_board, demo_board_rig
+
+    rig = demo_board_rig(["aprilgrid", "charuco"])
+    assert rig.boards == {0: demo_board("aprilgrid", 0), 1: demo_board("charuco", 1)}
+    assert list(rig.target_names()) == ["tag_2", "tag_3", "tag_4", "tag_5", "board_0", "board_1"]
+    assert demo_board_rig([]).boards == {} and demo_board_rig().tag_ids == demo_rig().tag_ids
+    with pytest.raises(ValueError, match=r"boards\[1\]: must be one of \['aprilgrid', "
+                                         r"'charuco'\], got 'chess'"):
+        demo_board_rig(["aprilgrid", "chess"])
+    with pytest.raises(ValueError, match="--board: 3 boards for 2 tag positions"):
+        demo_board_rig(["charuco"] * 3, 2, 2, what="--board")
+    # the truth the node publishes: cameras on the rig, targets named as the calibrator's
+    frames = {child: (parent, T) for parent, child, T in rig.true_frames()}
+    assert set(frames) == {f"{c}_optical_true" for c in rig.cameras} | {
+        f"{n}_true" for n in rig.target_names()}
+    assert frames["board_1_true"][0] == DEMO_WORLD_FRAME
+    assert frames["cam0_optical_true"][0] == DEMO_RIG_FRAME
+    np.testing.assert_array_equal(frames["board_1_true"][1], rig.T_world_tag[1])
+    np.testing.assert_array_equal(frames["tag_4_true"][1], rig.T_world_tag[4])

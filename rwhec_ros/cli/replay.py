@@ -274,7 +274,7 @@ def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> d
 
 def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
     from ..session import CalibrationSession
-    from ..simulation import demo_board, demo_rig, simulated_stream
+    from ..simulation import demo_board_rig, simulated_stream
 
     if args.cameras < 1 or args.tags < 1:
         raise BadInput(f"--cameras/--tags: must be >= 1, got {args.cameras}/{args.tags}")
@@ -284,11 +284,8 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
     settings = read_config(args)
     paths = output_paths(args, report=args.report)  # refuse early, before any work
     t0 = time.perf_counter()
-    if len(args.board) > args.tags:
-        raise BadInput(f"--board: {len(args.board)} boards for {args.tags} tag positions (--tags)")
     try:
-        rig = demo_rig(args.cameras, args.tags,
-                       boards={j: demo_board(kind, j) for j, kind in enumerate(args.board)})
+        rig = demo_board_rig(args.board, args.cameras, args.tags, what="--board")
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     flat = demo_parameters(rig)

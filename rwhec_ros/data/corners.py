@@ -1,8 +1,9 @@
 """What a data set keeps for the reprojection error per camera: corners, intrinsics, tag sizes.
 
 A data set (:class:`rwhec_ros.data.dataset.Dataset`) written by the session keeps, besides the
-pairs, each pair's detected tag corners (``DatasetEdge.corners_px``), the cameras' intrinsics and
-the tag sizes, so that the calibration can be checked in pixels
+pairs, each pair's detected corners (``DatasetEdge.corners_px``: a tag's four; a board's, with
+their board-frame points ``DatasetEdge.corner_points_m``), the cameras' intrinsics and the tag
+sizes, so that the calibration can be checked in pixels
 (:func:`rwhec_ros.vision.reprojection.reprojection_errors`). All three are optional: data sets
 written before they were kept, or from the paper's CSV files, have none and still load.
 
@@ -19,6 +20,13 @@ the data set is large)::
       ...
       corners_px:          # per pair 4 corners (u, v) [px], order TAG_CORNERS_UNIT; .nan: none
       - [[u0, v0], [u1, v1], [u2, v2], [u3, v3]]
+    - x: board_0           # a board: the corners seen, padded with .nan to the most of any pair
+      y: cam_0
+      ...
+      corners_px:
+      - [[u0, v0], ..., [uK, vK], [.nan, .nan], ...]
+      corner_points_m:     # the same corners in the board frame [m]; .nan where corners_px is
+      - [[x0, y0, 0.0], ..., [xK, yK, 0.0], [.nan, .nan, .nan], ...]
 """
 
 from __future__ import annotations
@@ -78,12 +86,21 @@ def check_tag_sizes(sizes: Any, x_names) -> dict[str, float]:
 
 def corner_observations(dataset) -> list[CornerObservation]:
     """One :class:`~rwhec_ros.vision.reprojection.CornerObservation` per pair of ``dataset``
-    that has corners, whose tag has a size and whose camera has intrinsics; empty when the data
-    set keeps no corners."""
+    that has corners and whose camera has intrinsics: a tag's pair when the tag has a size, a
+    board's with its board-frame points (the corners seen); empty when the data set keeps no
+    corners."""
     out = []
     for e in dataset.edges:
+        if e.corners_px is None or e.y not in dataset.intrinsics:
+            continue
+        if e.corner_points_m is not None:
+            for A, c, p in zip(e.A, e.corners_px, e.corner_points_m, strict=True):
+                seen = np.isfinite(c).all(axis=1)
+                if seen.any():
+                    out.append(CornerObservation(e.x, e.y, A, c[seen], object_points=p[seen]))
+            continue
         size = dataset.tag_sizes_m.get(e.x)
-        if e.corners_px is None or size is None or e.y not in dataset.intrinsics:
+        if size is None:
             continue
         for A, c in zip(e.A, e.corners_px, strict=True):
             if np.isfinite(c).all():

@@ -17,9 +17,12 @@ takes 20 s to write and 28 s to read with libyaml alone (49 s / 145 s through :m
 above.
 
 Optional keys (:mod:`rwhec_ros.data.corners`; files without them load as before): per edge
-``corners_px`` (each pair's detected tag corners [px], ``.nan`` for a pair without), and at the
-top ``intrinsics`` (per camera) and ``tag_sizes_m`` (per tag), which give the reprojection error
-per camera.
+``corners_px`` (each pair's detected corners [px], ``.nan`` for a pair without: a tag's four;
+a board's, as many as were seen) with, for boards only, ``corner_points_m`` (the same corners in
+the board frame [m]), and at the top ``intrinsics`` (per camera) and ``tag_sizes_m`` (per tag),
+which give the reprojection error per camera. Files written before boards kept corners (tag
+edges with four corners per pair, board edges with none) have no ``corner_points_m`` and load
+as before.
 
 Inline edge layout (``A``/``B``: one 4x4 matrix per pair, rows as flow lists)::
 
@@ -62,6 +65,7 @@ DATASET_FORMAT = "rwhec_ros.dataset"
 DATASET_VERSION = 1
 
 _ARRAY_KEYS = ("stamps_ns", "sigma", "kappa", "A", "B")
+_CORNER_KEYS = ("corners_px", "corner_points_m")
 _Dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 _Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -336,8 +340,9 @@ class Dataset:
             named = {
                 f"e{i}_{k}": getattr(e, k) for i, e in enumerate(self.edges) for k in _ARRAY_KEYS
             }
-            named.update({f"e{i}_corners_px": e.corners_px for i, e in enumerate(self.edges)
-                          if e.corners_px is not None})
+            for i, e in enumerate(self.edges):
+                named.update({f"e{i}_{k}": getattr(e, k) for k in _CORNER_KEYS
+                              if getattr(e, k) is not None})
             np.savez(buffer, **named)
             payload = buffer.getvalue()
             npz_path.write_bytes(payload)
@@ -358,8 +363,8 @@ class Dataset:
                         "B": e.B.tolist(),
                     }
                 )
-                if e.corners_px is not None:
-                    edges_doc[-1]["corners_px"] = e.corners_px.tolist()
+                edges_doc[-1].update({k: getattr(e, k).tolist() for k in _CORNER_KEYS
+                                      if getattr(e, k) is not None})
         doc["edges"] = edges_doc
         text = yaml.dump(doc, Dumper=_Dumper, sort_keys=False, default_flow_style=None, width=100)
         path.write_text(text, encoding="utf-8")
@@ -415,10 +420,11 @@ class Dataset:
                     if key not in ed:
                         raise ValueError(f"{label}: missing key {key!r}")
                     values[key] = _array_from_yaml(ed[key], key, label)
-            if npz is not None and f"e{i}_corners_px" in npz:
-                values["corners_px"] = npz[f"e{i}_corners_px"]
-            elif npz is None and ed.get("corners_px") is not None:
-                values["corners_px"] = _array_from_yaml(ed["corners_px"], "corners_px", label)
+            for key in _CORNER_KEYS:  # optional (module docstring)
+                if npz is not None and f"e{i}_{key}" in npz:
+                    values[key] = npz[f"e{i}_{key}"]
+                elif npz is None and ed.get(key) is not None:
+                    values[key] = _array_from_yaml(ed[key], key, label)
             n = ed["n"]
             if values["stamps_ns"].ndim != 1 or values["stamps_ns"].shape[0] != n:
                 raise ValueError(

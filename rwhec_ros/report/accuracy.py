@@ -226,8 +226,9 @@ def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, lis
                  _focal_words(r)) for cam, r in
                 sorted(rep.items(), key=lambda kv: natural_key(kv[0]))]
         out.append((REPROJECTION_HEADING,
-                    "The detected tag corners against the tag placed by the calibrated chain "
-                    "(camera <- carrier <- pose stream <- tag carrier <- tag) and projected "
+                    "The detected corners (tags, boards) against the target placed by the "
+                    "calibrated chain (camera <- carrier <- pose stream <- target carrier <- "
+                    "target) and projected "
                     "with the camera's intrinsics, in pixels: the residual of the whole "
                     "calibration, to compare with the detector's noise (a few tenths of a "
                     "pixel for sharp tags). Per image: the same corners through each image's "

@@ -159,11 +159,11 @@ def draw_reprojection(ax, doc: Mapping[str, Any]) -> None:
     ax.set_ylim(len(names) - 0.4, -0.6)
     ax.set_yticks(pos)
     ax.set_yticklabels(names, fontsize=8)
-    ax.set_xlabel("reprojection error of the detected tag corners [px]", fontsize=9)
+    ax.set_xlabel("reprojection error of the detected corners (tags, boards) [px]", fontsize=9)
     ax.tick_params(axis="x", labelsize=8)
     ax.grid(axis="x", color="0.88", linewidth=0.6)
     ax.set_axisbelow(True)
     ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0),
               frameon=False, borderaxespad=0.0)  # beside the bars: never over them
-    ax.set_title("reprojection error per camera: tag corners through camera <- carrier <- pose "
-                 "<- tag carrier <- tag", fontsize=11)
+    ax.set_title("reprojection error per camera: corners through camera <- carrier <- pose "
+                 "<- target carrier <- target", fontsize=11)

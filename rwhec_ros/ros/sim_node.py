@@ -4,14 +4,18 @@ Topics (matching ``config/demo.yaml``): ``/demo/rig/pose`` (``geometry_msgs/Pose
 ``header.frame_id = world``, the rig's pose ``T_world_rig`` as a motion-capture system would
 publish it), and per camera ``/demo/<cam>/image_raw`` (``mono8`` ``sensor_msgs/Image``) and
 ``/demo/<cam>/camera_info``. For RViz it also broadcasts ``world -> rig`` on ``/tf`` and the TRUE
-extrinsics on ``/tf_static`` as ``<cam>_optical_true`` (parent ``rig``) and ``tag_<id>_true``
-(parent ``world``), to compare with the calibrator's ``*_calibrated`` frames.
+extrinsics on ``/tf_static`` as ``<cam>_optical_true`` (parent ``rig``) and ``tag_<j>_true`` /
+``board_<j>_true`` (parent ``world``), to compare with the calibrator's ``*_calibrated`` frames
+(:meth:`rwhec_ros.simulation.SimulatedRig.true_frames`).
 
 Parameters: ``rate_hz`` (image rate, 5.0), ``pose_rate_hz`` (100.0), ``seed`` (0),
 ``pose_noise_m`` / ``pose_noise_rad`` (pose-stream noise per axis, 0.0005), ``image_noise_std``
-(grey levels, 2.0), ``n_cameras`` (3), ``n_tags`` (6). Rendering runs in its own callback group
-so the pose stream keeps its rate under the ``MultiThreadedExecutor``. No maths here: the model
-is :func:`rwhec_ros.simulation.demo_rig`. Stopping (Ctrl-C, also under ``ros2 launch``) cancels
+(grey levels, 2.0), ``n_cameras`` (3), ``n_tags`` (6), ``boards`` (string array, default empty:
+board ``boards[j]``, ``aprilgrid`` or ``charuco``, in place of tag ``j``, as the CLI demo's
+``--board``; ``['aprilgrid', 'charuco']`` is what ``config/demo_boards.yaml`` describes).
+Rendering runs in its own callback group so the pose stream keeps its rate under the
+``MultiThreadedExecutor``. No maths here: the model is
+:func:`rwhec_ros.simulation.demo_board_rig`. Stopping (Ctrl-C, also under ``ros2 launch``) cancels
 the timers and waits for a running callback before the node is destroyed
 (:func:`rwhec_ros.ros.process.run_node_program`), so nothing publishes on a destroyed publisher.
 """
@@ -24,8 +28,10 @@ import threading
 import numpy as np
 import tf2_ros
 from geometry_msgs.msg import PoseStamped, TransformStamped
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
@@ -40,8 +46,8 @@ from ..simulation import (
     DEMO_POSE_TOPIC,
     DEMO_RIG_FRAME,
     DEMO_WORLD_FRAME,
+    demo_board_rig,
     demo_camera_topics,
-    demo_rig,
 )
 from .process import rclpy_main
 
@@ -65,10 +71,16 @@ class DemoSimulatorNode(Node):
         self._image_noise = float(self.declare_parameter("image_noise_std", 2.0).value)
         n_cameras = int(self.declare_parameter("n_cameras", 3).value)
         n_tags = int(self.declare_parameter("n_tags", 6).value)
+        # declared by type: an empty-list default would make it a BYTE_ARRAY (rclpy #912);
+        # unset, its value is None
+        boards = self.declare_parameter(
+            "boards", Parameter.Type.STRING_ARRAY,
+            ParameterDescriptor(description="board kinds (aprilgrid, charuco) in place of tags "
+                                            "0, 1, ... (default: none)")).value
         for name, value in (("rate_hz", rate), ("pose_rate_hz", pose_rate)):
             if not value > 0:
                 raise ValueError(f"{name}: must be > 0, got {value!r}")
-        self.rig = demo_rig(n_cameras, n_tags)
+        self.rig = demo_board_rig(list(boards or ()), n_cameras, n_tags)
         self._pose_rng = np.random.default_rng(seed)
         self._image_rng = np.random.default_rng(seed + 1)
         self._t0_ns = self.get_clock().now().nanoseconds
@@ -93,7 +105,8 @@ class DemoSimulatorNode(Node):
                               callback_group=MutuallyExclusiveCallbackGroup()),
         ]
         self.get_logger().info(
-            f"demo rig: cameras {list(self.rig.cameras)}, tags {list(self.rig.tag_ids)}, "
+            f"demo rig: cameras {list(self.rig.cameras)}, targets "
+            f"{list(self.rig.target_names())}, "
             f"images at {rate:g} Hz, poses at {pose_rate:g} Hz on {DEMO_POSE_TOPIC}"
         )
 
@@ -102,16 +115,10 @@ class DemoSimulatorNode(Node):
 
     def _publish_truth(self) -> None:
         now = self.get_clock().now().nanoseconds
-        msgs = [
-            fill_message(TransformStamped(), transform_to_transform_stamped_fields(
-                T, DEMO_RIG_FRAME, f"{cam}_optical_true", now))
-            for cam, T in self.rig.T_rig_cam.items()
-        ] + [
-            fill_message(TransformStamped(), transform_to_transform_stamped_fields(
-                T, DEMO_WORLD_FRAME, f"tag_{tag_id}_true", now))
-            for tag_id, T in self.rig.T_world_tag.items()
-        ]
-        self._static_tf.sendTransform(msgs)
+        self._static_tf.sendTransform([
+            fill_message(TransformStamped(),
+                         transform_to_transform_stamped_fields(T, parent, child, now))
+            for parent, child, T in self.rig.true_frames()])
 
     def stop_activity(self) -> None:
         """Cancel the timers; callbacks already running return before publishing again."""

@@ -10,8 +10,8 @@ At the solution of :func:`~rwhec_ros.session.solving.solve_and_assess`:
 * the **next-motion guidance** (:func:`rwhec_ros.core.guidance.suggest_next_motion`): the motion
   that would most reduce the largest remaining std, in words;
 * the **reprojection error per camera**
-  (:func:`rwhec_ros.vision.reprojection.reprojection_errors`) of the detected tag corners through
-  the calibrated chain, when the data keep corners and intrinsics
+  (:func:`rwhec_ros.vision.reprojection.reprojection_errors`) of the detected corners (tags,
+  boards) through the calibrated chain, when the data keep corners and intrinsics
   (:func:`rwhec_ros.data.corners.corner_observations`), with each camera's focal fit
   (:func:`rwhec_ros.vision.focal_fit.fit_focal_scale`, read by the verdict's focal check):
   about 8 per-image pose fits of at most 100 images per camera, ~0.2-0.5 s per camera on a busy
@@ -305,7 +305,8 @@ def accuracy_lines(accuracy: Accuracy | None) -> list[str]:
         lines.append(f"cross-validation ({accuracy.validation.folds} folds), worst held-out "
                      f"edge: {_held_out_words(w)}")
     if accuracy.reprojection:
-        lines.append("reprojection error of the tag corners through the calibration (RMS): "
+        lines.append("reprojection error of the detected corners through the calibration "
+                     "(RMS): "
                      + ", ".join(f"{cam} {r.rms_px:.2f} px" for cam, r in
                                  accuracy.reprojection.items()))
     if accuracy.guidance is not None:

@@ -400,10 +400,11 @@ class ImageInput:
             else:
                 sigma, kappa = noise.sigma, noise.kappa
             x = o.name
-            # the data set keeps four tag corners per pair (reprojection error); boards none
-            corners = o.image_points if o.kind == "tag" else None
+            # the data set keeps each pair's corners (reprojection error, focal check): a
+            # tag's four, or a board's seen corners with their board-frame points
+            points = None if o.kind == "tag" else o.object_points
             ok = self._acc.offer(x, camera, stamp, A, o.T_cam_target, sigma, kappa,
-                                 corners_px=corners)
+                                 corners_px=o.image_points, corner_points_m=points)
             self._count("pairs_offered")
             if ok:
                 kept.append(x)

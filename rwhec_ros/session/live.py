@@ -134,6 +134,8 @@ class CalibrationSession(ImageInput):
             keyframe_translation_m=c.keyframe.min_translation_m,
             max_pairs_per_edge=c.keyframe.max_pairs_per_edge,
             max_edges=max(1, len(c.cameras) * len(c.x_names)),
+            board_corners=max((t.board.n_corners for t in self._target_specs
+                               if t.board is not None), default=0),
         )
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()

@@ -16,7 +16,7 @@ here and match ``config/demo.yaml``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,6 +35,7 @@ __all__ = [
     "SimulatedRig",
     "demo_rig",
     "demo_board",
+    "demo_board_rig",
     "DEMO_BOARD_KINDS",
 ]
 
@@ -137,6 +138,16 @@ class SimulatedRig:
         in the order of the configuration of :func:`rwhec_ros.cli.replay.demo_parameters`."""
         out = {f"tag_{j}": j for j in self.single_tag_ids}
         out.update({f"board_{j}": j for j in sorted(self.boards)})
+        return out
+
+    def true_frames(self) -> list[tuple[str, str, np.ndarray]]:
+        """``(parent, child, T_parent_child)`` of the true extrinsics, as the simulator node
+        publishes them on ``/tf_static`` to compare with the calibrator's ``*_calibrated``
+        frames: ``<cam>_optical_true`` on ``rig`` (``Y_k``), ``<target>_true`` on ``world``
+        (``X_j``; targets named as :meth:`target_names`: ``tag_<j>`` or ``board_<j>``)."""
+        out = [(DEMO_RIG_FRAME, f"{cam}_optical_true", T) for cam, T in self.T_rig_cam.items()]
+        out += [(DEMO_WORLD_FRAME, f"{name}_true", self.T_world_tag[j])
+                for name, j in self.target_names().items()]
         return out
 
     def T_world_rig(self, t: float) -> np.ndarray:
@@ -302,3 +313,21 @@ def demo_board(kind: str, position: int = 0) -> AprilGridSpec | CharucoSpec:
         return CharucoSpec(5, 4, square_size=0.05, marker_size=0.038, dictionary="DICT_4X4_250",
                            first_id=10 * position)
     raise ValueError(f"kind: must be one of {list(DEMO_BOARD_KINDS)}, got {kind!r}")
+
+
+def demo_board_rig(boards: Sequence[str] = (), n_cameras: int = 3, n_tags: int = 6, *,
+                   what: str = "boards") -> SimulatedRig:
+    """The demo rig with board ``boards[j]`` (a kind of :data:`DEMO_BOARD_KINDS`, laid out by
+    :func:`demo_board`) in place of tag ``j``: what the CLI demo (``--board``) and the simulator
+    node (parameter ``boards``) render, and what ``config/demo_boards.yaml`` describes for
+    ``["aprilgrid", "charuco"]``. ``what`` names the option in the ``ValueError`` of a bad kind
+    or of more boards than tag positions."""
+    kinds = list(boards)
+    if len(kinds) > n_tags:
+        raise ValueError(f"{what}: {len(kinds)} boards for {n_tags} tag positions")
+    for i, kind in enumerate(kinds):
+        if kind not in DEMO_BOARD_KINDS:
+            raise ValueError(f"{what}[{i}]: must be one of {list(DEMO_BOARD_KINDS)}, got "
+                             f"{kind!r}")
+    return demo_rig(n_cameras, n_tags,
+                    boards={j: demo_board(kind, j) for j, kind in enumerate(kinds)})

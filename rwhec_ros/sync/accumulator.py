@@ -17,6 +17,11 @@ by doubling up to ``max_pairs_per_edge`` slots, so the memory held between calls
 objects, measured at 3-4.5 kB with ``tracemalloc``); with the defaults (256 edges, 2000 pairs)
 that is 186.4 MB. An offer needs transient work arrays of a few hundred bytes per stored pair of
 its edge. See :meth:`PairAccumulator.memory_bound_bytes` and :meth:`PairAccumulator.nbytes`.
+Board corners (``board_corners`` = ``M`` > 0, the most corners of a board pair): an edge that
+receives them widens its corner slots to ``M`` pixels (16 bytes each) and their board-frame
+points (24 bytes each), so the bound per slot becomes ``360 + 16 (M - 4) + 24 M`` bytes (for an
+AprilGrid of 6x6 tags, M = 144: 5,816 bytes, 11.6 MB per edge of 2000 pairs); tag edges keep
+their 360-byte slots.
 
 Full edge policy (counted, never silent): when an edge holds ``max_pairs_per_edge`` pairs, a new
 keyframe replaces the most redundant stored pair (the one closest to its nearest stored
@@ -100,22 +105,30 @@ def _pose_change(A0: np.ndarray, A1: np.ndarray) -> tuple[float, float]:
     return math.atan2(s, c), shift
 
 
-def _corners(value) -> np.ndarray | None:
-    """``value`` as four finite corners (4, 2), or None (absent or not that)."""
+def _corners(value, points=None, most: int = 0) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``(corners, points)``: four finite tag corners (4, 2) and None; or, with board points,
+    ``4 <= K <= most`` finite corners (K, 2) and their points (K, 3); ``(None, None)`` when
+    absent or not that."""
     if value is None:
-        return None
+        return None, None
     try:
         c = np.asarray(value, dtype=float)
+        p = None if points is None else np.asarray(points, dtype=float)
     except (TypeError, ValueError):
-        return None
-    return c if c.shape == (4, 2) and np.isfinite(c).all() else None
+        return None, None
+    if p is None:
+        ok = c.shape == (4, 2) and np.isfinite(c).all()
+        return (c, None) if ok else (None, None)
+    ok = (c.ndim == 2 and c.shape[1] == 2 and 4 <= c.shape[0] <= most
+          and p.shape == (c.shape[0], 3) and np.isfinite(c).all() and np.isfinite(p).all())
+    return (c, p) if ok else (None, None)
 
 
 class _EdgeStore:
     """Growing preallocated arrays of one edge plus nearest-neighbour bookkeeping."""
 
-    _FIELDS = ("stamps", "A", "B", "sigma", "kappa", "corners", "nn_dist", "nn_idx")
-    _FILL = {"nn_dist": np.inf, "corners": np.nan}  # of new slots (else 0)
+    _FIELDS = ("stamps", "A", "B", "sigma", "kappa", "corners", "points", "nn_dist", "nn_idx")
+    _FILL = {"nn_dist": np.inf, "corners": np.nan, "points": np.nan}  # of new slots (else 0)
 
     def __init__(self, x: str, y: str, max_pairs: int) -> None:
         self.x, self.y = x, y
@@ -128,6 +141,7 @@ class _EdgeStore:
         self.sigma = np.zeros(slots)
         self.kappa = np.zeros(slots)
         self.corners = np.full((slots, 4, 2), np.nan)  # detected corners [px]; NaN: none
+        self.points = np.full((slots, 0, 3), np.nan)  # their board-frame points (boards only)
         self.nn_dist = np.full(slots, np.inf)  # distance of each pair to its nearest neighbour
         self.nn_idx = np.full(slots, -1, dtype=np.int64)  # index of that neighbour
 
@@ -153,6 +167,12 @@ class _EdgeStore:
         trans = np.linalg.norm(stored[:, :3, 3] - A[:3, 3], axis=-1) / trans_scale
         return np.maximum(rot, trans)
 
+    def widen(self, width: int) -> None:
+        """Make room for ``width`` board corners per slot with their board-frame points; tag
+        corners stored before (an edge keeps one kind) are dropped."""
+        self.corners = np.full((self.slots, width, 2), np.nan)
+        self.points = np.full((self.slots, width, 3), np.nan)
+
     def copy(self) -> KeptPairs:
         """The kept pairs sorted by stamp, as plain copies (no re-validation). Pairs stored in
         stamp order (the usual case: they arrive in time order) are copied as they lie, the
@@ -167,9 +187,14 @@ class _EdgeStore:
                          self.sigma[:n][order], self.kappa[:n][order])
 
     def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float,
-              corners=None) -> None:
+              corners=None, points=None) -> None:
         self.stamps[i] = stamp
-        self.corners[i] = np.nan if corners is None else corners
+        self.corners[i] = np.nan
+        self.points[i] = np.nan
+        if corners is not None:
+            self.corners[i, : len(corners)] = corners
+        if points is not None:
+            self.points[i, : len(points)] = points
         self.A[i] = A
         self.B[i] = B
         self.sigma[i] = sigma
@@ -178,6 +203,10 @@ class _EdgeStore:
     def data(self, rotation_tol: float) -> DatasetEdge:
         """The kept pairs sorted by stamp (copies), validated with ``rotation_tol``."""
         order = np.argsort(self.stamps[: self.n], kind="stable")
+        corners, points = self.corners[: self.n][order], None
+        if self.points.shape[1]:  # board corners: as wide as the most any pair has
+            width = max(4, int(np.isfinite(corners[..., 0]).sum(axis=1).max()))
+            corners, points = corners[:, :width].copy(), self.points[: self.n][order][:, :width]
         return DatasetEdge(
             x=self.x,
             y=self.y,
@@ -187,7 +216,8 @@ class _EdgeStore:
             sigma=self.sigma[: self.n][order].copy(),
             kappa=self.kappa[: self.n][order].copy(),
             rotation_tol=rotation_tol,
-            corners_px=self.corners[: self.n][order].copy(),
+            corners_px=corners.copy(),
+            corner_points_m=None if points is None else points.copy(),
         )
 
 
@@ -207,6 +237,9 @@ class PairAccumulator:
         Number of edges (default 256); offers for further edges are dropped and counted.
     rotation_tol : float
         Rigid-transform validation tolerance for ``A`` and ``B`` (as :meth:`Edge.build`).
+    board_corners : int
+        The most corners a board pair offers (the session's largest board); 0 (default): board
+        corners are not kept. Raises the memory bound (module docstring).
     """
 
     def __init__(
@@ -217,6 +250,7 @@ class PairAccumulator:
         max_edges: int = 256,
         *,
         rotation_tol: float = DEFAULT_ROTATION_TOL,
+        board_corners: int = 0,
     ) -> None:
         for name, value in (
             ("keyframe_rotation_rad", keyframe_rotation_rad),
@@ -231,6 +265,10 @@ class PairAccumulator:
         ):
             if not _is_int(value) or value < minimum:
                 raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
+        if not _is_int(board_corners) or not (board_corners == 0 or board_corners >= 4):
+            raise ValueError(f"board_corners: expected 0 or an integer >= 4, got "
+                             f"{board_corners!r}")
+        self.board_corners = int(board_corners)
         self.keyframe_rotation_rad = float(keyframe_rotation_rad)
         self.keyframe_translation_m = float(keyframe_translation_m)
         self.max_pairs_per_edge = int(max_pairs_per_edge)
@@ -315,6 +353,7 @@ class PairAccumulator:
         *,
         strict: bool = False,
         corners_px: np.ndarray | None = None,
+        corner_points_m: np.ndarray | None = None,
     ) -> bool:
         """Offer one pair of edge ``(x, y)``; returns True when it was kept.
 
@@ -333,9 +372,13 @@ class PairAccumulator:
         strict : bool
             Raise ``ValueError`` for invalid stamp/A/B/sigma/kappa instead of counting
             ``"rejected_invalid"`` and returning False.
-        corners_px : ndarray, shape (4, 2), optional
-            The detected tag corners [px] of ``B`` (kept with the pair for the reprojection
-            error); corners that are not four finite points are not kept (the pair is).
+        corners_px : ndarray, shape (4, 2) or (K, 2), optional
+            The detected corners [px] of ``B`` (kept with the pair for the reprojection
+            error): a tag's four, or ``K`` corners of a board with ``corner_points_m``.
+            Corners that are not that (not finite; a board's when ``board_corners`` is 0 or
+            below ``K``) are not kept (the pair is).
+        corner_points_m : ndarray, shape (K, 3), optional
+            Boards: the same corners in the board frame [m].
         """
         self._check_names(x, y)
         self._counters["offered"] += 1
@@ -359,7 +402,12 @@ class PairAccumulator:
         if refusal is not None:
             self._counters[refusal] += 1
             return False
-        corners = _corners(corners_px)
+        corners = _corners(corners_px, corner_points_m, self.board_corners)
+        board_edge = store.points.shape[1] > 0
+        if corners[1] is not None and not board_edge:
+            store.widen(max(4, self.board_corners))
+        elif corners[1] is None and board_edge:  # an edge keeps one kind of corners
+            corners = (None, None)
         if store.n < self.max_pairs_per_edge:
             self._append(store, stamp, A, B, sigma, kappa, corners)
         else:
@@ -408,12 +456,12 @@ class PairAccumulator:
         return r, d
 
     def _append(self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float,
-                corners=None) -> None:
+                corners=(None, None)) -> None:
         if store.n == store.slots:
             store.grow(min(2 * store.slots, self.max_pairs_per_edge))
         d = self._distances(store, A)
         k = store.n
-        store.write(k, stamp, A, B, sigma, kappa, corners)
+        store.write(k, stamp, A, B, sigma, kappa, *corners)
         if k:
             closer = d < store.nn_dist[:k]
             store.nn_dist[:k][closer] = d[closer]
@@ -423,12 +471,13 @@ class PairAccumulator:
         store.n = k + 1
 
     def _replace_most_redundant(
-        self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float, corners=None
+        self, store: _EdgeStore, stamp: int, A, B, sigma: float, kappa: float,
+        corners=(None, None)
     ) -> None:
         """Replace the most redundant pair by the new one (``_refusal`` said it spreads)."""
         n = store.n
         r, d = self._replacement(store, A)
-        store.write(r, stamp, A, B, sigma, kappa, corners)
+        store.write(r, stamp, A, B, sigma, kappa, *corners)
         others = np.arange(n) != r
         affected = np.flatnonzero(others & (store.nn_idx[:n] == r))
         closer = others & (d < store.nn_dist[:n])
@@ -470,10 +519,12 @@ class PairAccumulator:
         return sum(store.nbytes() for store in self._edges.values())
 
     def memory_bound_bytes(self) -> int:
-        """Bound on the memory held, ``max_edges * (360 * max_pairs_per_edge + 8192)`` bytes."""
-        return self.max_edges * (
-            _BYTES_PER_SLOT * self.max_pairs_per_edge + _BYTES_PER_EDGE_OVERHEAD
-        )
+        """Bound on the memory held, ``max_edges * (360 * max_pairs_per_edge + 8192)`` bytes;
+        with ``board_corners`` M > 0, ``360 + 16 (M - 4) + 24 M`` bytes per slot instead."""
+        slot = _BYTES_PER_SLOT
+        if self.board_corners:
+            slot += 16 * (self.board_corners - 4) + 24 * self.board_corners
+        return self.max_edges * (slot * self.max_pairs_per_edge + _BYTES_PER_EDGE_OVERHEAD)
 
     def set_precisions(self, sigma: float, kappa: float) -> int:
         """Give every kept pair the precisions ``sigma`` [m] and ``kappa`` (paper eq. (14),

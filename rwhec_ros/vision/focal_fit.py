@@ -1,4 +1,4 @@
-"""The focal length that the detected tag corners themselves imply, per camera.
+"""The focal length that the detected tag (and board) corners themselves imply, per camera.
 
 Four corners of a square tag fix a plane-to-image homography (8 numbers); a pose has 6, so each
 image has 2 degrees of freedom left over. With the right intrinsics the best pose of each image
@@ -6,12 +6,15 @@ image has 2 degrees of freedom left over. With the right intrinsics the best pos
 noise; with a focal length that is wrong, no pose of a square explains a tag seen at an angle
 (the homography is not that of a rotated plane under that camera matrix), and the per-image
 residuals grow together across the images: the fact behind Zhang's calibration from planar
-targets, here used with everything but one factor on the focal length fixed.
+targets, here used with everything but one factor on the focal length fixed. A board works the
+same way with more points: its ``K`` corners seen in an image (any planar layout, given in the
+board frame) leave ``2 K - 6`` degrees of freedom over its pose (IPPE on the board points).
 
 :func:`fit_focal_scale` finds that factor ``s`` (``fx, fy`` and the skew of ``K`` times ``s``; the
 principal point and the distortion as given) minimising the sum of the squared per-image
 residuals over a camera's images, with its standard deviation from the curvature of that sum and
-the residual variance (``2 N - 1`` degrees of freedom for ``N`` images). A wrong tag size, a late
+the residual variance (``2 N - 1`` degrees of freedom for ``N`` tag images; ``sum(2 K_i - 6) -
+1`` in general). A wrong tag size, a late
 pose stream or a wrong calibration do not change it: it speaks of the intrinsics only, whatever
 ``sigma`` and ``kappa`` were stated. Seen face-on, a tag does not constrain the focal length
 (its depth absorbs it): the standard deviation is then large, and nothing is claimed.
@@ -48,7 +51,7 @@ class FocalFit:
     Attributes
     ----------
     n_images : int
-        Images (tag detections) with a per-image pose.
+        Images (tag or board detections) with a per-image pose.
     rms_px : float
         RMS corner error of the per-image poses with the focal length as given (distorted pixels).
     scale : float
@@ -82,19 +85,36 @@ def scaled_focal(intrinsics: CameraIntrinsics, s: float) -> CameraIntrinsics:
                             intrinsics.model)
 
 
-def _cost(corners: Sequence[np.ndarray], intrinsics: CameraIntrinsics) -> tuple[float, int]:
+#: Images as :func:`_cost` takes them: ``(object points (K, 3), corners (K, 2), PnP flag)``.
+_Image = tuple[np.ndarray, np.ndarray, int]
+
+
+def _images(corners: Sequence[np.ndarray], object_points) -> list[_Image]:
+    """Each image's board-frame points, corners and PnP method: a tag's unit square (any size:
+    the depth absorbs it) with IPPE_SQUARE, or a board's points with IPPE."""
+    out = []
+    for i, c in enumerate(corners):
+        P = None if object_points is None else object_points[i]
+        if P is None:
+            out.append((np.ascontiguousarray(tag_object_points(1.0)),
+                        np.asarray(c, dtype=float).reshape(4, 2), cv2.SOLVEPNP_IPPE_SQUARE))
+        else:
+            P = np.ascontiguousarray(np.asarray(P, dtype=float).reshape(-1, 3))
+            out.append((P, np.asarray(c, dtype=float).reshape(len(P), 2), cv2.SOLVEPNP_IPPE))
+    return out
+
+
+def _cost(images: Sequence[_Image], intrinsics: CameraIntrinsics) -> tuple[float, int, int]:
     """Sum of the squared corner residuals (both pixel components, distorted pixels) of the
-    per-image best poses (both IPPE_SQUARE solutions refined, as
-    :func:`~rwhec_ros.vision.planar_pose.solve_planar_pose`, the better kept), and the number of
-    images with a pose in front of the camera."""
-    obj = np.ascontiguousarray(tag_object_points(1.0))  # any size: the depth absorbs it
+    per-image best poses (both IPPE solutions refined, as
+    :func:`~rwhec_ros.vision.planar_pose.solve_planar_pose`, the better kept), the number of
+    images with a pose in front of the camera and their number of corners."""
     K = np.array(intrinsics.K)
-    total, n = 0.0, 0
-    for c in corners:
+    total, n, points = 0.0, 0, 0
+    for obj, c, flag in images:
         ideal = np.ascontiguousarray(intrinsics.undistort_points(c).reshape(-1, 1, 2))
         try:
-            k, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, ideal, K, None,
-                                                     flags=cv2.SOLVEPNP_IPPE_SQUARE)
+            k, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, ideal, K, None, flags=flag)
         except cv2.error:
             continue
         best = np.inf
@@ -112,7 +132,8 @@ def _cost(corners: Sequence[np.ndarray], intrinsics: CameraIntrinsics) -> tuple[
         if np.isfinite(best):
             total += best
             n += 1
-    return total, n
+            points += len(obj)
+    return total, n, points
 
 
 def _parabola_search(corners, intrinsics, s0: float, h: float, c0: float,
@@ -136,16 +157,21 @@ def _parabola_search(corners, intrinsics, s0: float, h: float, c0: float,
 
 
 def fit_focal_scale(corners: Sequence[np.ndarray], intrinsics: CameraIntrinsics, *,
+                    object_points: Sequence[np.ndarray | None] | None = None,
                     max_images: int = 100, max_rounds: int = 4) -> FocalFit:
     """The factor on the focal length of ``intrinsics`` that the ``corners`` fit best (module
     docstring).
 
     Parameters
     ----------
-    corners : sequence of ndarray, each shape (4, 2)
-        Detected corners of one camera, distorted pixels, order of ``TAG_CORNERS_UNIT``.
+    corners : sequence of ndarray, each shape (4, 2) or (K, 2)
+        Detected corners of one camera, distorted pixels: a tag's, order of
+        ``TAG_CORNERS_UNIT``, or a board's (``object_points``).
     intrinsics : CameraIntrinsics
         The camera's intrinsics as configured (the CameraInfo).
+    object_points : sequence of (ndarray (K, 3) or None), optional
+        Per image of ``corners``: a board's corners in its (planar, ``z = 0``) frame, or None
+        for a tag; None: all tags.
     max_images : int
         At most this many images, evenly spread over ``corners`` (the cost is about 8 pose
         fits per image; 100 images give the factor to a fraction of a percent).
@@ -158,11 +184,15 @@ def fit_focal_scale(corners: Sequence[np.ndarray], intrinsics: CameraIntrinsics,
     """
     if int(max_images) != max_images or max_images < 3:
         raise ValueError(f"max_images: must be an integer >= 3, got {max_images!r}")
+    if object_points is not None and len(object_points) != len(corners):
+        raise ValueError(f"object_points: expected one entry per image ({len(corners)}), got "
+                         f"{len(object_points)}")
     pick = np.unique(np.linspace(0, len(corners) - 1, min(len(corners), int(max_images)))
                      .round().astype(int)) if len(corners) else []
-    corners = [np.asarray(corners[i], dtype=float).reshape(4, 2) for i in pick]
-    c1, n = _cost(corners, intrinsics)
-    rms = float(np.sqrt(c1 / (4 * n))) if n else float("nan")
+    corners = _images([corners[i] for i in pick],
+                      None if object_points is None else [object_points[i] for i in pick])
+    c1, n, points = _cost(corners, intrinsics)
+    rms = float(np.sqrt(c1 / points)) if n else float("nan")
     if n < 3:
         return FocalFit(n, rms)
     s_hat, a = _parabola_search(corners, intrinsics, 1.0, _STEP, c1, max_rounds)
@@ -174,6 +204,6 @@ def fit_focal_scale(corners: Sequence[np.ndarray], intrinsics: CameraIntrinsics,
     if np.isfinite(s_fine):
         s_hat, a = s_fine, a_fine
     c_hat = _cost(corners, scaled_focal(intrinsics, s_hat))[0]
-    dof = 2 * n - 1
+    dof = 2 * points - 6 * n - 1
     std = float(np.sqrt(max(c_hat, 0.0) / dof / a))
-    return FocalFit(n, rms, float(s_hat), std, float(np.sqrt(c_hat / (4 * n))))
+    return FocalFit(n, rms, float(s_hat), std, float(np.sqrt(c_hat / points)))

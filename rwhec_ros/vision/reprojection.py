@@ -1,4 +1,5 @@
-"""Reprojection error of the detected tag corners through the calibrated chain, per camera.
+"""Reprojection error of the detected corners (tags, boards) through the calibrated chain, per
+camera.
 
 For a pair ``(A_i, B_i)`` of edge (tag ``x``, camera ``y``) the calibration predicts the tag pose
 in the camera frame without using ``B_i``::
@@ -12,11 +13,15 @@ judge against the detector's own noise (a few tenths of a pixel for sharp tags):
 residual of the whole calibration, not of the tag pose fit.
 
 Corners are the *detected, distorted* pixel coordinates, as
-:attr:`rwhec_ros.vision.detection.TagObservation.corners` reports them, in the corner order of
-:data:`~rwhec_ros.vision.detection.TAG_CORNERS_UNIT`; the prediction is projected through the
+:attr:`rwhec_ros.vision.targets.TargetObservation.image_points` reports them: a single tag's
+four in the corner order of :data:`~rwhec_ros.vision.detection.TAG_CORNERS_UNIT` (placed in the
+tag frame by its size), or the corners a board's pose came from with their board-frame points
+(``object_points``; a partly seen board gives fewer). The prediction is projected through the
 distortion model (:meth:`CameraIntrinsics.project_points`), so no undistortion is needed. For an
-unknown scale (monocular), ``tag_size_m`` is the nominal size: the true size is ``size /
-alpha`` and the estimate's translations are metric, so the corners are placed at that size.
+unknown scale (monocular), ``tag_size_m`` and the board points are nominal: the true size is
+``size / alpha`` and the estimate's translations are metric, so the corners are placed at that
+size. The statistics of a camera are over its corners, so a board (up to a few hundred corners
+per view) weighs more than a tag (four).
 
 Next to it, each camera's **focal fit** (:attr:`CameraReprojection.focal`,
 :func:`rwhec_ros.vision.focal_fit.fit_focal_scale`): how well the same corners fit each image's
@@ -51,17 +56,22 @@ class CornerObservation:
         The camera (Y) frame.
     A : ndarray, shape (4, 4)
         The pair's pose-stream transform ``T_<camera carrier>_<tag carrier>``.
-    corners_px : ndarray, shape (4, 2)
-        The detected corners in distorted pixels, order of ``TAG_CORNERS_UNIT``.
-    tag_size_m : float
-        Edge length of the tag's black square (nominal for unknown scale).
+    corners_px : ndarray, shape (4, 2) or (K, 2)
+        The detected corners in distorted pixels: a tag's, order of ``TAG_CORNERS_UNIT``; or
+        ``K >= 4`` corners of a board (with ``object_points``).
+    tag_size_m : float or None
+        Single tags: edge length of the tag's black square (nominal for unknown scale). None
+        for a board.
+    object_points : ndarray, shape (K, 3), or None
+        Boards: the same corners in the board frame [m] (nominal for unknown scale).
     """
 
     x: str
     y: str
     A: np.ndarray
     corners_px: np.ndarray
-    tag_size_m: float
+    tag_size_m: float | None = None
+    object_points: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         A = np.asarray(self.A, float)
@@ -69,15 +79,34 @@ class CornerObservation:
             raise ValueError(f"A of ({self.x}, {self.y}): expected a finite (4, 4) transform, "
                              f"got shape {A.shape}")
         c = np.asarray(self.corners_px, float)
-        if c.shape != (4, 2) or not np.all(np.isfinite(c)):
-            raise ValueError(f"corners_px of ({self.x}, {self.y}): expected finite (4, 2) "
-                             f"pixels, got shape {c.shape}")
-        if not (np.isfinite(self.tag_size_m) and self.tag_size_m > 0):
-            raise ValueError(f"tag_size_m of ({self.x}, {self.y}): must be finite and > 0, got "
-                             f"{self.tag_size_m!r}")
+        who = f"({self.x}, {self.y})"
+        if self.object_points is None:
+            if c.shape != (4, 2) or not np.all(np.isfinite(c)):
+                raise ValueError(f"corners_px of {who}: expected finite (4, 2) pixels, got "
+                                 f"shape {c.shape}")
+            size = self.tag_size_m
+            if size is None or not (np.isfinite(size) and size > 0):
+                raise ValueError(f"tag_size_m of {who}: must be finite and > 0 (or give "
+                                 f"object_points), got {size!r}")
+            object.__setattr__(self, "tag_size_m", float(size))
+        else:
+            if c.ndim != 2 or c.shape[0] < 4 or c.shape[1] != 2 or not np.all(np.isfinite(c)):
+                raise ValueError(f"corners_px of {who}: expected finite (K, 2) pixels with K "
+                                 f">= 4, got shape {c.shape}")
+            P = np.asarray(self.object_points, float)
+            if P.shape != (c.shape[0], 3) or not np.all(np.isfinite(P)):
+                raise ValueError(f"object_points of {who}: expected finite ({c.shape[0]}, 3) "
+                                 f"points (one per corner), got shape {P.shape}")
+            object.__setattr__(self, "object_points", P)
         object.__setattr__(self, "A", A)
         object.__setattr__(self, "corners_px", c)
-        object.__setattr__(self, "tag_size_m", float(self.tag_size_m))
+
+    def target_points(self, alpha: float = 1.0) -> np.ndarray:
+        """The corners in the target frame [m], shape (K, 3): the tag's corners at
+        ``tag_size_m / alpha``, or the board points over ``alpha`` (module docstring)."""
+        if self.object_points is None:
+            return tag_object_points(self.tag_size_m / alpha)
+        return self.object_points / alpha
 
 
 @dataclass
@@ -157,25 +186,24 @@ def reprojection_errors(
         groups.setdefault(ob.y, []).append(i)
     out = {}
     for cam, idx in groups.items():
-        focal = fit_focal_scale([observations[i].corners_px for i in idx], intrinsics[cam])
+        focal = fit_focal_scale([observations[i].corners_px for i in idx], intrinsics[cam],
+                                object_points=[observations[i].object_points for i in idx])
         Y_inv = invert_transform(result.transform(cam))
         pts, seen = [], []
         for i in idx:
             ob = observations[i]
-            T = Y_inv @ ob.A @ result.transform(ob.x)  # T_cam_tag predicted
-            P = tag_object_points(ob.tag_size_m / alpha) @ T[:3, :3].T + T[:3, 3]
-            pts.append(P)
-            seen.append(ob.corners_px)
-        P = np.concatenate(pts)
-        front = (P[:, 2] > 0).reshape(-1, 4).all(axis=1)
-        n_behind = int((~front).sum())
-        if not front.any():
+            T = Y_inv @ ob.A @ result.transform(ob.x)  # T_cam_target predicted
+            P = ob.target_points(alpha) @ T[:3, :3].T + T[:3, 3]
+            if np.all(P[:, 2] > 0):
+                pts.append(P)
+                seen.append(ob.corners_px)
+        n_behind = len(idx) - len(pts)
+        if not pts:
             nan = float("nan")
             out[cam] = CameraReprojection(cam, len(idx), nan, nan, nan, n_behind, focal)
             continue
-        keep = np.repeat(front, 4)
-        uv = intrinsics[cam].project_points(P[keep])
-        err = np.linalg.norm(uv - np.concatenate(seen)[keep], axis=1)
+        uv = intrinsics[cam].project_points(np.concatenate(pts))
+        err = np.linalg.norm(uv - np.concatenate(seen), axis=1)
         out[cam] = CameraReprojection(cam, len(idx), float(np.sqrt(np.mean(err**2))),
                                       float(np.median(err)), float(err.max()), n_behind, focal)
     return out

@@ -298,16 +298,26 @@ def _with_corners(rng):
                    carriers=ds.carriers, intrinsics=intr, tag_sizes_m={"x0": 0.16, "x1": 0.08})
 
 
+def _round_trip(ds, path, arrays):
+    """``ds`` saved and loaded again: pairs bit-exact, corners and board points equal."""
+    back = Dataset.load(ds.save(path, arrays=arrays))
+    assert_bit_exact(ds, back)
+    for e1, e2 in zip(ds.edges, back.edges, strict=True):
+        # NaN rows stay NaN (the sign bit of a NaN is not kept by YAML), the others exact
+        for key in ("corners_px", "corner_points_m"):
+            a, b = getattr(e1, key), getattr(e2, key)
+            assert (a is None) == (b is None), key
+            if a is not None:
+                np.testing.assert_array_equal(a, b)
+    return back
+
+
 @pytest.mark.parametrize("arrays", ["inline", "npz"])
 def test_corners_intrinsics_and_tag_sizes_round_trip(tmp_path, arrays):
     from rwhec_ros.data.corners import corner_observations
 
     ds = _with_corners(np.random.default_rng(4))
-    back = Dataset.load(ds.save(tmp_path / "c.yaml", arrays=arrays))
-    assert_bit_exact(ds, back)
-    for e1, e2 in zip(ds.edges, back.edges, strict=True):
-        # NaN rows stay NaN (the sign bit of a NaN is not kept by YAML), the others exact
-        np.testing.assert_array_equal(e1.corners_px, e2.corners_px)
+    back = _round_trip(ds, tmp_path / "c.yaml", arrays)
     assert back.intrinsics == ds.intrinsics and back.tag_sizes_m == {"x0": 0.16, "x1": 0.08}
     obs = corner_observations(back)
     # the pairs with corners, of cameras with intrinsics (y0 only) and tags with a size
@@ -353,3 +363,117 @@ def test_accumulator_keeps_the_corners_of_kept_pairs(tmp_path):
     acc2 = PairAccumulator()
     acc2.offer("tag_0", "cam_0", 5, A[0], B[0], 0.01, 125.0, corners_px=[[1.0, 2.0]])
     assert acc2.edges()[("tag_0", "cam_0")].corners_px is None
+
+
+def _with_board_corners(rng):
+    """:func:`_with_corners` whose edge (x1, y0) is a board's: per pair a different number of
+    corners (4..12, the rest NaN: a partly seen board) with their board-frame points; the
+    first pair without corners."""
+    ds = _with_corners(rng)
+    edges = []
+    for e in ds.edges:
+        if (e.x, e.y) != ("x1", "y0"):
+            edges.append(e)
+            continue
+        c = np.full((e.n, 12, 2), np.nan)
+        p = np.full((e.n, 12, 3), np.nan)
+        for i in range(1, e.n):
+            k = 4 + 2 * i
+            c[i, :k] = rng.uniform(0, 640, size=(k, 2))
+            p[i, :k, :2] = rng.uniform(-0.3, 0.3, size=(k, 2))
+            p[i, :k, 2] = 0.0
+        edges.append(DatasetEdge(e.x, e.y, e.stamps_ns, e.A, e.B, e.sigma, e.kappa,
+                                 corners_px=c, corner_points_m=p))
+    return Dataset(ds.x_names, ds.y_names, tuple(edges), unknown_scale=True,
+                   metadata=ds.metadata, carriers=ds.carriers, intrinsics=ds.intrinsics,
+                   tag_sizes_m={"x0": 0.16})  # the board has no tag size
+
+
+@pytest.mark.parametrize("arrays", ["inline", "npz"])
+def test_board_corners_round_trip(tmp_path, arrays):
+    from rwhec_ros.data.corners import corner_observations
+
+    ds = _with_board_corners(np.random.default_rng(7))
+    back = _round_trip(ds, tmp_path / "b.yaml", arrays)
+    board = back.edge("x1", "y0")
+    assert board.corners_px.shape == (board.n, 12, 2)
+    obs = [o for o in corner_observations(back) if o.x == "x1"]
+    # one observation per pair with corners, with only the corners seen, and their points
+    assert [len(o.corners_px) for o in obs] == [4 + 2 * i for i in range(1, board.n)]
+    for i, o in enumerate(obs, start=1):
+        np.testing.assert_array_equal(o.object_points, board.corner_points_m[i, :4 + 2 * i])
+        assert o.tag_size_m is None
+    # the tag edge of the same camera keeps its four corners and its size
+    assert {len(o.corners_px) for o in corner_observations(back) if o.x == "x0"} == {4}
+
+
+def test_a_file_with_tag_corners_and_cornerless_boards_still_loads(tmp_path):
+    """A data set as written before boards kept corners: tag edges with four corners per pair,
+    board edges with none (no ``corner_points_m`` anywhere)."""
+    from rwhec_ros.data.corners import corner_observations
+
+    ds = _with_corners(np.random.default_rng(8))
+    path = ds.save(tmp_path / "old.yaml", arrays="inline")
+    doc = yaml.safe_load(path.read_text())
+    for ed in doc["edges"]:
+        if ed["x"] == "x1":
+            del ed["corners_px"]  # a board edge of then: no corners
+        assert "corner_points_m" not in ed
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    back = Dataset.load(path)
+    assert back.edge("x1", "y0").corners_px is None
+    assert back.edge("x1", "y0").corner_points_m is None
+    np.testing.assert_array_equal(back.edge("x0", "y0").corners_px, ds.edge("x0", "y0").corners_px)
+    assert {o.x for o in corner_observations(back)} == {"x0"}
+
+
+def test_bad_board_corner_data_is_named():
+    ds = _with_board_corners(np.random.default_rng(9))
+    e = ds.edge("x1", "y0")
+    args = (e.x, e.y, e.stamps_ns, e.A, e.B, e.sigma, e.kappa)
+    p = e.corner_points_m.copy()
+    p[1, 0] = np.nan  # a corner without its point
+    with pytest.raises(ValueError, match=r"corners_px\[1\]\[0\] / corner_points_m\[1\]\[0\]: "
+                                         r"a point must be finite in both"):
+        DatasetEdge(*args, corners_px=e.corners_px, corner_points_m=p)
+    c, p = e.corners_px.copy(), e.corner_points_m.copy()
+    c[1, 3:], p[1, 3:] = np.nan, np.nan  # three points
+    with pytest.raises(ValueError, match=r"corners_px\[1\]: expected at least 4 points or none"):
+        DatasetEdge(*args, corners_px=c, corner_points_m=p)
+    with pytest.raises(ValueError, match=r"corner_points_m: expected shape \(4, 12, 3\)"):
+        DatasetEdge(*args, corners_px=e.corners_px, corner_points_m=e.corner_points_m[:, :11])
+    with pytest.raises(ValueError, match="corner_points_m: given without corners_px"):
+        DatasetEdge(*args, corner_points_m=e.corner_points_m)
+
+
+def test_accumulator_keeps_board_corners_and_bounds_their_memory():
+    rng = np.random.default_rng(10)
+    acc = PairAccumulator(max_pairs_per_edge=3, max_edges=2, board_corners=36)
+    A, B = random_transforms(rng, 5), random_transforms(rng, 5)
+    sizes = [8, 36, 12, 20, 16]
+    pts = [rng.uniform(-0.1, 0.1, size=(k, 3)) for k in sizes]
+    px = [rng.uniform(0, 640, size=(k, 2)) for k in sizes]
+    for i in range(5):
+        acc.offer("board_0", "cam_0", 100 + i, A[i], B[i], 0.01, 125.0, corners_px=px[i],
+                  corner_points_m=pts[i])
+        acc.offer("tag_0", "cam_0", 100 + i, A[i], B[i], 0.01, 125.0, corners_px=px[i][:4])
+    e = acc.edges()[("board_0", "cam_0")]
+    assert e.n == 3 and e.corner_points_m is not None
+    assert e.corners_px.shape[1] == max(sizes[int(s) - 100] for s in e.stamps_ns)
+    for s, c, p in zip(e.stamps_ns, e.corners_px, e.corner_points_m, strict=True):
+        k = sizes[int(s) - 100]  # a replaced pair's corners go with it, the rest NaN
+        np.testing.assert_array_equal(c[:k], px[int(s) - 100])
+        np.testing.assert_array_equal(p[:k], pts[int(s) - 100])
+        assert np.isnan(c[k:]).all() and np.isnan(p[k:]).all()
+    tag = acc.edges()[("tag_0", "cam_0")]
+    assert tag.corners_px.shape == (3, 4, 2) and tag.corner_points_m is None
+    # the bound covers the widened board slots: 360 + 16 (M - 4) + 24 M bytes per slot
+    assert acc.nbytes() <= acc.memory_bound_bytes() == 2 * ((360 + 16 * 32 + 24 * 36) * 3 + 8192)
+    # more corners than board_corners, or board corners without board_corners: pair kept,
+    # corners not
+    small = PairAccumulator(board_corners=0)
+    assert small.offer("board_0", "cam_0", 1, A[0], B[0], 0.01, 125.0, corners_px=px[0],
+                       corner_points_m=pts[0])
+    assert small.edges()[("board_0", "cam_0")].corners_px is None
+    with pytest.raises(ValueError, match="board_corners: expected 0 or an integer >= 4"):
+        PairAccumulator(board_corners=3)

@@ -21,7 +21,6 @@ pytest.importorskip("tf2_ros")
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import PoseStamped  # noqa: E402
-from rclpy.context import Context  # noqa: E402
 from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -51,16 +50,6 @@ def overrides(tmp_path: Path, **changes) -> list[Parameter]:
     flat["output.directory"] = str(tmp_path)
     flat.update(changes)
     return [Parameter(name, value=value) for name, value in flat.items()]
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    try:
-        yield ctx
-    finally:
-        rclpy.try_shutdown(context=ctx)
 
 
 @contextlib.contextmanager

@@ -100,3 +100,65 @@ def test_rendered_and_detected_corners():
     assert abs(good.scale - 1.0) < 0.01
     assert wrong.scale == pytest.approx(1 / 1.05, abs=0.01)
     assert abs(wrong.scale - 1.0) > 4 * wrong.scale_std
+
+
+def _board_views(noise_px=0.2, seed=0):
+    """Corners of an AprilGrid (3 x 3 tags, demo layout) at the demo's position 0 seen by the
+    demo cameras over 24 s: per view the grid tags fully in the image (often a part of the
+    board), projected through a distorted lens with Gaussian pixel noise."""
+    from rwhec_ros.simulation.rig import demo_board
+
+    rig = demo_rig()
+    board = demo_board("aprilgrid", 0)
+    intr = rig.intrinsics["cam0"].with_distortion(DISTORTION, "plumb_bob")
+    rng = np.random.default_rng(seed)
+    corners, points = [], []
+    for t in np.arange(0.0, 24.0, 0.25):
+        for cam in rig.cameras:  # same intrinsics for all: views of three cameras for one lens
+            T = rig.T_cam_tag(cam, 0, rig.T_world_rig(t))
+            if T[2, 3] < 0.1 or float(T[:3, 2] @ T[:3, 3]) >= 0:
+                continue
+            P = [board.marker_object_points(m) for m in board.marker_ids]
+            keep = [p for p in P if _inside(intr.project_points(p, T))]
+            if len(keep) >= 2:
+                obj = np.concatenate(keep)
+                c = intr.project_points(obj, T)
+                corners.append(c + noise_px * rng.standard_normal(c.shape))
+                points.append(obj)
+    return corners, points, intr
+
+
+def _inside(uv):
+    return bool((uv >= 2).all() and (uv[:, 0] < 638).all() and (uv[:, 1] < 478).all())
+
+
+def test_board_corners_measure_the_focal_length():
+    """Board views (K = 8..36 corners each, board-frame points per view): the right focal length
+    fits, one 5 % off is measured, with the std of the tags' case or smaller for the same
+    noise (more corners per view)."""
+    corners, points, intr = _board_views(noise_px=0.2)
+    assert len(corners) >= 20 and len({len(c) for c in corners}) > 1
+    good = fit_focal_scale(corners, intr, object_points=points)
+    assert good.n_images == len(corners)
+    # rms of the 2D corner error: 0.2 px per axis over the 2 K - 6 residual degrees of freedom
+    # of each view (its pose absorbs 6), within 10 % (hundreds of corners)
+    k = np.array([len(c) for c in corners])
+    assert good.rms_px == pytest.approx(0.2 * np.sqrt(np.sum(2 * k - 6) / k.sum()), rel=0.1)
+    assert abs(good.scale - 1.0) < 4 * good.scale_std and good.scale_std < 0.01
+    wrong = fit_focal_scale(corners, scaled_focal(intr, 1.05), object_points=points)
+    assert wrong.scale == pytest.approx(1 / 1.05, abs=4 * wrong.scale_std)
+    assert abs(wrong.scale - 1.0) > 6 * wrong.scale_std
+    tags, tag_intr = _projected(cam="cam0", noise_px=0.2)
+    # the tags' std with the same noise (33+ views of four corners) is larger
+    assert good.scale_std < fit_focal_scale(tags, tag_intr).scale_std
+    with pytest.raises(ValueError, match="object_points: expected one entry per image"):
+        fit_focal_scale(corners, intr, object_points=points[:-1])
+
+
+def test_tags_and_boards_mix_in_one_fit():
+    corners, points, intr = _board_views(noise_px=0.0)
+    tags, _ = _projected(cam="cam0", noise_px=0.0)
+    fit = fit_focal_scale(corners + tags, scaled_focal(intr, 1.05),
+                          object_points=points + [None] * len(tags))
+    assert fit.n_images == min(100, len(corners) + len(tags))
+    assert fit.scale == pytest.approx(1 / 1.05, abs=1e-4)  # noise free: as the tags' test

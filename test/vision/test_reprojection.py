@@ -97,3 +97,89 @@ def test_bad_inputs_name_the_field():
         CornerObservation("tag_0", "cam0", np.eye(4), np.zeros((3, 2)), 0.1)
     with pytest.raises(ValueError, match="tag_size_m"):
         CornerObservation("tag_0", "cam0", np.eye(4), np.zeros((4, 2)), -1.0)
+
+
+def _board_scene(noise_px, seed=0):
+    """The demo rig with an AprilGrid (3 x 3 tags, Kalibr layout) at position 0: per view the
+    corners of the grid tags whose four corners are in the image (a partly seen board gives
+    fewer), projected through the truth and the distorted lens with Gaussian noise per axis."""
+    from rwhec_ros.simulation.rig import demo_board
+
+    rig = demo_rig()
+    board = demo_board("aprilgrid", 0)
+    intr = {c: rig.intrinsics[c].with_distortion(DISTORTION, "plumb_bob") for c in rig.cameras}
+    rng = np.random.default_rng(seed)
+    obs, partial = [], 0
+    for t in np.arange(0.0, 24.0, 0.25):
+        T_world_rig = rig.T_world_rig(t)
+        A = invert_transform(T_world_rig)
+        for cam in rig.cameras:
+            T = rig.T_cam_tag(cam, 0, T_world_rig)
+            if T[2, 3] < 0.1 or float(T[:3, 2] @ T[:3, 3]) >= 0:
+                continue
+            pts, px = [], []
+            for m in board.marker_ids:
+                P = board.marker_object_points(m)
+                uv = intr[cam].project_points(P, T)
+                if ((uv >= 2).all() and (uv[:, 0] < 638).all() and (uv[:, 1] < 478).all()):
+                    pts.append(P)
+                    px.append(uv)
+            if len(pts) >= 2:
+                partial += len(pts) < len(board.marker_ids)
+                uv = np.concatenate(px)
+                obs.append(CornerObservation("board_0", cam, A,
+                                             uv + noise_px * rng.standard_normal(uv.shape),
+                                             object_points=np.concatenate(pts)))
+    X = rig.T_world_tag[0][None]
+    Y = np.array([rig.T_rig_cam[c] for c in rig.cameras])
+    result = CalibrationResult(("board_0",), rig.cameras, X, Y, 1.0,
+                               Certificate.local_only(0.0), "local")
+    return obs, intr, result, partial
+
+
+def test_board_corners_reproject_to_their_noise():
+    """Board pairs with their board-frame points (varying per view: partly seen boards): through
+    the true calibration the per-camera RMS is the corner noise, sqrt(2) x 0.1 px for the 2D
+    distance; a 0.2 deg camera error shows as for tags."""
+    obs, intr, result, partial = _board_scene(noise_px=0.1)
+    assert partial > 0 and len({len(o.corners_px) for o in obs}) > 1  # views differ in points
+    out = reprojection_errors(obs, intr, result)
+    assert set(out) == {o.y for o in obs}
+    for r in out.values():
+        # thousands of corners per camera: the RMS of the 2D noise within 10 %
+        assert r.rms_px == pytest.approx(0.1 * np.sqrt(2), rel=0.1), r
+        assert r.n_behind == 0 and r.n_pairs >= 10
+    Y_bad = result.Y.copy()
+    k = result.y_names.index("cam1")
+    Y_bad[k] = Y_bad[k] @ make_transform(so3_exp(np.radians([0.2, 0.0, 0.0])), np.zeros(3))
+    bad = CalibrationResult(result.x_names, result.y_names, result.X, Y_bad, 1.0,
+                            Certificate.local_only(0.0), "local")
+    out_bad = reprojection_errors(obs, intr, bad)
+    # 500 px x 3.5e-3 rad = 1.7 px added to the noise (30 %: off-axis corners, distortion)
+    assert out_bad["cam1"].rms_px == pytest.approx(500 * np.radians(0.2), rel=0.3)
+    assert out_bad["cam0"].rms_px == pytest.approx(out["cam0"].rms_px, abs=1e-12)
+
+
+def test_board_points_are_nominal_for_an_unknown_scale():
+    """Monocular: the board points are nominal (x alpha) like a tag size; the metric estimate
+    with scale alpha reprojects them as the metric ones."""
+    obs, intr, result, _ = _board_scene(noise_px=0.0)
+    alpha = 0.5
+    nominal = [CornerObservation(o.x, o.y, o.A, o.corners_px, object_points=alpha * o.object_points)
+               for o in obs]
+    scaled = CalibrationResult(result.x_names, result.y_names, result.X, result.Y, alpha,
+                               Certificate.local_only(0.0), "local")
+    for r in reprojection_errors(nominal, intr, scaled).values():
+        assert r.rms_px < 1e-6  # same model both ways: rounding only
+
+
+def test_bad_board_observations_name_the_field():
+    with pytest.raises(ValueError, match=r"object_points of \(board_0, cam0\): expected finite "
+                                         r"\(8, 3\)"):
+        CornerObservation("board_0", "cam0", np.eye(4), np.zeros((8, 2)),
+                          object_points=np.zeros((7, 3)))
+    with pytest.raises(ValueError, match="K >= 4"):
+        CornerObservation("board_0", "cam0", np.eye(4), np.zeros((3, 2)),
+                          object_points=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="tag_size_m of"):  # neither a size nor points
+        CornerObservation("tag_0", "cam0", np.eye(4), np.zeros((4, 2)))

@@ -1,6 +1,7 @@
-"""The focal check: do the detected tag corners fit the configured focal length of each camera?
+"""The focal check: do the detected corners fit the configured focal length of each camera?
 
-When the data keep the tag corners and the cameras' intrinsics (data sets recorded from images),
+When the data keep the tag (or board) corners and the cameras' intrinsics (data sets recorded
+from images),
 :func:`rwhec_ros.vision.focal_fit.fit_focal_scale` finds, per camera, the factor ``s`` on the
 focal length that the corners fit best, each image through its own best pose, with its standard
 deviation. The check reads it from the reprojection error per camera
@@ -43,7 +44,7 @@ from .options import VerdictOptions
 __all__ = ["FocalCheck", "focal_checks", "focal_reasons", "focal_summary", "NOT_CHECKED"]
 
 #: What the verdict's ``focal_check`` says when the data keep no tag corners.
-NOT_CHECKED = "not checked: the data keep no tag corners with intrinsics"
+NOT_CHECKED = "not checked: the data keep no tag or board corners with intrinsics"
 
 
 @dataclass(frozen=True)
