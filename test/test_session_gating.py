@@ -201,13 +201,18 @@ class Decoder:
         return self.gray
 
 
-def test_a_skipped_image_is_never_decoded_and_a_waiting_one_is_gated_on_its_pose(tmp_path):
+def _one_tag_session(tmp_path) -> tuple[CalibrationSession, np.ndarray]:
+    """A session with cam0 and tag 3, poses (identity) at 0 and 0.1 s, and an image of the tag."""
     session = CalibrationSession(config(tmp_path, ["cam0"], [3]))
     intr = demo_rig().intrinsics["cam0"]
     session.set_camera_info("cam0", intr)
-    gray = one_tag_image(intr, 3)
     session.add_pose(0, np.eye(4))
     session.add_pose(NS // 10, np.eye(4))
+    return session, one_tag_image(intr, 3)
+
+
+def test_a_skipped_image_is_never_decoded_and_a_waiting_one_is_gated_on_its_pose(tmp_path):
+    session, gray = _one_tag_session(tmp_path)
     assert session.pose_ready(NS // 20) and not session.pose_ready(NS // 5)
     assert session.pose_ready(-1)  # invalid: let it through to be rejected at once
     assert not session.gate_would_skip("cam0", NS // 20)  # edge not seen yet: it would keep
@@ -395,12 +400,7 @@ def test_gate_verdicts_are_remembered_until_the_camera_changes(tmp_path, monkeyp
     """The live queue asks again about the same queued images while a camera's queue is full:
     the verdict is computed once per change of the camera (a kept pair, a search), and a kept
     pair renews it."""
-    session = CalibrationSession(config(tmp_path, ["cam0"], [3]))
-    intr = demo_rig().intrinsics["cam0"]
-    session.set_camera_info("cam0", intr)
-    gray = one_tag_image(intr, 3)
-    session.add_pose(0, np.eye(4))
-    session.add_pose(NS // 10, np.eye(4))
+    session, gray = _one_tag_session(tmp_path)
     calls = []
     keepable = session._keepable_targets
     monkeypatch.setattr(session, "_keepable_targets",
