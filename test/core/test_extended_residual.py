@@ -94,30 +94,40 @@ def test_residual_bound_non_finite_input_is_infinite():
     assert np.isinf(bound[0, 0])
 
 
-def _small_problem(seed: int) -> tuple[Problem, StateLayout, np.ndarray]:
+def _small_problem(seed: int, unknown_scale: bool = False
+                   ) -> tuple[Problem, StateLayout, np.ndarray]:
     rng = np.random.default_rng(seed)
-    problem, _ = random_instance(rng, 1, 1, n_per_edge=8, sigma=0.002, kappa=2000.0)
+    problem, _ = random_instance(rng, 1, 1, n_per_edge=8, sigma=0.002, kappa=2000.0,
+                                 unknown_scale=unknown_scale, alpha=0.7 if unknown_scale else 1.0)
     layout = StateLayout(problem.M, problem.P)
     Q, _ = build_cost_matrices(problem)
     Q = Q.toarray() if hasattr(Q, "toarray") else np.asarray(Q)
     return problem, layout, Q
 
 
-@pytest.mark.parametrize("seed", range(3))
-def test_extended_reduction_same_matrices_and_a_valid_bound(seed):
+@pytest.mark.parametrize(("seed", "unknown_scale"), [(0, False), (1, False), (2, False),
+                                                     (3, True), (4, True)])
+def test_extended_reduction_same_matrices_and_a_valid_bound(seed, unknown_scale):
     """``residual="extended"`` changes only the bounds: Qr and the recovery are bit for bit those
     of the default; and its err_rows bound |Qr - S_G| (S_G, the exact reduced cost for the G
-    used, in rational arithmetic) row by row."""
-    problem, layout, Q = _small_problem(seed)
+    used, in rational arithmetic) row by row; known scale (s kept) and unknown scale (alpha
+    eliminated with the translations, Qr's s row and column zero)."""
+    problem, layout, Q = _small_problem(seed, unknown_scale)
     base = reduce_cost(Q, layout, problem.unknown_scale)
     tight = reduce_cost(Q, layout, problem.unknown_scale, residual="extended")
     assert tight.verified and base.verified
     assert np.array_equal(tight.Qr, base.Qr) and np.array_equal(tight.recover, base.recover)
     assert tight.block_lower == base.block_lower
     nt = layout.n_t
-    keep = np.concatenate([np.arange(layout.r0, layout.size), [layout.alpha]])
-    elim = np.arange(nt)
-    G = tight.recover[:nt, :]
+    if unknown_scale:
+        keep = np.arange(layout.r0, layout.size)
+        elim = np.arange(nt + 1)
+        G = tight.recover[:, :-1]
+    else:
+        keep = np.concatenate([np.arange(layout.r0, layout.size), [layout.alpha]])
+        elim = np.arange(nt)
+        G = tight.recover[:nt, :]
+    nt = len(elim)
     Qe, Qk = _exact(Q[np.ix_(elim, elim)]), _exact(Q[np.ix_(elim, keep)])
     Qkk, Gx = _exact(Q[np.ix_(keep, keep)]), _exact(G)
     k = len(keep)
@@ -127,8 +137,10 @@ def test_extended_reduction_same_matrices_and_a_valid_bound(seed):
                           for t in range(nt)) for b in range(k)] for a in range(k)]
     diff_rows = np.array([sum(abs(Fraction(float(tight.Qr[a, b])) - S[a][b]) for b in range(k))
                           for a in range(k)], dtype=float)
-    assert np.all(diff_rows <= tight.err_rows)
-    assert np.all(diff_rows <= base.err_rows)
+    assert np.all(diff_rows <= tight.err_rows[:k])
+    assert np.all(diff_rows <= base.err_rows[:k])
+    if unknown_scale:  # the s row of Qr is zero, exactly
+        assert not tight.Qr[-1].any() and tight.err_rows[-1] == 0.0
     assert tight.residual_norm <= base.residual_norm
 
 
