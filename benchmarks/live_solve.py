@@ -7,19 +7,21 @@ Run from the repository root (about a minute; it writes ``benchmarks/live_solve.
 The paper's real-world data (16 tags x 8 cameras, 73 edges, 3,230 pairs, ``../shared/data/
 paper_real_world``) arrive as a session would collect them: the first ``f`` of every edge's pairs
 (at least ``solver.min_pairs`` = 3), offered to a real
-:class:`~rwhec_ros.sync.accumulator.PairAccumulator` (keyframe thresholds ~0: every pair kept).
+:class:`~rwhec_ros.sync.accumulator.PairAccumulator` (keyframe thresholds ~0: every pair kept):
+first ``PREVIOUS`` = 95 % of them, then the rest appended to the same accumulator (as if 5 % new
+pairs had arrived on every edge since the re-solve before).
 Each re-solve is the session's live path, :class:`~rwhec_ros.session.live_solve.LiveSolver`
-on its worker thread, end to end: the copy of the kept pairs under the session lock
+on its worker thread, end to end: the snapshot of the kept pairs under the session lock
 (``PairAccumulator.kept_pairs``, the only time the sensor path could wait), the problem built
 outside the lock, the ``fast`` solve without SDP fallback, :func:`~rwhec_ros.core.uncertainty.
 frame_uncertainty` and the convergence verdict. Each timed re-solve follows an untimed one on
-the first 95 % of the row's pairs of every edge (``PREVIOUS``: as if 5 % new pairs had arrived
-on every edge since), whose certified estimate is the warm start of the timed one (the
-session's default); a second live solver without warm start (``warm_start=False``, the
-closed-form start of every solve before) re-solves the same data interleaved with it, so both
-see the same machine load.
+the first 95 % of the row's pairs of every edge (``PREVIOUS``), whose certified estimate is
+the warm start of the timed one (the session's default) and whose edge blocks the timed one
+reuses (the accumulator's lineages tell which pairs are new); a second live solver without
+warm start (``warm_start=False``, the closed-form start of every solve before) re-solves the
+same data interleaved with it, so both see the same machine load.
 
-Columns: *lock ms*: the copy under the lock; *solve ms* and *uncertainty ms*: the solver's and
+Columns: *lock ms*: the snapshot under the lock; *solve ms* and *uncertainty ms*: the solver's and
 the uncertainty's own timers (warm-started); *re-solve ms*: the whole warm-started re-solve,
 wall time, median of ``--repeats``; *CPU ms*: the worker thread's CPU time for the same
 (``time.thread_time``, less sensitive to other processes on a busy machine); *cold re-solve ms*
@@ -33,6 +35,7 @@ including the uncertainty on the full data.
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import platform
 import statistics
@@ -78,40 +81,56 @@ def paper_config(problem) -> CalibratorConfig:
     return CalibratorConfig.from_parameters(flat)
 
 
-def _accumulator(problem, fraction: float) -> PairAccumulator:
-    """A real accumulator holding the first ``fraction`` of every edge's pairs (at least 3)."""
-    n_max = max(e.n for e in problem.edges)
-    acc = PairAccumulator(keyframe_rotation_rad=1e-12, keyframe_translation_m=1e-12,
-                          max_pairs_per_edge=n_max, max_edges=len(problem.edges))
-    for e in problem.edges:
-        k = min(e.n, max(3, int(np.ceil(fraction * e.n))))
-        for i in range(k):
+def _share(problem, fraction: float) -> list[int]:
+    """How many of each edge's first pairs a row of share ``fraction`` holds (at least 3)."""
+    return [min(e.n, max(3, int(np.ceil(fraction * e.n)))) for e in problem.edges]
+
+
+def _accumulator(problem, fraction: float, acc: PairAccumulator | None = None
+                 ) -> PairAccumulator:
+    """A real accumulator holding the first ``fraction`` of every edge's pairs (at least 3);
+    given ``acc``, the pairs it does not hold yet are offered to it (appended, as they would
+    arrive)."""
+    if acc is None:
+        n_max = max(e.n for e in problem.edges)
+        acc = PairAccumulator(keyframe_rotation_rad=1e-12, keyframe_translation_m=1e-12,
+                              max_pairs_per_edge=n_max, max_edges=len(problem.edges))
+    held = acc.counts()
+    for e, k in zip(problem.edges, _share(problem, fraction), strict=True):
+        for i in range(held.get((e.x, e.y), 0), k):
             acc.offer(e.x, e.y, i, e.A[i], e.B[i], float(e.sigma[i]), float(e.kappa[i]))
     return acc
 
 
 class PairsHolder:
     """The part of a session the live solver uses: its configuration, the pairs (a real
-    accumulator) and the counters; ``bump`` stands for new pairs. ``previous`` switches to the
-    data of the re-solve before (``PREVIOUS`` of each edge's pairs of the row), the origin of
-    the warm start."""
+    accumulator) and the counters. ``bump(previous=True)`` starts from a copy of an
+    accumulator holding ``PREVIOUS`` of each edge's pairs of the row (the data of the re-solve
+    before, the origin of the warm start); ``bump()`` then offers the rest of the row's pairs
+    to it (new pairs arriving, appended as in a session)."""
 
     def __init__(self, config: CalibratorConfig, problem, fraction: float) -> None:
         self.config = config
-        self.current = _accumulator(problem, fraction)
+        self.problem = problem
+        self.fraction = fraction
         self.earlier = _accumulator(problem, PREVIOUS * fraction)
-        self.acc = self.current
+        self.acc = copy.deepcopy(self.earlier)
+        self.current = None
         self.version = 0
         self.lock_s: list[float] = []
 
     def bump(self, previous: bool = False) -> None:
-        self.acc = self.earlier if previous else self.current
+        if previous:
+            self.acc = copy.deepcopy(self.earlier)  # own arrays and lineages
+            self.current = None
+        else:
+            self.current = _accumulator(self.problem, self.fraction, self.acc)
         self.version += 1
 
     def pairs_snapshot(self) -> PairsSnapshot:
         t0 = time.perf_counter()
-        edges = self.acc.kept_pairs()  # what the session copies under its lock
-        if self.acc is self.current:
+        edges = self.acc.kept_pairs()  # what the session takes under its lock
+        if self.current is not None:
             self.lock_s.append(time.perf_counter() - t0)
         return PairsSnapshot(self.version, edges, self.acc.rotation_tol)
 

@@ -134,8 +134,8 @@ def certificate_matrix(Qs: np.ndarray, constraints: ConstraintSet, lam: np.ndarr
     symmetrisation)."""
     d = constraints.d
     K = constraints.apply(lam)
-    K_abs = np.asarray(abs(constraints.C) @ np.abs(lam)).reshape(d, d, order="F")
-    terms = int(np.diff(constraints.C.tocsr().indptr).max(initial=1))
+    K_abs = np.asarray(constraints.abs_C @ np.abs(lam)).reshape(d, d, order="F")
+    terms = constraints.max_terms
     Z = np.asarray(Qs, float) - K
     Z = 0.5 * (Z + Z.T)
     err_rows = (gamma(terms + 1) * K_abs.sum(axis=1)

@@ -4,11 +4,20 @@ The cost matrix ``Q`` of eq. (42) is the sum, edge by edge, of 25x25 blocks that
 sums over the edge's pairs (:func:`~rwhec_ros.core.cost.edge_blocks`). While data arrive, each
 re-solve of the live solver (:mod:`rwhec_ros.session.live_solve`) sees the same edges with a few
 more pairs each; :class:`EdgeBlockCache` keeps the per-edge sums of the previous problem and, for
-an edge whose first pairs are exactly those of the previous problem (same ``A``, ``B``,
-``sigma``, ``kappa``, compared value by value), adds the sums of the new pairs only. Any other
-edge (new, fewer pairs, a pair replaced, the stated noise changed) is summed afresh. The result
-equals the freshly assembled blocks up to the rounding of the sums (split in two runs instead of
-one); ``test/core/test_edge_cache.py`` checks it.
+an edge whose first pairs are exactly those of the previous problem, adds the sums of the new
+pairs only. Which edges those are it learns in one of two ways:
+
+* from *lineages* (the live solver's way): the accumulator names each edge's sequence of kept
+  pairs by an object that stays the same while pairs are only appended
+  (:attr:`~rwhec_ros.sync.accumulator.KeptPairs.lineage`); an edge with the lineage of last
+  time and at least as many pairs reuses last time's sums, without looking at the pairs;
+* without lineages, by comparing the pairs (same ``A``, ``B``, ``sigma``, ``kappa``, value by
+  value) with a copy of the previous problem's.
+
+Any other edge (new, fewer pairs, a pair replaced, the stated noise changed) is summed afresh.
+Both ways give the same blocks for the same reuse, and those equal the freshly assembled blocks
+up to the rounding of the sums (split in two runs instead of one);
+``test/core/test_edge_cache.py`` checks it.
 """
 
 from __future__ import annotations
@@ -30,16 +39,18 @@ FEW_PAIRS = 2048
 
 @dataclass
 class _Previous:
-    """The pairs (own copy: one row ``[A (16), B (16), sigma, kappa]`` per pair, edge by edge)
-    and the per-edge sums of the last call."""
+    """The per-edge sums of the last call, the edges' lineages (``None`` when compared by
+    value) and, for comparing by value, the pairs (own copy: one row ``[A (16), B (16),
+    sigma, kappa]`` per pair, edge by edge; ``None`` with lineages)."""
 
     index: dict[tuple[str, str], int]
     starts: np.ndarray
     counts: list[int]
-    rows: np.ndarray
+    rows: np.ndarray | None
     G: np.ndarray
     K: np.ndarray
     ksum: np.ndarray
+    lineages: list | None = None
 
 
 def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
@@ -70,29 +81,41 @@ class EdgeBlockCache:
         """Forget the previous problem."""
         self._prev = None
 
-    def blocks(self, problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def blocks(self, problem: Problem, lineages: dict | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(full, rot, idx)`` of ``problem`` as :func:`~rwhec_ros.core.cost.edge_blocks`
         returns them (to set ``problem.precomputed_blocks``), reusing the previous call's sums
-        for every edge that only gained pairs at its end."""
+        for every edge that only gained pairs at its end.
+
+        ``lineages``: ``{(x, y): lineage}`` of the edges' pairs
+        (:attr:`~rwhec_ros.sync.accumulator.KeptPairs.lineage`): an edge whose lineage is the
+        one of the previous call (identity, not ``None``) and has at least as many pairs
+        reuses that call's sums without a comparison; others are summed afresh. The previous
+        call must have had lineages too (a call without them compares the pairs with those of
+        a previous call without them)."""
         edges = problem.edges
         E = len(edges)
         counts = [e.n for e in edges]
         starts = np.cumsum(counts, dtype=np.int64) - counts
-        N = int(sum(counts))
-        rows = np.empty((N, 34))  # one copy of every pair: [A, B, sigma, kappa]
-        if E:
-            rows[:, 0:16] = np.concatenate([e.A for e in edges]).reshape(N, 16)
-            rows[:, 16:32] = np.concatenate([e.B for e in edges]).reshape(N, 16)
-            rows[:, 32] = np.concatenate([e.sigma for e in edges])
-            rows[:, 33] = np.concatenate([e.kappa for e in edges])
-        reuse, src = self._reusable(edges, rows, starts, counts)
-        fresh = np.asarray(counts, dtype=np.int64) - reuse
-        active = np.flatnonzero(fresh)
-        new = rows[_ranges(starts[active] + reuse[active], fresh[active])]
+        if lineages is None:
+            rows = self._rows(edges, int(sum(counts)))
+            reuse, src = self._reusable(edges, rows, starts, counts)
+            fresh = np.asarray(counts, dtype=np.int64) - reuse
+            active = np.flatnonzero(fresh)
+            new = rows[_ranges(starts[active] + reuse[active], fresh[active])]
+            A, B = new[:, 0:16].reshape(-1, 4, 4), new[:, 16:32].reshape(-1, 4, 4)
+            sigma, kappa = new[:, 32], new[:, 33]
+            lin = None
+        else:
+            lin = [lineages.get((e.x, e.y)) for e in edges]
+            reuse, src = self._same_lineage(edges, lin, counts)
+            fresh = np.asarray(counts, dtype=np.int64) - reuse
+            active = np.flatnonzero(fresh)
+            rows = None
+            A, B, sigma, kappa = _tails(edges, active, reuse)
         # nothing reused (the first call): exactly the fresh assembly's sums
-        sums = _edge_sums_few if reuse.any() and new.shape[0] <= FEW_PAIRS else _edge_sums
-        Gn, Kn, kn = sums(new[:, 0:16].reshape(-1, 4, 4), new[:, 16:32].reshape(-1, 4, 4),
-                          new[:, 32], new[:, 33], fresh[active])
+        sums = _edge_sums_few if reuse.any() and A.shape[0] <= FEW_PAIRS else _edge_sums
+        Gn, Kn, kn = sums(A, B, sigma, kappa, fresh[active])
         G = np.zeros((E, 16, 16))
         K = np.zeros((E, 9, 9))
         ksum = np.zeros(E)
@@ -106,10 +129,48 @@ class EdgeBlockCache:
         K[active] += Kn
         ksum[active] += kn
         self._prev = _Previous({(e.x, e.y): i for i, e in enumerate(edges)}, starts, counts,
-                               rows, G, K, ksum)
+                               rows, G, K, ksum, lin)
         self.reused_pairs = int(reuse.sum())
         self.summed_pairs = int(fresh.sum())
         return _finished_blocks(problem, *_blocks_from_sums(G, K, ksum))
+
+    @staticmethod
+    def _rows(edges, N: int) -> np.ndarray:
+        """One copy of every pair, ``[A, B, sigma, kappa]`` (N, 34), edge by edge."""
+        rows = np.empty((N, 34))
+        if edges:
+            rows[:, 0:16] = np.concatenate([e.A for e in edges]).reshape(N, 16)
+            rows[:, 16:32] = np.concatenate([e.B for e in edges]).reshape(N, 16)
+            rows[:, 32] = np.concatenate([e.sigma for e in edges])
+            rows[:, 33] = np.concatenate([e.kappa for e in edges])
+        return rows
+
+    def _candidates(self, edges, counts: list[int], lineages: list | None = None
+                    ) -> tuple[list[int], list[int]]:
+        """Per edge, the previous call's pair count of the same edge when it had at most as
+        many pairs (and, with ``lineages``, the same lineage), else 0; and that edge's index
+        last time."""
+        E = len(edges)
+        prev = self._prev
+        reuse, src = [0] * E, [0] * E
+        for i, e in enumerate(edges):
+            j = prev.index.get((e.x, e.y))
+            if j is None or prev.counts[j] > counts[i]:
+                continue
+            if lineages is not None and (lineages[i] is None
+                                         or lineages[i] is not prev.lineages[j]):
+                continue
+            reuse[i], src[i] = prev.counts[j], j
+        return reuse, src
+
+    def _same_lineage(self, edges, lineages: list, counts: list[int]
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_reusable` by lineage: no pair is compared."""
+        E = len(edges)
+        if self._prev is None or self._prev.lineages is None:
+            return np.zeros(E, dtype=np.int64), np.zeros(E, dtype=np.int64)
+        reuse, src = self._candidates(edges, counts, lineages)
+        return np.array(reuse, dtype=np.int64), np.array(src, dtype=np.int64)
 
     def _reusable(self, edges, rows: np.ndarray, starts: np.ndarray, counts: list[int]
                   ) -> tuple[np.ndarray, np.ndarray]:
@@ -117,13 +178,9 @@ class EdgeBlockCache:
         (0: none reusable) and that edge's index last time."""
         E = len(edges)
         prev = self._prev
-        if prev is None:
+        if prev is None or prev.rows is None:
             return np.zeros(E, dtype=np.int64), np.zeros(E, dtype=np.int64)
-        reuse, src = [0] * E, [0] * E
-        for i, e in enumerate(edges):
-            j = prev.index.get((e.x, e.y))
-            if j is not None and prev.counts[j] <= counts[i]:
-                reuse[i], src[i] = prev.counts[j], j
+        reuse, src = self._candidates(edges, counts)
         reuse, src = np.array(reuse, dtype=np.int64), np.array(src, dtype=np.int64)
         if not reuse.any():
             return reuse, src
@@ -132,3 +189,16 @@ class EdgeBlockCache:
         differs = np.bincount(np.repeat(np.arange(E), reuse), weights=~same, minlength=E)
         reuse[differs > 0] = 0
         return reuse, src
+
+
+def _tails(edges, active: np.ndarray, skip: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``A, B`` (N, 4, 4), ``sigma, kappa`` (N,): the pairs of the edges ``active`` after their
+    first ``skip[e]``, concatenated edge by edge."""
+    if not active.size:
+        return np.zeros((0, 4, 4)), np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0)
+    tails = [(edges[e], int(skip[e])) for e in active]
+    return (np.concatenate([e.A[k:] for e, k in tails]),
+            np.concatenate([e.B[k:] for e, k in tails]),
+            np.concatenate([e.sigma[k:] for e, k in tails]),
+            np.concatenate([e.kappa[k:] for e, k in tails]))

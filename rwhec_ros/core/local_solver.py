@@ -26,6 +26,7 @@ At a non-global critical point ``Z`` cannot be PSD, so a wrong basin is never ce
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,7 +95,10 @@ def _basis_jacobian(R: np.ndarray) -> np.ndarray:
     return J
 
 
-def _grad_hess(Q: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+def _cost_grad(Q: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """``f = z^T Q z`` at rotations ``R`` (n, 3, 3), its Riemannian gradient (3 n,) and
+    ``R_l^T G_l`` (n, 3, 3) (``G_l`` the unvec of the rotation blocks of ``Q z``), which the
+    Hessian's curvature term needs."""
     n = R.shape[0]
     z = _z_of(R)
     Qz = Q @ z
@@ -102,6 +106,13 @@ def _grad_hess(Q: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndar
     G = np.swapaxes(Qz[: 9 * n].reshape(n, 3, 3), 1, 2)  # unvec blocks
     RtG = np.swapaxes(R, 1, 2) @ G
     g = 2.0 * (2.0 * vee(RtG))  # d f / d omega = 2 tr(G^T R hat w) = 4 vee(R^T G) . w
+    return f, g.reshape(-1), RtG
+
+
+def _hessian(Q: np.ndarray, R: np.ndarray, RtG: np.ndarray) -> np.ndarray:
+    """The Riemannian Hessian (3 n, 3 n) of ``z^T Q z`` at ``R`` (``RtG`` from
+    :func:`_cost_grad`)."""
+    n = R.shape[0]
     J = _basis_jacobian(R)  # (n, 9, 3)
     # H = 2 J^T Q_rr J with block-diagonal J, as two batched products (BLAS, no einsum loops)
     Qrr = Q[: 9 * n, : 9 * n]
@@ -112,15 +123,30 @@ def _grad_hess(Q: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndar
     D = S - np.trace(S, axis1=1, axis2=2)[:, None, None] * np.eye(3)
     for l in range(n):
         H[3 * l : 3 * l + 3, 3 * l : 3 * l + 3] += 2.0 * D[l]
-    return f, g.reshape(-1), 0.5 * (H + H.T)
+    return 0.5 * (H + H.T)
+
+
+def _grad_hess(Q: np.ndarray, R: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Cost, Riemannian gradient and Hessian of ``z^T Q z`` at ``R``."""
+    f, g, RtG = _cost_grad(Q, R)
+    return f, g, _hessian(Q, R, RtG)
 
 
 class _DenseModel:
-    """Cost, gradient and Hessian of the reduced cost at ``R`` for :func:`damped_newton`."""
+    """Cost, gradient and Hessian of the reduced cost at ``R`` for :func:`damped_newton`; the
+    Hessian is formed when a step needs it (never at the point where the iteration stops)."""
 
     def __init__(self, Q: np.ndarray, R: np.ndarray) -> None:
-        self.f, self.g, self.H = _grad_hess(Q, R)
-        self.scale_h = max(1.0, float(np.max(np.abs(np.diag(self.H)))))
+        self.f, self.g, self._RtG = _cost_grad(Q, R)
+        self._Q, self._R = Q, R
+
+    @functools.cached_property
+    def H(self) -> np.ndarray:
+        return _hessian(self._Q, self._R, self._RtG)
+
+    @functools.cached_property
+    def scale_h(self) -> float:
+        return max(1.0, float(np.max(np.abs(np.diag(self.H)))))
 
     def step(self, damping: float) -> np.ndarray:
         return -np.linalg.solve(self.H + damping * np.eye(self.H.shape[0]), self.g)

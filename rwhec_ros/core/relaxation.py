@@ -89,6 +89,17 @@ class ConstraintSet:
         """``lambda_s E_ss + sum_c lambda_c A_c`` as a dense (d, d) matrix."""
         return np.asarray(self.C @ lam).reshape(self.d, self.d, order="F")
 
+    @functools.cached_property
+    def abs_C(self) -> sp.csc_matrix:
+        """``|C|`` entrywise (for rounding bounds; computed once per set)."""
+        return abs(self.C)
+
+    @functools.cached_property
+    def max_terms(self) -> int:
+        """The largest number of constraints touching one entry of ``z z^T`` (nonzeros in a row
+        of ``C``, at least 1): the length of the dot products that form ``K(lambda)``."""
+        return int(np.diff(self.C.tocsr().indptr).max(initial=1))
+
 
 def _one_rotation_pattern() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Entries ``(p, q, value, constraint)`` of the 21 constraint matrices of one rotation with

@@ -188,7 +188,8 @@ def _prepare(problem: Problem, options: SolveOptions) -> _Prepared:
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
     layout = StateLayout(problem.M, problem.P)
-    Q, Q_rot = build_cost_matrices(problem)
+    # the rotation-only part is the closed-form start's alone: not built for a given start
+    Q, Q_rot = build_cost_matrices(problem, with_rotation=options.initial is None)
     V_w, w_w, directions, w_max = find_unobservable_directions(Q, layout, problem, options.gauge)
     gauge = build_gauge_fix(problem, V_w, w_w, directions, w_max, options.gauge.priors)
     if gauge.has_penalty:

@@ -509,9 +509,10 @@ class CalibrationSession(ImageInput):
 
     # --- live re-solve (rwhec_ros.session.live_solve) ----------------------------------------
     def pairs_snapshot(self) -> PairsSnapshot:
-        """Copies of the kept pairs per edge and the data version, taken under the lock (array
-        copies only, :meth:`~rwhec_ros.sync.accumulator.PairAccumulator.kept_pairs`: build the
-        problem outside, :func:`~rwhec_ros.sync.accumulator.problem_from_edges`)."""
+        """The kept pairs per edge and the data version, taken under the lock (read-only views
+        or copies of the arrays that never change afterwards,
+        :meth:`~rwhec_ros.sync.accumulator.PairAccumulator.kept_pairs`: build the problem
+        outside, :func:`~rwhec_ros.sync.accumulator.problem_from_edges`)."""
         with self._lock:
             return PairsSnapshot(self._data_version, self._acc.kept_pairs(),
                                  self._acc.rotation_tol)

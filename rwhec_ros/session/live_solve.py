@@ -4,9 +4,10 @@
 attribute). Whoever drives it calls :meth:`LiveSolver.tick` now and then (the node from a timer
 in its own callback group, ``rwhec-calibrate bag`` from its read loop); ``tick`` only looks at
 the clock and a few counters and, when a re-solve is due, hands it to the solver's own worker
-thread and returns at once. The re-solve copies the kept pairs under the session's lock (array
-copies), then builds the problem, solves it in ``fast`` mode (paper Section 7.3, no SDP
-fallback: a live estimate never waits for the SDP) and computes every frame's uncertainty
+thread and returns at once. The re-solve takes the kept pairs under the session's lock
+(read-only views that the accumulator never changes afterwards, or copies), then builds the
+problem, solves it in ``fast`` mode (paper Section 7.3, no SDP fallback: a live estimate never
+waits for the SDP) and computes every frame's uncertainty
 (:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`) outside it. So the sensor path
 (``add_pose``/``add_image``, the detection workers) never waits for a live solve.
 
@@ -34,8 +35,9 @@ that does not certify is solved again from the closed form, so the statuses are 
 start (``test/test_live_solve.py`` checks estimates and certificates against cold solves).
 
 The cost's edge blocks are kept from one re-solve to the next
-(:class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`: an edge that only gained pairs at its end
-has only those summed) and set as the problem's ``precomputed_blocks``, which the solve and the
+(:class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`: an edge that only gained pairs at its end,
+as the accumulator's lineages tell without a look at the pairs, has only those summed) and set
+as the problem's ``precomputed_blocks``, which the solve and the
 uncertainty (``information="edge_blocks"``: the information matrix from the blocks, not from
 the pairs) both use; the results equal the fresh, pair-by-pair ones to rounding.
 
@@ -74,7 +76,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class PairsSnapshot:
-    """The kept pairs at one instant (copies), from
+    """The kept pairs at one instant (arrays that never change), from
     :meth:`~rwhec_ros.session.CalibrationSession.pairs_snapshot`.
 
     Attributes
@@ -429,7 +431,9 @@ class LiveSolver:
                     snap.edges, c.x_names, c.y_names, c.tags.unknown_scale, c.solver.min_pairs,
                     snap.rotation_tol, validate=False)  # validated when they were offered
                 # the cost's edge blocks, reusing the sums of the pairs the last re-solve had
-                problem.precomputed_blocks = self._blocks.blocks(problem)
+                # (edges that only gained pairs since: known from the accumulator's lineages)
+                problem.precomputed_blocks = self._blocks.blocks(problem, lineages={
+                    k: getattr(e, "lineage", None) for k, e in snap.edges.items()})
             except ValueError:
                 with self._lock:
                     self._s.waiting_for_data += 1

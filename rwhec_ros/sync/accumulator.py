@@ -129,11 +129,22 @@ class _EdgeStore:
 
     _FIELDS = ("stamps", "A", "B", "sigma", "kappa", "corners", "points", "nn_dist", "nn_idx")
     _FILL = {"nn_dist": np.inf, "corners": np.nan, "points": np.nan}  # of new slots (else 0)
+    _SHARED = ("stamps", "A", "B", "sigma", "kappa")  # the arrays :meth:`copy` may share
 
     def __init__(self, x: str, y: str, max_pairs: int) -> None:
         self.x, self.y = x, y
         self.n = 0
         self.last_A: np.ndarray | None = None
+        self.max_stamp = -1  # the newest stamp stored (or replaced)
+        #: Identifies the stamp-sorted sequence of kept pairs while it only grows at its end; a
+        #: new object whenever a kept pair changes, goes or is inserted before the newest.
+        self.lineage = object()
+        #: Read-only views of the pair arrays were handed out (:meth:`copy`): the next change of
+        #: a stored pair first moves the arrays (:meth:`detach`), so the views never change.
+        self.shared = False
+        self.in_order = True  # the slots hold the pairs in stamp order
+        self._views: list[np.ndarray] | None = None  # read-only views of the _SHARED arrays
+        self._snapshot: KeptPairs | None = None  # the last copy(), while nothing changed
         slots = min(_INITIAL_SLOTS, max_pairs)
         self.stamps = np.zeros(slots, dtype=np.int64)
         self.A = np.zeros((slots, 4, 4))
@@ -152,6 +163,20 @@ class _EdgeStore:
             new = np.full((slots,) + old.shape[1:], self._FILL.get(name, 0), dtype=old.dtype)
             new[: self.n] = old[: self.n]
             setattr(self, name, new)
+        self.shared = False  # handed-out views keep the old arrays
+        self._views = None
+
+    def detach(self) -> None:
+        """Before a stored pair is changed in place: give the pair arrays new memory when
+        views of them were handed out (so those views keep their values), and start a new
+        lineage (the sorted sequence no longer just grows)."""
+        if self.shared:
+            for name in self._SHARED:
+                setattr(self, name, getattr(self, name).copy())
+            self.shared = False
+            self._views = None
+        self.lineage = object()
+        self._snapshot = None
 
     @property
     def slots(self) -> int:
@@ -174,20 +199,42 @@ class _EdgeStore:
         self.points = np.full((self.slots, width, 3), np.nan)
 
     def copy(self) -> KeptPairs:
-        """The kept pairs sorted by stamp, as plain copies (no re-validation). Pairs stored in
-        stamp order (the usual case: they arrive in time order) are copied as they lie, the
-        same arrays as the stable sort's gather without the sort and the index."""
+        """The kept pairs sorted by stamp (no re-validation). Pairs stored in stamp order (the
+        usual case: they arrive in time order) are handed out as read-only views of the first
+        ``n`` slots, which never change afterwards (appends write later slots; a change of a
+        stored pair first moves the arrays, :meth:`detach`); otherwise sorted copies. The same
+        object again while no pair was stored since."""
+        if self._snapshot is not None:
+            return self._snapshot
         n = self.n
-        stamps = self.stamps[:n]
-        if n < 2 or not (stamps[1:] < stamps[:-1]).any():
-            return KeptPairs(self.x, self.y, stamps.copy(), self.A[:n].copy(),
-                             self.B[:n].copy(), self.sigma[:n].copy(), self.kappa[:n].copy())
-        order = np.argsort(stamps, kind="stable")
-        return KeptPairs(self.x, self.y, stamps[order], self.A[:n][order], self.B[:n][order],
-                         self.sigma[:n][order], self.kappa[:n][order])
+        if self.in_order:
+            if self._views is None:
+                self._views = [getattr(self, name).view() for name in self._SHARED]
+                for v in self._views:
+                    v.flags.writeable = False  # and so every slice of it
+            self.shared = True
+            arrays = [v[:n] for v in self._views]
+        else:
+            order = np.argsort(self.stamps[:n], kind="stable")
+            arrays = [getattr(self, name)[:n][order] for name in self._SHARED]
+            for a in arrays:
+                a.flags.writeable = False
+        self._snapshot = KeptPairs(self.x, self.y, *arrays, lineage=self.lineage)
+        return self._snapshot
 
     def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float,
               corners=None, points=None) -> None:
+        """Store a pair in slot ``i``: a new one (``i == n``, then ``n`` is raised by the
+        caller) or a replacement (``i < n``, :meth:`detach` first). A new pair older than the
+        newest stored goes inside the sorted sequence: a new lineage."""
+        if i < self.n:
+            self.detach()
+            self.in_order = False
+        elif stamp < self.max_stamp:
+            self.lineage = object()
+            self.in_order = False
+        self._snapshot = None
+        self.max_stamp = max(self.max_stamp, int(stamp))
         self.stamps[i] = stamp
         self.corners[i] = np.nan
         self.points[i] = np.nan
@@ -500,10 +547,13 @@ class PairAccumulator:
                 if store.n}
 
     def kept_pairs(self) -> dict[tuple[str, str], KeptPairs]:
-        """Kept pairs per edge ``(x, y)`` like :meth:`edges`, but as plain array copies without
-        the validation of a data-set record (every pair was validated when offered): the
-        cheapest snapshot to take under a lock (the live re-solve's,
-        :meth:`~rwhec_ros.session.CalibrationSession.pairs_snapshot`)."""
+        """Kept pairs per edge ``(x, y)`` like :meth:`edges`, but as plain arrays without the
+        validation of a data-set record (every pair was validated when offered): the cheapest
+        snapshot to take under a lock (the live re-solve's,
+        :meth:`~rwhec_ros.session.CalibrationSession.pairs_snapshot`). Edges whose pairs lie
+        in stamp order (the usual case) are read-only views of the stored arrays, taken in
+        constant time, which the accumulator never changes afterwards (see
+        :attr:`KeptPairs.lineage`); others sorted copies."""
         return {key: store.copy() for key, store in self._edges.items() if store.n}
 
     def counts(self) -> dict[tuple[str, str], int]:
@@ -535,6 +585,7 @@ class PairAccumulator:
                 raise ValueError(f"{field_name}: must be finite and > 0, got {value!r}")
         n = 0
         for store in self._edges.values():
+            store.detach()
             store.sigma[: store.n] = float(sigma)
             store.kappa[: store.n] = float(kappa)
             n += store.n
@@ -584,7 +635,14 @@ class PairAccumulator:
 @dataclass(frozen=True)
 class KeptPairs:
     """One edge's kept pairs, sorted by stamp (:meth:`PairAccumulator.kept_pairs`): ``stamps_ns``
-    (N,), ``A``, ``B`` (N, 4, 4), ``sigma``, ``kappa`` (N,), copies of the stored arrays."""
+    (N,), ``A``, ``B`` (N, 4, 4), ``sigma``, ``kappa`` (N,), read-only arrays that never change
+    (views of the stored arrays, or copies).
+
+    ``lineage``: an object naming the edge's sequence of kept pairs while it only grows at its
+    end. Two snapshots of an edge with the same lineage (compared by identity) hold the same
+    first pairs, bit for bit, up to the smaller count; a pair replaced (full edge), a pair
+    arriving older than the newest, changed precisions (:meth:`PairAccumulator.set_precisions`)
+    or a cleared accumulator give a new lineage. ``None``: unknown (no such promise)."""
 
     x: str
     y: str
@@ -593,6 +651,7 @@ class KeptPairs:
     B: np.ndarray
     sigma: np.ndarray
     kappa: np.ndarray
+    lineage: object = None
 
     @property
     def n(self) -> int:

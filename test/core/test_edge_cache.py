@@ -133,3 +133,79 @@ def test_precomputed_blocks_of_another_problem_are_refused():
     problem.precomputed_blocks = EdgeBlockCache().blocks(other)
     with pytest.raises(ValueError, match="precomputed_blocks"):
         edge_blocks(problem)
+
+
+def _accumulated(problem, counts, acc=None):
+    """A PairAccumulator (keyframe thresholds ~0: every pair kept) holding the first
+    ``counts[e]`` pairs of every edge of ``problem`` (pairs already held are not offered
+    again)."""
+    from rwhec_ros.sync.accumulator import PairAccumulator
+
+    if acc is None:
+        acc = PairAccumulator(keyframe_rotation_rad=1e-12, keyframe_translation_m=1e-12,
+                              max_pairs_per_edge=1000)
+    held = acc.counts()
+    for e, k in zip(problem.edges, counts, strict=True):
+        for i in range(held.get((e.x, e.y), 0), k):
+            assert acc.offer(e.x, e.y, i, e.A[i], e.B[i], float(e.sigma[i]), float(e.kappa[i]))
+    return acc
+
+
+def _snapshot_problem(problem, acc):
+    from rwhec_ros.sync.accumulator import problem_from_edges
+
+    snap = acc.kept_pairs()
+    p, _ = problem_from_edges(snap, problem.x_names, problem.y_names, problem.unknown_scale,
+                              1, validate=False)
+    return p, {k: v.lineage for k, v in snap.items()}
+
+
+@pytest.mark.parametrize("unknown_scale", [False, True])
+def test_lineages_reuse_what_the_comparison_reuses_bit_for_bit(unknown_scale):
+    """The live solver's way (lineages from the accumulator, no pair compared) against the
+    comparison of every pair: the same reuse and the same blocks, bit for bit, through pairs
+    appended, new precisions and a full edge replacing a pair; both equal the fresh assembly
+    to rounding."""
+    problem = _instance(8, n_per_edge=20, unknown_scale=unknown_scale)
+    E = len(problem.edges)
+    by_lineage, by_value = EdgeBlockCache(), EdgeBlockCache()
+    acc = _accumulated(problem, [6] * E)
+    steps = [lambda: _accumulated(problem, [9] * E, acc),  # every edge gained pairs
+             lambda: _accumulated(problem, [9, 14] + [9] * (E - 2), acc),  # one edge
+             lambda: acc.set_precisions(0.03, 80.0),  # every pair changed
+             lambda: _accumulated(problem, [20] * E, acc)]
+    reused = []
+    for step in [lambda: None, *steps]:
+        step()
+        p, lineages = _snapshot_problem(problem, acc)
+        got = by_lineage.blocks(p, lineages=lineages)
+        want = by_value.blocks(p)
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_array_equal(g, w)
+        assert (by_lineage.reused_pairs, by_lineage.summed_pairs) == (
+            by_value.reused_pairs, by_value.summed_pairs)
+        _assert_blocks_equal(got, _fresh(p))
+        reused.append(by_lineage.reused_pairs)
+    assert reused == [0, 6 * E, 9 * E, 0, 9 * (E - 1) + 14]
+
+
+def test_an_edge_without_or_with_a_new_lineage_is_summed_afresh():
+    problem = _instance(9, n_per_edge=10)
+    E = len(problem.edges)
+    cache = EdgeBlockCache()
+    acc = _accumulated(problem, [4] * E)
+    p, lineages = _snapshot_problem(problem, acc)
+    cache.blocks(p, lineages=lineages)
+    _accumulated(problem, [10] * E, acc)
+    p, lineages = _snapshot_problem(problem, acc)
+    first = (problem.edges[0].x, problem.edges[0].y)
+    lineages[first] = None  # unknown: no promise, summed afresh
+    lineages[(problem.edges[1].x, problem.edges[1].y)] = object()  # another sequence
+    got = cache.blocks(p, lineages=lineages)
+    assert cache.reused_pairs == 4 * (E - 2) and cache.summed_pairs == 10 * E - 4 * (E - 2)
+    _assert_blocks_equal(got, _fresh(p))
+    # a call without lineages after one with them (and the reverse) reuses nothing
+    cache.blocks(p)
+    assert cache.reused_pairs == 0
+    cache.blocks(p, lineages=lineages)
+    assert cache.reused_pairs == 0

@@ -1,5 +1,6 @@
-"""``_EdgeStore.copy`` (the live re-solve's snapshot under the session lock) copies pairs stored
-in stamp order as they lie: the same arrays as the stable sort's gather it replaced."""
+"""``_EdgeStore.copy`` (the live re-solve's snapshot under the session lock) hands out pairs
+stored in stamp order as they lie (read-only views): the same arrays as the stable sort's gather
+it replaced, and never changed by the store afterwards."""
 
 import numpy as np
 import pytest
@@ -36,8 +37,14 @@ def test_copy_equals_the_stable_sort(stamps):
         assert a.dtype == b.dtype and a.shape == b.shape
         assert np.array_equal(a, b)  # the same pairs in the same order, bit for bit
     assert np.all(np.diff(got.stamps_ns) >= 0)
-    # copies: changing the store afterwards leaves the snapshot as it was
+    # read-only, and never changed by the store: a stored pair replaced, a pair appended
     if stamps:
-        before = got.A.copy()
-        store.A[: store.n] += 1.0
-        assert np.array_equal(got.A, before)
+        before = [a.copy() for a in (got.stamps_ns, got.A, got.B, got.sigma, got.kappa)]
+        with pytest.raises(ValueError, match="read-only"):
+            got.A[0] = 0.0
+        store.write(0, 99, np.eye(4), np.eye(4), 1.0, 1.0)  # a replacement (slot < n)
+        store.write(store.n, 100, np.eye(4), np.eye(4), 1.0, 1.0)  # an append (slot n)
+        store.n += 1
+        for a, b in zip((got.stamps_ns, got.A, got.B, got.sigma, got.kappa), before,
+                        strict=True):
+            assert np.array_equal(a, b)

@@ -254,10 +254,11 @@ def test_to_problem_excludes_and_orders():
     with pytest.raises(ValueError, match="min_pairs"):
         acc.to_problem(min_pairs=0)
 
-    # the live re-solve's snapshot: plain copies, the same problem without re-validation
+    # the live re-solve's snapshot: read-only arrays, the same problem without re-validation
     kept = acc.kept_pairs()
     assert {k: v.n for k, v in kept.items()} == acc.counts()
-    kept[("tag_2", "cam_1")].A[0] = 0.0  # a copy: the accumulator is untouched
+    with pytest.raises(ValueError, match="read-only"):
+        kept[("tag_2", "cam_1")].A[0] = 0.0  # the accumulator cannot be changed through it
     assert np.all(acc.kept_pairs()[("tag_2", "cam_1")].A[0][3] == [0, 0, 0, 1])
     reference, excl_ref = acc.to_problem(min_pairs=3)
     problem, excluded = problem_from_edges(acc.kept_pairs(), min_pairs=3, validate=False)
