@@ -230,15 +230,26 @@ def edge_blocks(problem: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return _finished_blocks(problem, *_all_edge_blocks(problem))
 
 
+def _edge_indices(problem: Problem) -> np.ndarray:
+    """:func:`_local_to_global` of ``problem``'s edges (E, 25), formed once per problem (its
+    edges never change) and read-only."""
+    idx = problem.__dict__.get("_edge_state_indices")
+    if idx is None:
+        idx = _local_to_global(StateLayout(problem.M, problem.P), problem.edge_x,
+                               problem.edge_y)
+        idx.flags.writeable = False
+        problem.__dict__["_edge_state_indices"] = idx
+    return idx
+
+
 def _finished_blocks(problem: Problem, full: np.ndarray, rot: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(full, rot, idx)`` as :func:`edge_blocks` returns them from summed blocks ``full`` and
-    ``rot`` (E, 25, 25) of ``problem``'s edges: both made exactly symmetric, and the edges'
-    state indices ``idx`` (E, 25)."""
+    ``rot`` (E, 25, 25) of ``problem``'s edges (from :func:`_blocks_from_sums`): ``full`` made
+    exactly symmetric (``rot`` is: its diagonal and its two off-diagonal blocks ``-C``,
+    ``-C^T`` are placed symmetrically), and the edges' state indices ``idx`` (E, 25)."""
     full = 0.5 * (full + np.swapaxes(full, 1, 2))  # exact symmetry
-    rot = 0.5 * (rot + np.swapaxes(rot, 1, 2))
-    layout = StateLayout(problem.M, problem.P)
-    return full, rot, _local_to_global(layout, problem.edge_x, problem.edge_y)
+    return full, rot, _edge_indices(problem)
 
 
 def _checked_blocks(problem: Problem, layout: StateLayout, blocks: tuple) -> tuple:
@@ -247,7 +258,7 @@ def _checked_blocks(problem: Problem, layout: StateLayout, blocks: tuple) -> tup
     full, rot, idx = blocks
     E = len(problem.edges)
     if full.shape != (E, 25, 25) or rot.shape != (E, 25, 25) or idx.shape != (E, 25) or \
-            not np.array_equal(idx, _local_to_global(layout, problem.edge_x, problem.edge_y)):
+            not (idx is _edge_indices(problem) or np.array_equal(idx, _edge_indices(problem))):
         raise ValueError(f"precomputed_blocks: shapes {full.shape}, {rot.shape}, {idx.shape} or "
                          f"indices do not match the problem's {E} edges")
     return full, rot, idx

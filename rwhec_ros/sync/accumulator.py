@@ -156,6 +156,13 @@ class _EdgeStore:
         self.nn_dist = np.full(slots, np.inf)  # distance of each pair to its nearest neighbour
         self.nn_idx = np.full(slots, -1, dtype=np.int64)  # index of that neighbour
 
+    def __getstate__(self) -> dict:
+        """For copies and pickles: the arrays without the views handed out (a copy's views are
+        made from its own arrays)."""
+        state = self.__dict__.copy()
+        state.update(_views=None, _snapshot=None, shared=False)
+        return state
+
     def grow(self, slots: int) -> None:
         """Reallocate every array to ``slots`` entries, keeping the first ``n``."""
         for name in self._FIELDS:

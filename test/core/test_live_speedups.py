@@ -176,3 +176,15 @@ def test_direct_cost_ignores_the_last_rows_of_the_measurements():
         edges.append(Edge(e.x, e.y, A, B, e.sigma, e.kappa))
     tilted = problem.with_edges(edges)
     assert direct_cost(tilted, gt.X, gt.Y) == direct_cost(problem, gt.X, gt.Y)
+
+
+@pytest.mark.parametrize("unknown_scale", [False, True])
+def test_rotation_blocks_are_exactly_symmetric_without_symmetrising(unknown_scale):
+    """_finished_blocks no longer symmetrises ``rot``: it is exactly symmetric as built, so the
+    old ``0.5 (rot + rot^T)`` changes no bit of it."""
+    from rwhec_ros.core.cost import _all_edge_blocks, edge_blocks
+
+    problem, _ = _instance(8, unknown_scale)
+    _, rot = _all_edge_blocks(problem)
+    np.testing.assert_array_equal(0.5 * (rot + np.swapaxes(rot, 1, 2)), rot)
+    np.testing.assert_array_equal(edge_blocks(problem)[1], rot)

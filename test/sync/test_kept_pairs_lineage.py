@@ -111,3 +111,25 @@ def test_a_full_edge_that_replaces_a_pair_starts_a_new_lineage():
     after = acc.kept_pairs()[e]
     assert after.lineage is not full.lineage
     assert np.array_equal(full.A, frozen)  # the snapshot before is untouched
+
+
+def test_a_copied_accumulator_hands_out_its_own_arrays():
+    """A deep copy (or a pickle) taken after a snapshot: its snapshots are views of its own
+    arrays (the pairs appended to it are in them), and neither copy changes the other."""
+    import copy
+    import pickle
+
+    rng = np.random.default_rng(9)
+    acc = PairAccumulator(keyframe_rotation_rad=1e-9, keyframe_translation_m=1e-9)
+    e = ("tag_0", "cam_0")
+    for i in range(5):
+        acc.offer(*e, i, _pose(rng), _pose(rng), 0.05, 100.0)
+    before = acc.kept_pairs()[e]
+    for other in (copy.deepcopy(acc), pickle.loads(pickle.dumps(acc))):
+        A_new = _pose(rng)
+        assert other.offer(*e, 10, A_new, _pose(rng), 0.05, 100.0)
+        got = other.kept_pairs()[e]
+        assert got.n == 6 and np.array_equal(got.A[:5], before.A)
+        assert np.array_equal(got.A[5], A_new)
+        assert got.lineage is not before.lineage
+        assert acc.kept_pairs()[e].n == 5
