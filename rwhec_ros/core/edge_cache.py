@@ -63,8 +63,9 @@ def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
 class EdgeBlockCache:
     """Per-edge sums of the previous problem, reused for the pairs it shares with the next.
 
-    Not thread-safe: one owner (the live solver's worker thread). Holds a copy of the last
-    problem's pairs (about 300 bytes per pair).
+    Not thread-safe: one owner (the live solver's worker thread). Holds the last problem's
+    per-edge sums (3 kB per edge) and, when called without lineages, a copy of its pairs (about
+    300 bytes per pair) to compare with.
 
     Attributes
     ----------
