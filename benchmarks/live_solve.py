@@ -208,7 +208,7 @@ def main() -> int:
         "cores), total {:.0f} s.".format(time.monotonic() - t0),
         "",
         "Each row: the first fraction of every edge's pairs, re-solved by the session's "
-        "`LiveSolver` end to end (copy under the lock, problem, `fast` solve without SDP "
+        "`LiveSolver` end to end (snapshot under the lock, problem, `fast` solve without SDP "
         "fallback, `frame_uncertainty`, convergence), warm-started from the estimate of the "
         f"re-solve before (on {100 * PREVIOUS:g} % of those pairs), and without warm start "
         f"interleaved with it; medians of {args.repeats} re-solves. See the script's docstring "
@@ -233,7 +233,7 @@ def main() -> int:
         f"cores): {verdict} in wall time ({full['wall']:.1f} ms), {cpu_verdict} in CPU time "
         f"({full['cpu']:.1f} ms). Without warm start the same re-solve took "
         f"{full['cold_wall']:.1f} ms ({full['cold_cpu']:.1f} ms CPU) in the same run. The "
-        "sensor path waits at most for the copy under the lock "
+        "sensor path waits at most for the snapshot under the lock "
         f"({full['lock']:.2f} ms on all pairs); everything else runs on the live solver's "
         "thread. With the default `solver.live_period_s` of 2 s the re-solves take about "
         f"{100 * full['cpu'] / 2000:.1f} % of one core on the full data (CPU time).",
