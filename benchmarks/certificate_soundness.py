@@ -179,7 +179,8 @@ def _solve(inst: Instance, mode: str, rec: dict):
     rec.update(status=status, certified=status == CERTIFIED, crash=None,
                message=str(c.message)[:300], p_rep=float(c.primal_cost),
                d=float(c.dual_bound), rho_hat=float(c.suboptimality_bound),
-               rho_tol=float(c.tolerance), scale=float(res.scale))
+               rho_tol=float(c.tolerance), scale=float(res.scale),
+               retry="tighten" in (getattr(res, "timing_s", None) or {}))
     return res
 
 
@@ -406,6 +407,19 @@ def _offenders(records: list[dict], limit: int) -> list[str]:
     return out
 
 
+def _retry_line(records: list[dict]) -> str:
+    """How often the certificate's extended-precision retry fired (``"tighten"`` in the result's
+    ``timing_s``: the reduction's residual bound recomputed, :func:`rwhec_ros.core.solve.
+    _tighten_reduction`) and what came of it."""
+    fired = [r for r in records if r.get("retry")]
+    if not any("retry" in r for r in records):
+        return "Extended-precision certificate retry: not recorded (log from an older harness)."
+    cert = [r for r in fired if r.get("certified")]
+    return (f"Extended-precision certificate retry fired on {len(fired)} instances "
+            f"({len(cert)} certified after it, "
+            f"{sum(1 for r in cert if r.get('false_cert'))} of them false certificates).")
+
+
 def report(records: list[dict], header: list[str], limit: int = 30) -> str:
     """The Markdown report of ``records`` (one per instance and mode)."""
     out = list(header) + ["", DEFINITIONS]
@@ -421,7 +435,7 @@ def report(records: list[dict], header: list[str], limit: int = 30) -> str:
                 f"**{n_fc} false certificates, {n_mm} cost mismatches, {n_cr} crashes** "
                 f"among {len(cert)} certified results ({100 * len(cert) / max(len(rs), 1):.1f} "
                 f"%)." + (f" {n_be} benchmark errors (see log)." if n_be else ""), "",
-                "### Per category", ""]
+                _retry_line(rs), "", "### Per category", ""]
         out += _group_table(rs, lambda r: r["category"], "category")
         wp = [r for r in rs if r["category"] == "well_posed_paper"]
         if wp:
