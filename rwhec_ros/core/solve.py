@@ -250,7 +250,7 @@ def _certify(prep: _Prepared, options: SolveOptions, lam: np.ndarray, cost: floa
                        solver_ok=solver_ok, solver_status=solver_status,
                        homogeneous=prep.problem.unknown_scale, cost_floor=prep.cost_floor,
                        options=options.certificate)
-        if _residual_bound_decides(cert, options) and _tighten_reduction(prep):
+        if _residual_bound_decides(cert, options, prep.cost_floor) and _tighten_reduction(prep):
             cert = certify(prep.reduced, prep.scale, prep.Qs, prep.cons(), lam, cost,
                            solver_ok=solver_ok, solver_status=solver_status,
                            homogeneous=prep.problem.unknown_scale, cost_floor=prep.cost_floor,
@@ -261,14 +261,16 @@ def _certify(prep: _Prepared, options: SolveOptions, lam: np.ndarray, cost: floa
                                    f"({type(exc).__name__}: {exc})")
 
 
-def _residual_bound_decides(cert: Certificate, options: SolveOptions) -> bool:
+def _residual_bound_decides(cert: Certificate, options: SolveOptions,
+                            cost_floor: float = 0.0) -> bool:
     """The certificate failed on its bound alone (PSD, one-dimensional null space, finite
     bound, a reliable solver) and the reduction's rounding and Schur terms take more than a
-    tenth of the gap it allows: a tighter bound on the recovery's residual may certify it."""
+    tenth of the gap it allows (``rho_tol`` times the bound's denominator, the dual bound or
+    the cost floor): a tighter bound on the recovery's residual may certify it."""
     if cert.status is not Status.NOT_TIGHT or cert.null_space_dim != 1:
         return False
     margins = cert.margins or {}
-    allowed = options.certificate.rho_tol * max(abs(cert.dual_bound), 1e-300)
+    allowed = options.certificate.rho_tol * max(abs(cert.dual_bound), cost_floor, 1e-300)
     return margins.get("rounding", 0.0) + margins.get("schur", 0.0) > 0.1 * allowed
 
 

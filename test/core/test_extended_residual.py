@@ -213,3 +213,12 @@ def _cert(status=Status.NOT_TIGHT, null_dim=1, rounding=1e-3, schur=0.0, dual=10
 ])
 def test_retry_only_when_the_reduction_bound_can_decide(kwargs, expected):
     assert solve_module._residual_bound_decides(_cert(**kwargs), SolveOptions()) is expected
+
+
+def test_retry_allowance_uses_the_cost_floor():
+    """The gap allowed is rho_tol times the bound's denominator: the cost floor when it is larger
+    than the dual bound (precise data), so small reduction terms do not trigger the retry."""
+    cert = _cert(rounding=0.11e-6 * 10.0, dual=10.0)
+    assert solve_module._residual_bound_decides(cert, SolveOptions(), 0.0)
+    assert not solve_module._residual_bound_decides(cert, SolveOptions(), 1000.0)
+
