@@ -147,8 +147,9 @@ def test_sensor_path_never_waits_for_a_running_live_solve(tmp_path):
         counters = session.counters()
         assert counters["pairs_kept"] == solving_pairs + 150 * len(CAMERAS) * len(TAGS)
         assert counters["poses"] == 160
-        # 0.5 s: far above an image's cost here (~1 ms), far below the 30 s the solve waits
-        assert max(durations) < 0.5
+        # 5 s: far above an image's cost here (~1 ms, and the 0.5 s it reached once on the
+        # shared machine under heavy load), far below the 30 s the blocked solve waits
+        assert max(durations) < 5.0
         assert session.live.tick() == "running"  # one live solve at a time
         # calibrate does not wait for it either, and succeeds on all the data
         outcome = session.calibrate()
