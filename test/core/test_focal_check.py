@@ -67,7 +67,7 @@ def test_the_right_focal_lengths_are_good_and_said_so(scene):
     assert set(v.focal_check) == {"cam0", "cam1", "cam2"}
     for c in v.focal_check.values():
         assert abs(c.scale - 1.0) < 4 * c.std  # the verdict's own threshold: no alarm
-    assert "the tag corners fit the configured focal lengths" in v.summary
+    assert "the detected corners fit the configured focal lengths" in v.summary
     assert v.to_dict()["focal_check"]["cam1"]["n_images"] > 10
 
 

@@ -7,7 +7,8 @@ The modules, one concept each:
   chi-square test, globally and per edge; paper eq. (33));
 * :mod:`.scale_check`: a known-scale problem solved with an unknown scale (tag sizes, focal
   lengths, pose-stream units);
-* :mod:`.focal_check`: the focal length each camera's tag corners fit (data with corners);
+* :mod:`.focal_check`: the focal length each camera's detected corners (tags or boards)
+  fit (data with corners);
 * :mod:`.precision`: each frame's predicted standard deviation (today from the identifiability
   numeric check);
 * :mod:`.model`: :class:`Reason`, :class:`FrameVerdict`, :class:`Verdict` and the builder that

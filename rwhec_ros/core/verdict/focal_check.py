@@ -33,6 +33,7 @@ paper's CSV data, data sets of poses only) or ``VerdictOptions.focal_check`` is 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -135,7 +136,7 @@ def focal_reasons(b: Builder, checks: Mapping[str, FocalCheck], opts: VerdictOpt
         chain = (f", {c.chain_rms_px:.2f} px through the calibration"
                  if np.isfinite(c.chain_rms_px) else "")
         b.add("caution", "intrinsics",
-              f"{cam}: the tag corners fit a focal length {100 * abs(dev):.1f} % {word} than "
+              f"{cam}: the detected corners fit a focal length {100 * abs(dev):.1f} % {word} than "
               f"its camera info says ({fx}, +-{100 * c.std:.1f} %, {c.sigmas:.0f} std): they "
               f"reproject with {c.image_rms_px:.2f} px RMS per image as configured against "
               f"{c.fitted_rms_px:.2f} px with the fitted focal length{chain}; check the "
@@ -145,10 +146,12 @@ def focal_reasons(b: Builder, checks: Mapping[str, FocalCheck], opts: VerdictOpt
 
 
 def focal_summary(checks: Mapping[str, FocalCheck], opts: VerdictOptions) -> str:
-    """``the tag corners fit the configured focal lengths (within 0.3 %)`` when every checked
-    camera passes; empty otherwise (the reasons say it) or when none was checked."""
+    """``the detected corners fit the configured focal lengths (within 0.3 %)`` when every
+    checked camera passes (the largest deviation rounded up to 0.1 %, so that the words stay
+    true); empty otherwise (the reasons say it) or when none was checked."""
     known = [c for c in checks.values() if np.isfinite(c.scale)]
     if not known or any(c.flagged(opts) for c in known):
         return ""
     worst = max(abs(c.deviation) for c in known)
-    return f"the tag corners fit the configured focal lengths (within {100 * worst:.1f} %)"
+    within = max(math.ceil(round(1000 * worst, 6)) / 10, 0.1)
+    return f"the detected corners fit the configured focal lengths (within {within:.1f} %)"
