@@ -190,12 +190,12 @@ def _path(monkeypatch, d, k, diag=1.0):
 
 
 def test_smallest_eigenvalues_size_thresholds(monkeypatch):
-    """Full eigensolve up to 300, an index range from 301, all eigenvalues when k >= d,
+    """Full eigensolve up to 120, an index range from 121, all eigenvalues when k >= d,
     Lanczos from 3,000 (positive definite), the index range when the factorisation fails."""
-    assert verified.FULL_EIGH_MAX_SIZE == 300 and verified.LANCZOS_MIN_SIZE == 3000
-    assert _path(monkeypatch, 300, 2) == "full"
-    assert _path(monkeypatch, 301, 2) == "index_range"
-    assert _path(monkeypatch, 301, 301) == "full"
+    assert verified.FULL_EIGH_MAX_SIZE == 120 and verified.LANCZOS_MIN_SIZE == 3000
+    assert _path(monkeypatch, 120, 2) == "full"
+    assert _path(monkeypatch, 121, 2) == "index_range"
+    assert _path(monkeypatch, 121, 121) == "full"
     assert _path(monkeypatch, 2999, 2) == "index_range"
     assert _path(monkeypatch, 3000, 2) == "lanczos"
     # Z + shift I not positive definite: lambda_min = -2e-8 < -shift (default shift 1e-8)
