@@ -1,6 +1,7 @@
 """End-to-end board section of the perception benchmark (imported by ``benchmarks/perception.py``;
 ``python benchmarks/perception_end_to_end.py`` prints this section alone, ``--layout TEXT`` only
-the layouts whose label contains TEXT, e.g. ``--layout Kalibr``).
+the layouts whose label contains TEXT, e.g. ``--layout Kalibr``, ``--seeds 0 1 2 3`` other seeds
+of the noise).
 
 The demo rig (3 cameras 640x480, f = 500 px, the demo trajectory for 24 s) among 6 targets on a
 ring of radius 2 m, calibrated through the real :class:`~rwhec_ros.session.CalibrationSession`
@@ -216,6 +217,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--layout", action="append", default=[], metavar="TEXT",
                         help="only the layouts whose label contains TEXT (repeatable)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], metavar="N",
+                        help="seeds of the image and pose noise (default 0 1 2; the first one "
+                             "gets every column)")
     args = parser.parse_args(argv)
     layouts = None
     if args.layout:
@@ -224,7 +228,7 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(f"--layout: no layout label contains {args.layout}: {list(LAYOUTS)}")
     print("## End to end through the session: demo rig with single tags vs boards "
           "(targets 2 m away)\n")
-    print("\n".join(end_to_end_table(layouts=layouts)))
+    print("\n".join(end_to_end_table(seeds=tuple(args.seeds), layouts=layouts)))
     if layouts is None:
         print("\n" + EXPLANATION)
 
