@@ -318,14 +318,23 @@ def _null_words(info: Information, v: np.ndarray) -> str:
 
 def _inverse_from_cholesky(A: np.ndarray) -> np.ndarray:
     """``A^-1`` of a symmetric positive definite ``A`` from its Cholesky factor (LAPACK
-    ``potrf`` + ``potri``: a third of the work of solving for the identity's columns);
-    ``LinAlgError`` when ``A`` is not positive definite."""
+    ``potrf`` + ``potri``: a third of the work of solving for the identity's columns), exactly
+    symmetric (the upper triangle ``potri`` computes, mirrored); ``LinAlgError`` when ``A`` is
+    not positive definite."""
     factor, lower = scipy.linalg.cho_factor(A, check_finite=False)
     inv, info = scipy.linalg.lapack.dpotri(factor, lower=lower)
     if info != 0:
         raise np.linalg.LinAlgError(f"potri: info {info}")
-    tri = np.tril(inv) if lower else np.triu(inv)
-    return tri + np.swapaxes(np.tril(inv, -1) if lower else np.triu(inv, 1), 0, 1)
+    n = inv.shape[0]
+    upper = np.arange(n)[:, None] <= np.arange(n)  # the triangle potri wrote (lower: its T)
+    return np.where(upper, inv, inv.T) if not lower else np.where(upper, inv.T, inv)
+
+
+def _clearly_above(Cn: np.ndarray, tol: float) -> bool:
+    """Every eigenvalue of the symmetric positive definite ``Hn = Cn^-1`` is at least ``2 tol``:
+    ``lambda_max(Cn) <= |Cn|_inf`` (largest absolute row sum) ``<= 1 / (2 tol)``. A sufficient
+    test (no factorisation): ``False`` says nothing."""
+    return bool(np.abs(Cn).sum(axis=1).max(initial=0.0) <= 0.5 / tol)
 
 
 def covariance_of(info: Information, problem: Problem,
@@ -357,21 +366,27 @@ def covariance_of(info: Information, problem: Problem,
     Hc = info.H if basis is None else basis.T @ info.H @ basis
     dg = np.abs(np.diag(Hc))
     d = np.sqrt(np.maximum(dg, 1e-12 * max(float(dg.max(initial=0.0)), 1e-300)))
-    Hn = Hc / np.outer(d, d)
-    Hn = 0.5 * (Hn + Hn.T)
+    dd = np.outer(d, d)
+    Hn = Hc / dd
+    Hn += Hn.T
+    Hn *= 0.5
     negative = 0.0
-    eye = np.eye(Hn.shape[0])
-    try:  # usual case: every normalised eigenvalue above null_tol (one shifted factorisation)
-        scipy.linalg.cholesky(Hn - opts.null_tol * eye, check_finite=False)
+    try:  # usual case: every normalised eigenvalue above null_tol
         Cn = _inverse_from_cholesky(Hn)
+        # Hn - null_tol I positive definite: proven by the bound on Cn (no factorisation), or
+        # else by its own Cholesky factorisation (raises when not)
+        if not _clearly_above(Cn, opts.null_tol):
+            scipy.linalg.cholesky(Hn - opts.null_tol * np.eye(Hn.shape[0]), check_finite=False)
         extra = np.zeros((Hn.shape[0], 0))
+        exact_sym = True  # Cn and dd exactly symmetric, so is Cn / dd
     except (np.linalg.LinAlgError, ValueError):
         lam, U = np.linalg.eigh(Hn)
         negative = float(min(lam[0], 0.0)) if lam[0] < -opts.null_tol else 0.0
         keep = np.abs(lam) >= opts.null_tol
         Cn = (U[:, keep] / np.abs(lam[keep])) @ U[:, keep].T
         extra = U[:, ~keep] / d[:, None]
-    Cc = Cn / np.outer(d, d)
+        exact_sym = False
+    Cc = np.divide(Cn, dd, out=Cn) if exact_sym else Cn / dd
     sigma = Cc if basis is None else basis @ Cc @ basis.T
     if extra.shape[1]:
         ext = extra if basis is None else basis @ extra
@@ -379,7 +394,9 @@ def covariance_of(info: Information, problem: Problem,
         words += [_null_words(info, ext[:, i]) for i in range(ext.shape[1])]
         null = np.concatenate([null, ext], axis=1)
     rank = n - k - extra.shape[1]  # the data's rank (priors add none)
-    return Covariance(sigma=0.5 * (sigma + sigma.T), null=null, rank=rank, words=words,
+    if basis is not None or not exact_sym:  # (exactly symmetric already: the same bits)
+        sigma = 0.5 * (sigma + sigma.T)
+    return Covariance(sigma=sigma, null=null, rank=rank, words=words,
                       pinned=pinned, n_gauge=k, negative_curvature=negative)
 
 
