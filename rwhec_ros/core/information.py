@@ -308,15 +308,26 @@ def check_result_frames(problem: Problem, result) -> None:
 
 
 def _check_estimate(problem: Problem, X, Y, alpha: float) -> tuple[np.ndarray, float]:
-    X = check_transforms(X, what="X", rotation_tol=1e-5)
-    Y = check_transforms(Y, what="Y", rotation_tol=1e-5)
+    """``(T, alpha)``: ``X`` (M, 4, 4) and ``Y`` (P, 4, 4) checked as transforms and stacked,
+    ``alpha`` (1 for known scale) checked; ``ValueError`` naming the first offender."""
+    X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
+    T = None
+    if X.ndim == 3 and Y.ndim == 3 and X.shape[1:] == Y.shape[1:] == (4, 4):
+        try:  # both stacks in one check (the usual case: every transform valid)
+            T = check_transforms(np.concatenate([X, Y]), what="estimate", rotation_tol=1e-5)
+        except ValueError:
+            T = None  # checked one by one below, for the message naming X[i] or Y[i]
+    if T is None:
+        X = check_transforms(X, what="X", rotation_tol=1e-5)
+        Y = check_transforms(Y, what="Y", rotation_tol=1e-5)
+        T = np.concatenate([X, Y])
     if X.shape[0] != problem.M or Y.shape[0] != problem.P:
         raise ValueError(f"estimate: expected {problem.M} X and {problem.P} Y transforms, got "
                          f"{X.shape[0]} and {Y.shape[0]}")
     a = float(alpha) if problem.unknown_scale else 1.0
     if not (np.isfinite(a) and a > 0):
         raise ValueError(f"alpha: must be finite and > 0, got {alpha!r}")
-    return np.concatenate([X, Y]), a
+    return T, a
 
 
 def _scatter_add(n: int, idx: np.ndarray, blocks: np.ndarray) -> np.ndarray:
@@ -433,9 +444,11 @@ def information_from_edge_blocks(
     if layout.alpha is not None:  # d2 (alpha t) / (dt d alpha) = I, contracted with g_t
         H[: 3 * F, layout.alpha] += g[: 3 * F]
         H[layout.alpha, : 3 * F] += g[: 3 * F]
+    # H stays exactly symmetric: scattered and symmetrised, then symmetric terms added at
+    # mirrored places (so no further symmetrisation, which would not change a bit)
     return Information(
         layout=layout, names=problem.frame_names, R=R.copy(), t=t.copy(), alpha=a,
-        H=_sym(H), Q_ee=Qee, chi2=float(edge_chi2.sum()), n_pairs=problem.n_measurements,
+        H=H, Q_ee=Qee, chi2=float(edge_chi2.sum()), n_pairs=problem.n_measurements,
         edge_chi2=edge_chi2)
 
 

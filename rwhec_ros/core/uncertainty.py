@@ -510,7 +510,14 @@ def uncertainty_from_information(info: Information, problem: Problem,
     opts = options or UncertaintyOptions()
     t0 = time.perf_counter()
     with blas_threads(opts.blas_threads):
-        cov = covariance_of(info, problem, opts)
+        return _uncertainty_from_information(info, problem, opts, t0)
+
+
+def _uncertainty_from_information(info: Information, problem: Problem,
+                                  opts: UncertaintyOptions, t0: float) -> Uncertainty:
+    """:func:`uncertainty_from_information` inside the caller's BLAS thread limit (started at
+    ``t0``)."""
+    cov = covariance_of(info, problem, opts)
     C, ut, ur, scale_null = frame_covariances(cov, info, opts.axis_tol)
     lay = info.layout
     dof = 6 * info.n_pairs - cov.rank
@@ -564,7 +571,7 @@ def frame_uncertainty(problem: Problem, result, options: UncertaintyOptions | No
                 else information_matrix)
     with blas_threads(opts.blas_threads):
         info = assemble(problem, result.X, result.Y, result.scale)
-        unc = uncertainty_from_information(info, problem, options)
+        unc = _uncertainty_from_information(info, problem, opts, t0)
     n_res = len(getattr(result, "unobservable", []) or [])
     n_gauge = sum(1 for w in unc.unobservable if w.startswith("translation"))
     if not unc.conditioned_on_priors and n_res != n_gauge:

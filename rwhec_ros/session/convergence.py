@@ -110,10 +110,15 @@ def convergence_of(uncertainty: Uncertainty, expected: tuple[str, ...] | list[st
     ratio = max(1.0, math.sqrt(s0)) if (s0 is not None and math.isfinite(s0)) else 1.0
     frames = uncertainty.frames
     # (frame, kind, axis): the stds times the ratio, and the axes that are not observed
-    std = np.array([[f.std_translation_m, f.std_rotation_deg] for f in frames],
-                   dtype=float).reshape(len(frames), 2, 3) * ratio
-    bad = np.array([[f.unobservable_translation, f.unobservable_rotation] for f in frames],
-                   dtype=bool).reshape(len(frames), 2, 3) | ~np.isfinite(std)
+    # (the expressions of FrameUncertainty.std_translation_m / std_rotation_deg, all frames at
+    # once)
+    var = np.diagonal(np.array([f.covariance for f in frames], dtype=float).reshape(-1, 6, 6),
+                      axis1=1, axis2=2)
+    std = np.sqrt(np.maximum(var, 0.0)).reshape(len(frames), 2, 3)
+    std[:, 1] = np.degrees(std[:, 1])
+    std *= ratio
+    bad = np.array([np.concatenate([f.unobservable_translation, f.unobservable_rotation])
+                    for f in frames], dtype=bool).reshape(len(frames), 2, 3) | ~np.isfinite(std)
     kinds = ("translation", "rotation")
     unobservable = [f"{frames[i].name} {kinds[k]} {_AXES[a]}"
                     for i, k, a in zip(*np.nonzero(bad), strict=True)]

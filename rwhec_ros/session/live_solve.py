@@ -133,8 +133,11 @@ def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = Non
         if result is None:
             result = solve(problem, options)
         result.notes.extend(notes)
+        # the uncertainty's own limit (1 thread, its default) is this one when the solve's is 1:
+        # None then (no second look at the BLAS libraries); else its own, as before
         return result, frame_uncertainty(problem, result, UncertaintyOptions(
-            gauge=options.gauge, information="edge_blocks"))
+            gauge=options.gauge, information="edge_blocks",
+            blas_threads=None if options.blas_threads == 1 else 1))
 
 
 def warm_start_of(estimate: LiveEstimate | None, problem: Problem) -> tuple | None:
