@@ -26,7 +26,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cost import _blocks_from_sums, _edge_sums, _edge_sums_few, _finished_blocks
+from .cost import (
+    _blocks_from_sums,
+    _edge_indices,
+    _edge_sums,
+    _edge_sums_few,
+    _finished_blocks,
+)
 from .problem import Problem
 
 __all__ = ["EdgeBlockCache", "FEW_PAIRS"]
@@ -133,7 +139,7 @@ class EdgeBlockCache:
                                rows, G, K, ksum, lin)
         self.reused_pairs = int(reuse.sum())
         self.summed_pairs = int(fresh.sum())
-        return _finished_blocks(problem, *_blocks_from_sums(G, K, ksum))
+        return _finished(problem, G, K, ksum)
 
     @staticmethod
     def _rows(edges, N: int) -> np.ndarray:
@@ -190,6 +196,18 @@ class EdgeBlockCache:
         differs = np.bincount(np.repeat(np.arange(E), reuse), weights=~same, minlength=E)
         reuse[differs > 0] = 0
         return reuse, src
+
+
+def _finished(problem: Problem, G: np.ndarray, K: np.ndarray, ksum: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``_finished_blocks(problem, *_blocks_from_sums(G, K, ksum))``, bit for bit, without its
+    symmetrisation of ``full`` when that would change nothing: ``full`` is exactly symmetric
+    when ``G`` is (``rot``'s parts are placed symmetrically, ``G``'s added at mirrored places),
+    and ``0.5 (x + x) = x`` exactly."""
+    if np.array_equal(G, np.swapaxes(G, 1, 2)):
+        full, rot = _blocks_from_sums(G, K, ksum)
+        return full, rot, _edge_indices(problem)
+    return _finished_blocks(problem, *_blocks_from_sums(G, K, ksum))
 
 
 def _tails(edges, active: np.ndarray, skip: np.ndarray
