@@ -102,9 +102,9 @@ class EdgeBlockCache:
         a previous call without them)."""
         edges = problem.edges
         E = len(edges)
-        counts = [e.n for e in edges]
-        starts = np.cumsum(counts, dtype=np.int64) - counts
         if lineages is None:
+            counts = [e.n for e in edges]
+            starts = np.cumsum(counts, dtype=np.int64) - counts
             rows = self._rows(edges, int(sum(counts)))
             reuse, src = self._reusable(edges, rows, starts, counts)
             fresh = np.asarray(counts, dtype=np.int64) - reuse
@@ -114,12 +114,12 @@ class EdgeBlockCache:
             sigma, kappa = new[:, 32], new[:, 33]
             lin = None
         else:
-            lin = [lineages.get((e.x, e.y)) for e in edges]
-            reuse, src = self._same_lineage(edges, lin, counts)
+            counts, lin, reuse, src, tails = self._same_lineage(edges, lineages)
+            starts = np.cumsum(counts, dtype=np.int64) - counts
             fresh = np.asarray(counts, dtype=np.int64) - reuse
             active = np.flatnonzero(fresh)
             rows = None
-            A, B, sigma, kappa = _tails(edges, active, reuse)
+            A, B, sigma, kappa = _concatenated(tails)
         # nothing reused (the first call): exactly the fresh assembly's sums
         sums = _edge_sums_few if reuse.any() and A.shape[0] <= FEW_PAIRS else _edge_sums
         Gn, Kn, kn = sums(A, B, sigma, kappa, fresh[active])
@@ -152,11 +152,9 @@ class EdgeBlockCache:
             rows[:, 33] = np.concatenate([e.kappa for e in edges])
         return rows
 
-    def _candidates(self, edges, counts: list[int], lineages: list | None = None
-                    ) -> tuple[list[int], list[int]]:
+    def _candidates(self, edges, counts: list[int]) -> tuple[list[int], list[int]]:
         """Per edge, the previous call's pair count of the same edge when it had at most as
-        many pairs (and, with ``lineages``, the same lineage), else 0; and that edge's index
-        last time."""
+        many pairs, else 0; and that edge's index last time."""
         E = len(edges)
         prev = self._prev
         reuse, src = [0] * E, [0] * E
@@ -164,20 +162,33 @@ class EdgeBlockCache:
             j = prev.index.get((e.x, e.y))
             if j is None or prev.counts[j] > counts[i]:
                 continue
-            if lineages is not None and (lineages[i] is None
-                                         or lineages[i] is not prev.lineages[j]):
-                continue
             reuse[i], src[i] = prev.counts[j], j
         return reuse, src
 
-    def _same_lineage(self, edges, lineages: list, counts: list[int]
-                      ) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`_reusable` by lineage: no pair is compared."""
+    def _same_lineage(self, edges, lineages: dict
+                      ) -> tuple[list[int], list, np.ndarray, np.ndarray, list[tuple]]:
+        """Per edge, its pair count, its lineage (``lineages.get((x, y))``), and
+        :meth:`_reusable` by lineage (no pair compared: :meth:`_candidates` and the same lineage,
+        in one loop); and the pairs to sum, ``(A, B, sigma, kappa)`` after the reused ones,
+        of every edge with such pairs."""
         E = len(edges)
-        if self._prev is None or self._prev.lineages is None:
-            return np.zeros(E, dtype=np.int64), np.zeros(E, dtype=np.int64)
-        reuse, src = self._candidates(edges, counts, lineages)
-        return np.array(reuse, dtype=np.int64), np.array(src, dtype=np.int64)
+        prev = self._prev
+        if prev is not None and prev.lineages is None:
+            prev = None
+        counts, lin, tails = [0] * E, [None] * E, []
+        reuse, src = np.zeros(E, dtype=np.int64), np.zeros(E, dtype=np.int64)
+        for i, e in enumerate(edges):
+            n = counts[i] = e.n
+            line = lin[i] = lineages.get((e.x, e.y))
+            k = 0
+            if prev is not None and line is not None:
+                j = prev.index.get((e.x, e.y))
+                if j is not None and prev.counts[j] <= n and line is prev.lineages[j]:
+                    k = reuse[i] = prev.counts[j]
+                    src[i] = j
+            if n > k:
+                tails.append((e.A[k:], e.B[k:], e.sigma[k:], e.kappa[k:]))
+        return counts, lin, reuse, src, tails
 
     def _reusable(self, edges, rows: np.ndarray, starts: np.ndarray, counts: list[int]
                   ) -> tuple[np.ndarray, np.ndarray]:
@@ -210,14 +221,10 @@ def _finished(problem: Problem, G: np.ndarray, K: np.ndarray, ksum: np.ndarray
     return _finished_blocks(problem, *_blocks_from_sums(G, K, ksum))
 
 
-def _tails(edges, active: np.ndarray, skip: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``A, B`` (N, 4, 4), ``sigma, kappa`` (N,): the pairs of the edges ``active`` after their
-    first ``skip[e]``, concatenated edge by edge."""
-    if not active.size:
+def _concatenated(tails: list[tuple]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``A, B`` (N, 4, 4), ``sigma, kappa`` (N,): the ``(A, B, sigma, kappa)`` runs of pairs
+    ``tails`` concatenated in order."""
+    if not tails:
         return np.zeros((0, 4, 4)), np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0)
-    tails = [(edges[e], int(skip[e])) for e in active]
-    return (np.concatenate([e.A[k:] for e, k in tails]),
-            np.concatenate([e.B[k:] for e, k in tails]),
-            np.concatenate([e.sigma[k:] for e, k in tails]),
-            np.concatenate([e.kappa[k:] for e, k in tails]))
+    A, B, sigma, kappa = zip(*tails, strict=True)
+    return np.concatenate(A), np.concatenate(B), np.concatenate(sigma), np.concatenate(kappa)
