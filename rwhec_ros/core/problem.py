@@ -179,26 +179,31 @@ class Problem:
             )
         x_index = {n: i for i, n in enumerate(self.x_names)}
         y_index = {n: i for i, n in enumerate(self.y_names)}
+        edges = tuple(edges)
         seen: set[tuple[str, str]] = set()
+        xi, yi = [], []
         for e_idx, e in enumerate(edges):
             if not isinstance(e, Edge):
                 raise ValueError(f"edges[{e_idx}]: expected Edge, got {type(e).__name__}")
-            if e.x not in x_index:
+            i, j = x_index.get(e.x), y_index.get(e.y)
+            if i is None:
                 raise ValueError(f"edges[{e_idx}] {e.name}: unknown X frame {e.x!r}")
-            if e.y not in y_index:
+            if j is None:
                 raise ValueError(f"edges[{e_idx}] {e.name}: unknown Y frame {e.y!r}")
             if (e.x, e.y) in seen:
                 raise ValueError(f"edges[{e_idx}] {e.name}: duplicate edge")
             seen.add((e.x, e.y))
             if e.sigma is None or e.kappa is None:
                 raise ValueError(f"edges[{e_idx}] {e.name}: build edges with Edge.build")
-        self.edges: tuple[Edge, ...] = tuple(edges)
-        touched = {e.x for e in self.edges} | {e.y for e in self.edges}
+            xi.append(i)
+            yi.append(j)
+        self.edges: tuple[Edge, ...] = edges
+        touched = {x for x, _ in seen} | {y for _, y in seen}
         untouched = [n for n in names if n not in touched]
         if untouched:
             raise ValueError(f"frames not touched by any edge: {untouched}")
-        self.edge_x = np.array([x_index[e.x] for e in self.edges], dtype=int)
-        self.edge_y = np.array([y_index[e.y] for e in self.edges], dtype=int)
+        self.edge_x = np.array(xi, dtype=int)
+        self.edge_y = np.array(yi, dtype=int)
         #: The cost's edge blocks ``(full, rot, idx)`` of these edges when computed ahead
         #: (:class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`, the live re-solve's), used by
         #: :func:`~rwhec_ros.core.cost.edge_blocks` instead of assembling them; ``None``: built
