@@ -226,7 +226,7 @@ class _EdgeStore:
             arrays = [getattr(self, name)[:n][order] for name in self._SHARED]
             for a in arrays:
                 a.flags.writeable = False
-        self._snapshot = KeptPairs(self.x, self.y, *arrays, lineage=self.lineage)
+        self._snapshot = KeptPairs._of(self.x, self.y, *arrays, self.lineage)
         return self._snapshot
 
     def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float,
@@ -663,6 +663,18 @@ class KeptPairs:
     @property
     def n(self) -> int:
         return int(self.stamps_ns.shape[0])
+
+    @classmethod
+    def _of(cls, x: str, y: str, stamps_ns: np.ndarray, A: np.ndarray, B: np.ndarray,
+            sigma: np.ndarray, kappa: np.ndarray, lineage: object) -> KeptPairs:
+        """``KeptPairs(x, y, stamps_ns, A, B, sigma, kappa, lineage)``, its fields set at once
+        (the frozen dataclass's ``__init__`` sets them one by one through
+        ``object.__setattr__``, twice the time: a snapshot under the session's lock makes one
+        per edge)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(x=x, y=y, stamps_ns=stamps_ns, A=A, B=B, sigma=sigma, kappa=kappa,
+                            lineage=lineage)
+        return obj
 
 
 def problem_from_edges(
