@@ -352,21 +352,25 @@ def scatter_information(
 def _scatter_blocks(layout: TangentLayout, xi: np.ndarray, yi: np.ndarray, hessian: np.ndarray,
                     translation_block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`scatter_information` of per-group ``hessian`` (G, 13, 13) and
-    ``translation_block`` (G, 7, 7)."""
+    ``translation_block`` (G, 7, 7). For known scale the blocks' ``d alpha`` row and column go
+    to one extra bin that is dropped (each real entry gets the same terms in the same order
+    as from the blocks without them: the same bits, without copying the blocks)."""
     n = layout.size
     F = layout.n_frames
-    idx = layout.pair_indices(xi, yi)
-    blocks = hessian if layout.unknown_scale else hessian[:, _LOCAL_KNOWN][:, :, _LOCAL_KNOWN]
-    H = _scatter_add(n, idx, blocks)
-    m = 3 * F + (1 if layout.unknown_scale else 0)
+    xi = np.asarray(xi, dtype=int)
+    yi = np.asarray(yi, dtype=int) + layout.M
     three = np.arange(3)
-    qidx = np.concatenate([3 * np.asarray(xi)[:, None] + three,
-                           3 * (layout.M + np.asarray(yi)[:, None]) + three,
-                           np.full((len(xi), 1), 3 * F)], axis=1)
-    qb = translation_block
-    if not layout.unknown_scale:
-        qidx, qb = qidx[:, :6], qb[:, :6, :6]
-    Qee = _scatter_add(m, qidx, qb)
+    idx = np.empty((len(xi), 13), dtype=int)  # [dt_X, dt_Y, d alpha, w_X, w_Y], as pair_indices
+    idx[:, 0:3] = 3 * xi[:, None] + three
+    idx[:, 3:6] = 3 * yi[:, None] + three
+    idx[:, 6] = 3 * F if layout.unknown_scale else n  # d alpha (known scale: the extra bin)
+    idx[:, 7:10] = layout.r0 + idx[:, 0:3]
+    idx[:, 10:13] = layout.r0 + idx[:, 3:6]
+    H = _scatter_add(n + (0 if layout.unknown_scale else 1), idx, hessian)[:n, :n]
+    m = 3 * F + (1 if layout.unknown_scale else 0)
+    qidx = idx[:, :7].copy()
+    qidx[:, 6] = 3 * F  # alpha in Q_ee (known scale: the extra bin)
+    Qee = _scatter_add(3 * F + 1, qidx, translation_block)[:m, :m]
     return 0.5 * (H + H.T), 0.5 * (Qee + Qee.T)
 
 

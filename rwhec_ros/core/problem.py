@@ -227,7 +227,12 @@ class Problem:
 
     @property
     def n_measurements(self) -> int:
-        return int(sum(e.n for e in self.edges))
+        """Number of pairs (counted once per ``edges`` tuple)."""
+        counted = self.__dict__.get("_n_measurements")
+        if counted is None or counted[0] is not self.edges:
+            counted = (self.edges, int(sum(e.n for e in self.edges)))
+            self.__dict__["_n_measurements"] = counted
+        return counted[1]
 
     @property
     def frame_names(self) -> tuple[str, ...]:

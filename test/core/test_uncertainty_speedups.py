@@ -3,14 +3,21 @@ what they replaced: covariance_of's proof that the normalised information matrix
 ``null_tol`` (a bound on the inverse, else the shifted Cholesky factorisation as before) takes
 the same branch and gives the same covariance; the estimate checked in one call names the
 offending transform as before; the edge blocks finished without a symmetrisation that would
-change nothing are those finished with it, bit for bit."""
+change nothing are those finished with it, and the information scattered without copying the
+blocks is the one scattered from the copies, bit for bit."""
 
 import numpy as np
 import pytest
 
 from rwhec_ros.core.cost import _blocks_from_sums, _finished_blocks
 from rwhec_ros.core.edge_cache import _finished
-from rwhec_ros.core.information import information_from_edge_blocks
+from rwhec_ros.core.information import (
+    _LOCAL_KNOWN,
+    TangentLayout,
+    _scatter_add,
+    _scatter_blocks,
+    information_from_edge_blocks,
+)
 from rwhec_ros.core.solve import solve
 from rwhec_ros.core.synthetic import random_instance
 from rwhec_ros.core.uncertainty import (
@@ -103,3 +110,38 @@ def test_finished_blocks_without_the_needless_symmetrisation(symmetric):
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(g, w)
         assert g.tobytes() == w.tobytes()  # bit for bit (signed zeros too)
+
+
+def _old_scatter_blocks(layout, xi, yi, hessian, translation_block):
+    """_scatter_blocks as it was: the known-scale blocks copied without their d alpha row and
+    column, scattered by pair_indices."""
+    n = layout.size
+    F = layout.n_frames
+    idx = layout.pair_indices(xi, yi)
+    blocks = hessian if layout.unknown_scale else hessian[:, _LOCAL_KNOWN][:, :, _LOCAL_KNOWN]
+    H = _scatter_add(n, idx, blocks)
+    m = 3 * F + (1 if layout.unknown_scale else 0)
+    three = np.arange(3)
+    qidx = np.concatenate([3 * np.asarray(xi)[:, None] + three,
+                           3 * (layout.M + np.asarray(yi)[:, None]) + three,
+                           np.full((len(xi), 1), 3 * F)], axis=1)
+    qb = translation_block
+    if not layout.unknown_scale:
+        qidx, qb = qidx[:, :6], qb[:, :6, :6]
+    Qee = _scatter_add(m, qidx, qb)
+    return 0.5 * (H + H.T), 0.5 * (Qee + Qee.T)
+
+
+@pytest.mark.parametrize("unknown_scale", [False, True])
+def test_scatter_without_copied_blocks_is_the_old_scatter_bit_for_bit(unknown_scale):
+    rng = np.random.default_rng(6)
+    layout = TangentLayout(4, 3, unknown_scale)
+    xi = np.array([0, 1, 3, 2, 0, 3, 1])  # frames joined by several groups (summed)
+    yi = np.array([0, 0, 2, 1, 1, 2, 2])
+    hessian = rng.normal(size=(7, 13, 13)) * 10.0 ** rng.integers(-8, 8, size=(7, 1, 1))
+    translation_block = rng.normal(size=(7, 7, 7))
+    for g, w in zip(_scatter_blocks(layout, xi, yi, hessian, translation_block),
+                    _old_scatter_blocks(layout, xi, yi, hessian, translation_block),
+                    strict=True):
+        assert g.shape == w.shape
+        assert g.tobytes() == w.tobytes()
