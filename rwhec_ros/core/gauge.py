@@ -248,11 +248,12 @@ def _positive_definite(E, tau: float) -> bool:
             return SparseLDL(upper_with_diagonal(E - tau * sp.eye(E.shape[0]))).positive_definite
         except FactorizationError:
             return False
-    try:
-        scipy.linalg.cholesky(E - tau * np.eye(E.shape[0]), check_finite=False)
+    if not E.size:
         return True
-    except (np.linalg.LinAlgError, ValueError):
-        return False
+    # LAPACK potrf as scipy.linalg.cholesky calls it, without its look-ups: info 0 = factored
+    _, info = scipy.linalg.lapack.dpotrf(E - tau * np.eye(E.shape[0]), lower=False,
+                                         overwrite_a=True)
+    return info == 0
 
 
 def _weak_eigenpairs(E, opts: GaugeOptions, info_floor: float

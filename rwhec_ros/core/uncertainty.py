@@ -321,13 +321,20 @@ def _inverse_from_cholesky(A: np.ndarray) -> np.ndarray:
     ``potrf`` + ``potri``: a third of the work of solving for the identity's columns), exactly
     symmetric (the upper triangle ``potri`` computes, mirrored); ``LinAlgError`` when ``A`` is
     not positive definite."""
-    factor, lower = scipy.linalg.cho_factor(A, check_finite=False)
-    inv, info = scipy.linalg.lapack.dpotri(factor, lower=lower)
+    A = np.asarray(A, dtype=float)
+    if A.ndim != 2 or A.shape[0] != A.shape[1] or not A.size:
+        raise ValueError(f"expected a non-empty square matrix, got shape {A.shape}")
+    # potrf as scipy.linalg.cho_factor(A, check_finite=False) calls it (upper factor), without
+    # its look-ups
+    factor, info = scipy.linalg.lapack.dpotrf(A, lower=False, clean=False)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"potrf: info {info} (not positive definite)")
+    inv, info = scipy.linalg.lapack.dpotri(factor, lower=False)
     if info != 0:
         raise np.linalg.LinAlgError(f"potri: info {info}")
     n = inv.shape[0]
-    upper = np.arange(n)[:, None] <= np.arange(n)  # the triangle potri wrote (lower: its T)
-    return np.where(upper, inv, inv.T) if not lower else np.where(upper, inv.T, inv)
+    upper = np.arange(n)[:, None] <= np.arange(n)  # the triangle potri wrote
+    return np.where(upper, inv, inv.T)
 
 
 def _clearly_above(Cn: np.ndarray, tol: float) -> bool:

@@ -117,8 +117,8 @@ def convergence_of(uncertainty: Uncertainty, expected: tuple[str, ...] | list[st
     std = np.sqrt(np.maximum(var, 0.0)).reshape(len(frames), 2, 3)
     std[:, 1] = np.degrees(std[:, 1])
     std *= ratio
-    bad = np.array([np.concatenate([f.unobservable_translation, f.unobservable_rotation])
-                    for f in frames], dtype=bool).reshape(len(frames), 2, 3) | ~np.isfinite(std)
+    bad = np.array([[f.unobservable_translation, f.unobservable_rotation] for f in frames],
+                   dtype=bool).reshape(len(frames), 2, 3) | ~np.isfinite(std)
     kinds = ("translation", "rotation")
     unobservable = [f"{frames[i].name} {kinds[k]} {_AXES[a]}"
                     for i, k, a in zip(*np.nonzero(bad), strict=True)]

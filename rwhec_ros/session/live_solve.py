@@ -426,12 +426,13 @@ class LiveSolver:
     def _run(self, job: _Job) -> None:
         t0, cpu0 = self._clock(), time.thread_time()
         c = self._session.config
+        x_names, y_names = c.x_names, c.y_names  # (formed at each look)
         snap = None
         try:
             snap = self._session.pairs_snapshot()
             try:
                 problem, excluded = problem_from_edges(
-                    snap.edges, c.x_names, c.y_names, c.tags.unknown_scale, c.solver.min_pairs,
+                    snap.edges, x_names, y_names, c.tags.unknown_scale, c.solver.min_pairs,
                     snap.rotation_tol, validate=False)  # validated when they were offered
                 # the cost's edge blocks, reusing the sums of the pairs the last re-solve had
                 # (edges that only gained pairs since: known from the accumulator's lineages)
@@ -450,7 +451,7 @@ class LiveSolver:
                 result, unc = self._solve_fn(problem, c, initial=initial)
             else:
                 result, unc = self._solve_fn(problem, c)
-            conv = convergence_of(unc, [*c.y_names, *c.x_names],
+            conv = convergence_of(unc, [*y_names, *x_names],
                                   c.convergence.max_std_translation_m,
                                   c.convergence.max_std_rotation_deg)
             t1, cpu = self._clock(), time.thread_time() - cpu0
