@@ -113,6 +113,16 @@ class Edge:
     def name(self) -> str:
         return f"({self.x}, {self.y})"
 
+    @classmethod
+    def _of(cls, x: str, y: str, A: np.ndarray, B: np.ndarray, sigma: np.ndarray,
+            kappa: np.ndarray) -> Edge:
+        """``Edge(x, y, A, B, sigma, kappa)`` (no validation, as that call), its fields set at
+        once (the frozen dataclass's ``__init__`` sets them one by one through
+        ``object.__setattr__``, twice the time: the live re-solve makes one per edge)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(x=x, y=y, A=A, B=B, sigma=sigma, kappa=kappa)
+        return obj
+
     @staticmethod
     def build(
         x: str,

@@ -718,7 +718,7 @@ def problem_from_edges(
         edges = [Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa,
                             rotation_tol=rotation_tol) for e in kept]
     else:
-        edges = [Edge(e.x, e.y, e.A, e.B, e.sigma, e.kappa) for e in kept]
+        edges = [Edge._of(e.x, e.y, e.A, e.B, e.sigma, e.kappa) for e in kept]
     touched = {e.x for e in kept} | {e.y for e in kept}
     problem = Problem(
         [n for n in xs if n in touched],
