@@ -501,6 +501,9 @@ def frame_covariances(cov: Covariance, info: Information, axis_tol: float = 1e-3
     unobservable axes, the unobservable translation (F, 3) and rotation (F, 3) axes, and whether
     the scale is unobservable (see :class:`UncertaintyOptions` for ``axis_tol``)."""
     C, Vt, Vr = cov.frame_blocks(info)
+    if not cov.null.shape[1]:  # no null direction (the usual case): no axis unobservable
+        ut = ur = np.zeros(Vt.shape[:2], dtype=bool)
+        return C, ut, ur.copy(), False
     ut = np.linalg.norm(Vt, axis=2) >= axis_tol
     ur = np.linalg.norm(Vr, axis=2) >= axis_tol
     bad = np.concatenate([ut, ur], axis=1)  # (F, 6)
