@@ -50,13 +50,29 @@ class _Previous:
     sigma, kappa]`` per pair, edge by edge; ``None`` with lineages)."""
 
     index: dict[tuple[str, str], int]
-    starts: np.ndarray
+    starts: np.ndarray | None
     counts: list[int]
     rows: np.ndarray | None
     G: np.ndarray
     K: np.ndarray
     ksum: np.ndarray
     lineages: list | None = None
+
+
+@dataclass
+class _Plan:
+    """What :meth:`EdgeBlockCache.blocks` sums and reuses: per edge its pair count and its
+    edge index last time (``src``, meaningful for the reused edges); the edges with pairs to
+    sum (``active``) and how many (``fresh``); the edges reusing last time's sums (``old``)
+    and the pairs reused in all; the edges' lineages (``None`` when compared by value)."""
+
+    counts: list[int]
+    active: list[int]
+    fresh: list[int]
+    old: list[int]
+    src: list[int]
+    reused: int
+    lineages: list | None
 
 
 def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
@@ -112,33 +128,33 @@ class EdgeBlockCache:
             new = rows[_ranges(starts[active] + reuse[active], fresh[active])]
             A, B = new[:, 0:16].reshape(-1, 4, 4), new[:, 16:32].reshape(-1, 4, 4)
             sigma, kappa = new[:, 32], new[:, 33]
-            lin = None
+            plan = _Plan(counts, active.tolist(), fresh[active].tolist(),
+                         np.flatnonzero(reuse).tolist(), src.tolist(), int(reuse.sum()), None)
         else:
-            counts, lin, reuse, src, tails = self._same_lineage(edges, lineages)
-            starts = np.cumsum(counts, dtype=np.int64) - counts
-            fresh = np.asarray(counts, dtype=np.int64) - reuse
-            active = np.flatnonzero(fresh)
-            rows = None
+            plan, tails = self._same_lineage(edges, lineages)
+            starts = rows = None  # (only a call without lineages compares pairs by position)
             A, B, sigma, kappa = _concatenated(tails)
         # nothing reused (the first call): exactly the fresh assembly's sums
-        sums = _edge_sums_few if reuse.any() and A.shape[0] <= FEW_PAIRS else _edge_sums
-        Gn, Kn, kn = sums(A, B, sigma, kappa, fresh[active])
+        sums = _edge_sums_few if plan.old and A.shape[0] <= FEW_PAIRS else _edge_sums
+        Gn, Kn, kn = sums(A, B, sigma, kappa, np.array(plan.fresh, dtype=np.int64))
         G = np.zeros((E, 16, 16))
         K = np.zeros((E, 9, 9))
         ksum = np.zeros(E)
-        old = np.flatnonzero(reuse)
-        if old.size:
+        if plan.old:
             prev = self._prev
-            G[old] = prev.G[src[old]]
-            K[old] = prev.K[src[old]]
-            ksum[old] = prev.ksum[src[old]]
+            old = np.array(plan.old, dtype=np.int64)
+            src = np.array([plan.src[i] for i in plan.old], dtype=np.int64)
+            G[old] = prev.G[src]
+            K[old] = prev.K[src]
+            ksum[old] = prev.ksum[src]
+        active = np.array(plan.active, dtype=np.int64)
         G[active] += Gn
         K[active] += Kn
         ksum[active] += kn
-        self._prev = _Previous({(e.x, e.y): i for i, e in enumerate(edges)}, starts, counts,
-                               rows, G, K, ksum, lin)
-        self.reused_pairs = int(reuse.sum())
-        self.summed_pairs = int(fresh.sum())
+        self._prev = _Previous({(e.x, e.y): i for i, e in enumerate(edges)}, starts,
+                               plan.counts, rows, G, K, ksum, plan.lineages)
+        self.reused_pairs = plan.reused
+        self.summed_pairs = int(sum(plan.fresh))
         return _finished(problem, G, K, ksum)
 
     @staticmethod
@@ -165,18 +181,18 @@ class EdgeBlockCache:
             reuse[i], src[i] = prev.counts[j], j
         return reuse, src
 
-    def _same_lineage(self, edges, lineages: dict
-                      ) -> tuple[list[int], list, np.ndarray, np.ndarray, list[tuple]]:
-        """Per edge, its pair count, its lineage (``lineages.get((x, y))``), and
-        :meth:`_reusable` by lineage (no pair compared: :meth:`_candidates` and the same lineage,
-        in one loop); and the pairs to sum, ``(A, B, sigma, kappa)`` after the reused ones,
-        of every edge with such pairs."""
+    def _same_lineage(self, edges, lineages: dict) -> tuple[_Plan, list[tuple]]:
+        """:meth:`_reusable` by lineage (no pair compared: :meth:`_candidates` and the same
+        lineage, in one loop over the edges), as a :class:`_Plan` with the edges' lineages
+        (``lineages.get((x, y))``); and the pairs to sum, ``(A, B, sigma, kappa)`` after the
+        reused ones, of every edge with such pairs."""
         E = len(edges)
         prev = self._prev
         if prev is not None and prev.lineages is None:
             prev = None
-        counts, lin, tails = [0] * E, [None] * E, []
-        reuse, src = np.zeros(E, dtype=np.int64), np.zeros(E, dtype=np.int64)
+        counts, lin, src = [0] * E, [None] * E, [0] * E
+        active, fresh, old, tails = [], [], [], []
+        reused = 0
         for i, e in enumerate(edges):
             n = counts[i] = e.n
             line = lin[i] = lineages.get((e.x, e.y))
@@ -184,11 +200,15 @@ class EdgeBlockCache:
             if prev is not None and line is not None:
                 j = prev.index.get((e.x, e.y))
                 if j is not None and prev.counts[j] <= n and line is prev.lineages[j]:
-                    k = reuse[i] = prev.counts[j]
-                    src[i] = j
+                    k, src[i] = prev.counts[j], j
+                    if k:
+                        old.append(i)
+                        reused += k
             if n > k:
+                active.append(i)
+                fresh.append(n - k)
                 tails.append((e.A[k:], e.B[k:], e.sigma[k:], e.kappa[k:]))
-        return counts, lin, reuse, src, tails
+        return _Plan(counts, active, fresh, old, src, reused, lin), tails
 
     def _reusable(self, edges, rows: np.ndarray, starts: np.ndarray, counts: list[int]
                   ) -> tuple[np.ndarray, np.ndarray]:
