@@ -184,6 +184,34 @@ def run(fraction: float, problem, config: CalibratorConfig, repeats: int) -> dic
             "r": c.worst_rotation_deg}
 
 
+def machine_reference_ms(repeats: int = 30) -> float:
+    """The machine's speed at this moment: median time (ms) of ``numpy.linalg.eigvalsh`` of a
+    fixed 217 x 217 symmetric matrix (the size of the re-solve's certificate matrix) on one BLAS
+    thread. Printed at the start and the end of a run: on a virtual machine whose speed drifts,
+    it tells whether a run was made on a fast or a slow minute."""
+    from rwhec_ros.core.solve import blas_threads
+
+    M = np.random.default_rng(0).standard_normal((217, 217))
+    Z = M @ M.T
+    times = []
+    with blas_threads(1):
+        for _ in range(repeats + 1):
+            t0 = time.perf_counter()
+            np.linalg.eigvalsh(Z)
+            times.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(times[1:])
+
+
+def cpu_steal() -> tuple[int, int] | None:
+    """``(steal, total)`` jiffies of all CPUs since boot (``/proc/stat``; None elsewhere)."""
+    try:
+        with open("/proc/stat") as f:
+            fields = [int(v) for v in f.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+    return (fields[7] if len(fields) > 7 else 0), sum(fields)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=15)
@@ -195,9 +223,14 @@ def main() -> int:
     problem = read_paper_csv(DATA)
     config = paper_config(problem)
     load0 = os.getloadavg()
+    ref0, steal0 = machine_reference_ms(), cpu_steal()
     t0 = time.monotonic()
     rows = [run(f, problem, config, args.repeats) for f in FRACTIONS]
     load1 = os.getloadavg()
+    ref1, steal1 = machine_reference_ms(), cpu_steal()
+    steal = "n/a"
+    if steal0 is not None and steal1 is not None and steal1[1] > steal0[1]:
+        steal = f"{100 * (steal1[0] - steal0[0]) / (steal1[1] - steal0[1]):.1f} %"
     full = rows[-1]
     lines = [
         "# Live re-solve cost vs number of pairs (paper real data, 16 tags x 8 cameras)",
@@ -206,6 +239,11 @@ def main() -> int:
         f"{os.cpu_count()} cores, Python {platform.python_version()}; load average "
         f"{load0[0]:.1f} at the start, {load1[0]:.1f} at the end (other jobs shared the "
         "cores), total {:.0f} s.".format(time.monotonic() - t0),
+        "",
+        f"Machine reference (`machine_reference_ms`: a 217 x 217 `eigvalsh` on one thread): "
+        f"{ref0:.2f} ms at the start, {ref1:.2f} ms at the end (lower is a faster machine; a "
+        f"virtual machine's speed can drift from minute to minute); CPU stolen by the "
+        f"hypervisor during the run: {steal}.",
         "",
         "Each row: the first fraction of every edge's pairs, re-solved by the session's "
         "`LiveSolver` end to end (snapshot under the lock, problem, `fast` solve without SDP "
