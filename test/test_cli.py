@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import yaml
 from launch_helpers import launch_transforms
+from scipy.spatial.transform import Rotation
 
 from rwhec_ros.cli import (
     EXIT_BAD_INPUT,
@@ -215,8 +216,13 @@ def test_bag_is_calibrated_to_the_truth(recorded, bag, config):
     code, stdout, stderr = run(["bag", root / bag, "--config", root / f"{config}.yaml",
                                 "--quiet", *extra])
     assert code == EXIT_OK, stdout + stderr
-    assert stdout.startswith("input: ") and "CERTIFIED globally optimal" in stdout
-    assert stdout.splitlines()[1].startswith("GOOD: certified globally optimal")
+    # the verdict first (the README's promise), then the summary, then what was read
+    assert stdout.startswith("GOOD: certified globally optimal"), stdout
+    assert "CERTIFIED globally optimal" in stdout
+    inputs = [line for line in stdout.splitlines() if line.startswith("input: ")]
+    assert len(inputs) == 1 and "pairs_kept=" in inputs[0]
+    # the accumulator's pairs:kept is the session's pairs_kept here: shown once
+    assert "pairs:kept=" not in inputs[0] and "pairs:offered=" not in inputs[0], inputs[0]
     # --quiet: no live estimate shown, so none solved (without it the whole recording's live
     # estimate is always shown at the end: test_bag_prints_the_live_convergence)
     assert "live" not in stderr, stderr
@@ -560,6 +566,45 @@ def test_dataset_robust_flag_reaches_the_solver(tmp_path):
     assert any("outlier rejection" in n for n in doc["notes"])
 
 
+def test_report_later_shows_the_pairs_the_robust_solve_kept(tmp_path):
+    """``report`` on a ``--robust`` result leaves out the pairs the outlier rejection rejected
+    (the result's ``rejected_pairs``), as the report written at solve time does."""
+    from rwhec_ros.core.synthetic import random_instance
+    from rwhec_ros.data.results import solved_pairs
+
+    problem, _ = random_instance(np.random.default_rng(7), 2, 2, n_per_edge=12, sigma=0.005,
+                                 kappa=400.0)
+    bad = problem.edges[1]
+    bad.B[5, :3, :3] = bad.B[5, :3, :3] @ Rotation.from_euler("x", 90, degrees=True).as_matrix()
+    bad.B[5, :3, 3] += 0.5  # one gross outlier pair: 90 deg and 0.87 m off
+    data = Dataset.from_problem(problem).save(tmp_path / "in.yaml")
+    out = tmp_path / "out"
+    code, stdout, stderr = run(["dataset", data, "--robust", "--report", "-o", out, "-q"])
+    assert code == EXIT_OK, stdout + stderr
+    doc = yaml.safe_load((out / "result.yaml").read_text())
+    rejected = doc["rejected_pairs"]
+    assert 5 in rejected[bad.name], doc["notes"]  # (GNC may reject an inlier or two as well)
+    n_kept = 48 - sum(len(v) for v in rejected.values())
+    assert f"outlier rejection: {48 - n_kept} of 48 pairs rejected" in " ".join(doc["notes"])
+    at_solve = (out / "report.html").read_text()
+    assert f"{n_kept} pairs on 4 edges" in at_solve
+    code, stdout, stderr = run(["report", out / "result.yaml", "-o", tmp_path / "later"])
+    assert code == EXIT_OK, stdout + stderr
+    assert f"{n_kept} pairs on 4 edges" in (tmp_path / "later" / "report.html").read_text()
+    # a result that does not fit the data set is refused, naming the edge and the index
+    doc["rejected_pairs"] = {bad.name: [12]}
+    (tmp_path / "wrong.yaml").write_text(yaml.safe_dump(doc))
+    code, _, stderr = run(["report", tmp_path / "wrong.yaml", "--dataset", data,
+                           "-o", tmp_path / "wrong"])
+    assert code == EXIT_BAD_INPUT and f"rejected_pairs[{bad.name}]: pair index 12" in stderr
+    # a result written before rejected_pairs existed: only its excluded edges are left out
+    old = {k: v for k, v in doc.items() if k != "rejected_pairs"}
+    old["excluded_edges"] = {problem.edges[0].name: "outlier rejection: all 12 pairs rejected"}
+    kept = solved_pairs(old, problem)
+    assert [e.name for e in kept.edges] == [e.name for e in problem.edges[1:]]
+    assert kept.n_measurements == 36
+
+
 def test_installed_console_script():
     exe = shutil.which("rwhec-calibrate")
     if exe is None:
@@ -659,7 +704,8 @@ def test_demo_of_3_seconds_is_unusable(tmp_path):
     code, stdout, stderr = run(["demo", "--seconds", "3", "-o", out, "-q"])
     assert code == EXIT_UNUSABLE, stdout + stderr
     lines = stdout.splitlines()
-    assert lines[1].startswith("UNUSABLE: ")  # after the "demo: ..." line
+    assert lines[0].startswith("UNUSABLE: ")  # the verdict first, the "demo: ..." line after
+    assert any(line.startswith("demo: 3 cameras") for line in lines[1:]), stdout
     # cam2 saw a tag twice at most: not calibrated, and a reason names it (which one depends on
     # the detections of the OpenCV version: an edge below min_pairs, or a rotation of cam2 the
     # few pairs do not determine, as with OpenCV 4.11 on the numpy-1.26 line)
@@ -679,7 +725,7 @@ def test_bag_with_wrong_tag_size_is_unusable_with_the_scale(recorded, tmp_path):
     code, stdout, stderr = run(["bag", root / "poses_sqlite", "--config", cfg, "-o",
                                 tmp_path / "out", "-q"])
     assert code == EXIT_UNUSABLE, stdout + stderr
-    verdict_line = stdout.splitlines()[1]
+    verdict_line = stdout.splitlines()[0]  # the verdict first
     assert verdict_line.startswith("UNUSABLE: the camera-tag distances are 0.80")
     assert "tag sizes are ~20 % too small" in verdict_line
 
@@ -709,7 +755,8 @@ def test_bag_without_the_configured_tf_names_the_frames_in_the_recording(recorde
     assert code == EXIT_NO_SOLUTION
     assert "no tf from map to rig at the image stamps (frame 'map' does not appear on /tf or " \
         "/tf_static); frames in the recording: ['rig', 'world']" in stderr
-    assert stdout.splitlines()[-1].startswith("no measurement pairs: ")
+    lines = stdout.splitlines()  # why there is no result first, then what was read
+    assert lines[0].startswith("no measurement pairs: ") and lines[-1].startswith("input: ")
 
 
 def test_ctrl_c_during_bag_saves_the_data_set_so_far(recorded, tmp_path, monkeypatch):
@@ -755,8 +802,8 @@ def test_image_before_its_first_camera_info_is_held_not_dropped(tmp_path):
     (tmp_path / "c.yaml").write_text(CalibratorConfig.from_parameters(flat).to_yaml())
     code, stdout, stderr = run(["bag", tmp_path / "late_info", "--config", tmp_path / "c.yaml",
                                 "-q"])
-    first = stdout.splitlines()[0]
-    assert first.startswith("input: ") and "image_missing_camera_info" not in first
+    first = next(line for line in stdout.splitlines() if line.startswith("input: "))
+    assert "image_missing_camera_info" not in first
     assert "images=5" in first
 
 

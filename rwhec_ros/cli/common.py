@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -409,7 +409,8 @@ def solve_and_write(
     ident = solved.identifiability
     doc = result_document(result, naming, excluded=excluded,
                           identifiability=solved.identifiability_dict, config=config,
-                          source=source, verdict=verdict, accuracy=solved.accuracy)
+                          source=source, verdict=verdict, accuracy=solved.accuracy,
+                          rejected_pairs=solved.rejected_pairs)
     names = list(result.y_names) + list(result.x_names)
     transforms, left_out = publishable(naming.transforms(result), names, verdict,
                                        publish_unusable=publish_unusable)
@@ -444,18 +445,21 @@ def _moving(parameters: Mapping[str, Any]) -> str:
     return "x" if tag and not cam else "y"
 
 
-def calibrate_session(say: Printer, session, paths, *, force: bool,
-                      report: bool) -> tuple[int, Any]:
-    """``session.calibrate()`` into ``paths`` (None: the session's new directory), printed; the
-    report from the written data set (``bag`` and ``demo``)."""
+def calibrate_session(say: Printer, session, paths, *, force: bool, report: bool,
+                      inputs: Sequence[str] = ()) -> tuple[int, Any]:
+    """``session.calibrate()`` into ``paths`` (None: the session's new directory), printed: the
+    summary (the verdict first), then the lines ``inputs`` (what was read), then the files; the
+    report from the written data set and the result (``bag`` and ``demo``)."""
     from ..data.dataset import Dataset
-    from ..data.results import session_output_paths
+    from ..data.results import session_output_paths, solved_pairs
 
     solver = session.config.solver
     say.progress(f"solving: {session.counters().get('pairs_kept', 0)} pairs kept, mode "
                  f"{solver.mode}" + (", outlier rejection" if solver.reject_outliers else ""))
     outcome = session.calibrate(None if paths is None else paths.result.parent, force=force)
     say.summary(outcome.message)
+    for line in inputs:
+        say(line)
     if not outcome.success:
         return EXIT_NO_SOLUTION, outcome
     if not outcome.files:  # the summary says why (WRITING THE OUTPUTS FAILED: ...)
@@ -464,10 +468,11 @@ def calibrate_session(say: Printer, session, paths, *, force: bool,
     if not report and "result" in outcome.files:
         remove_stale_reports(say, session_output_paths(Path(outcome.files["result"]).parent))
     if report and "dataset" in outcome.files and "result" in outcome.files:
-        problem = Dataset.load(outcome.files["dataset"]).to_problem(min_pairs=solver.min_pairs)
         written = session_output_paths(Path(outcome.files["result"]).parent)
         # PyYAML's C loader where it has one: the same mapping as safe_load, ~4x faster
         doc = yaml.load(outcome.result_yaml,
                         Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        problem = solved_pairs(doc, Dataset.load(outcome.files["dataset"]).to_problem(
+            min_pairs=solver.min_pairs))  # the pairs the result was solved on
         write_report(say, doc, problem, written.report_png, written.report_html)
     return exit_code(outcome.verdict), outcome

@@ -142,7 +142,7 @@ def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
 
 def cmd_report(args: argparse.Namespace, say: Printer) -> int:
     from ..data.dataset import Dataset
-    from ..data.results import load_result, output_paths, session_output_paths
+    from ..data.results import load_result, output_paths, session_output_paths, solved_pairs
 
     doc = load_result(args.result)
     # beside the result: the session layout (.../result.yaml) or an explicit OUT.yaml layout
@@ -156,5 +156,9 @@ def cmd_report(args: argparse.Namespace, say: Printer) -> int:
     refuse_existing([target.report_png, target.report_html], args.force)
     min_pairs = int((doc.get("config") or {}).get("solver.min_pairs", 1))
     problem = Dataset.load(data_path).to_problem(min_pairs=min_pairs)
+    try:  # the pairs the result was solved on (without the outliers it rejected)
+        problem = solved_pairs(doc, problem)
+    except ValueError as exc:
+        raise BadInput(f"{args.result} does not fit the data set {data_path}: {exc}") from None
     write_report(say, doc, problem, Path(target.report_png), Path(target.report_html))
     return EXIT_OK

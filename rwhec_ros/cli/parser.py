@@ -19,8 +19,10 @@ from .common import DEFAULT_OUTPUT, MODES, PROG
 __all__ = ["build_parser"]
 
 _OUTPUT_HELP = (
-    "directory that receives result.yaml, static_transforms.launch.py, dataset.yaml and (with "
-    "--report) report.png/.html; existing files are refused unless --force (default: a new "
+    "directory that receives result.yaml, static_transforms.launch.py, "
+    "calibration.urdf.xacro, frames.yaml, dataset.yaml (and dataset.npz for a large data set) "
+    "and (with --report) report.png/.html; existing files are refused unless --force "
+    "(default: a new "
     "calibration_<UTC stamp> directory under the configuration's output.directory, else "
     f"{DEFAULT_OUTPUT}/)"
 )
@@ -100,7 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "(A_i X_j = Y_k B_i) without ROS.",
         epilog="The first line printed is the verdict: GOOD, CAUTION or UNUSABLE, with the "
                "reason. Exit codes: 0 usable result (good or caution), 2 bad input or output, "
-               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted.",
+               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted, 141 "
+               "output pipe closed (e.g. | head).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

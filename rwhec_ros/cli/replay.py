@@ -95,13 +95,21 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     for exc in errors[:3]:
         say.warning("bag", f"detection thread error: {type(exc).__name__}: {exc}")
     counters = session.counters()
-    say("input: " + ", ".join(f"{k}={v}" for k, v in sorted(counters.items()) if v))
     for sentence in session.rejections():
         say.warning("bag", sentence)
     if tf_failure and not counters.get("pairs_kept"):
         say.warning("bag", tf_failure)
-    code, _ = calibrate_session(say, session, paths, force=args.force, report=args.report)
+    code, _ = calibrate_session(say, session, paths, force=args.force, report=args.report,
+                                inputs=[input_line(counters)])
     return code
+
+
+def input_line(counters: dict[str, int]) -> str:
+    """``input: <counter>=<n>, ...``: the session's non-zero counters, sorted; the
+    accumulator's ``pairs:<x>`` left out where the session's ``pairs_<x>`` says the same."""
+    shown = {k: v for k, v in counters.items()
+             if v and not (k.startswith("pairs:") and counters.get("pairs_" + k[6:]) == v)}
+    return "input: " + ", ".join(f"{k}={v}" for k, v in sorted(shown.items()))
 
 
 def _replay(args, say: Printer, session, handlers, routes,
@@ -311,11 +319,12 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
             session.add_image(cam, stamp, data)
             n_images += 1
     counters = session.counters()
-    say(f"demo: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} tags, "
-        f"{len(rig.boards)} boards, {args.seconds:g} s, "
-        f"{n_images} images rendered and searched, {counters.get('pairs_kept', 0)} pairs kept "
-        f"({time.perf_counter() - t0:.1f} s)")
-    code, outcome = calibrate_session(say, session, paths, force=args.force, report=args.report)
+    simulated = (f"demo: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} tags, "
+                 f"{len(rig.boards)} boards, {args.seconds:g} s, {n_images} images rendered "
+                 f"and searched, {counters.get('pairs_kept', 0)} pairs kept "
+                 f"({time.perf_counter() - t0:.1f} s)")
+    code, outcome = calibrate_session(say, session, paths, force=args.force, report=args.report,
+                                      inputs=[simulated])
     if outcome.result is None:
         return code
     result = outcome.result

@@ -296,6 +296,14 @@ class Dataset:
         )
 
     # --- files -------------------------------------------------------------------------------
+    def writes_npz(self, arrays: str = "auto", inline_max_pairs: int = 2000) -> bool:
+        """Whether :meth:`save` with these arguments writes the arrays to ``<stem>.npz``."""
+        if arrays not in ("auto", "inline", "npz"):
+            raise ValueError(f"arrays: expected 'auto', 'inline' or 'npz', got {arrays!r}")
+        if arrays == "auto":
+            return self.n_pairs > inline_max_pairs
+        return arrays == "npz"
+
     def save(self, path: str | Path, *, arrays: str = "auto", inline_max_pairs: int = 2000) -> Path:
         """Write the data set to the YAML file ``path`` (and ``<stem>.npz`` beside it).
 
@@ -313,11 +321,8 @@ class Dataset:
         Path
             The YAML file written.
         """
-        if arrays not in ("auto", "inline", "npz"):
-            raise ValueError(f"arrays: expected 'auto', 'inline' or 'npz', got {arrays!r}")
         path = Path(path)
-        if arrays == "auto":
-            arrays = "inline" if self.n_pairs <= inline_max_pairs else "npz"
+        arrays = "npz" if self.writes_npz(arrays, inline_max_pairs) else "inline"
         doc: dict[str, Any] = {
             "format": DATASET_FORMAT,
             "version": DATASET_VERSION,

@@ -42,6 +42,7 @@ __all__ = [
     "new_output_dir",
     "utc_stamp",
     "write_outputs",
+    "solved_pairs",
     "load_result",
     "dump_document",
     "plain",
@@ -152,6 +153,7 @@ def result_document(
     source: Mapping[str, Any] | None = None,
     verdict=None,
     accuracy=None,
+    rejected_pairs: Mapping[str, Sequence[int]] | None = None,
 ) -> dict[str, Any]:
     """The result YAML mapping, with the keys of the session's
     :meth:`~rwhec_ros.session.CalibrationSession.result_document`.
@@ -161,8 +163,10 @@ def result_document(
     (``certified``, ``suboptimality_bound``, ``scale``, ``mode``,
     ``frames`` (name, role, matrix, translation, quaternion_xyzw), ``timing_s``, certificate
     details), each frame's published ``parent``/``child``, ``excluded_edges`` (``"(x, y)"`` ->
-    reason), ``identifiability`` (``IdentifiabilityReport.to_dict()``), ``config`` (flat dotted
-    calibrator parameters, as far as they apply) and ``source`` (where the data came from).
+    reason), ``rejected_pairs`` (outlier rejection: ``"(x, y)"`` -> indices of the edge's pairs
+    in the data set that the solve left out; empty without), ``identifiability``
+    (``IdentifiabilityReport.to_dict()``), ``config`` (flat dotted calibrator parameters, as
+    far as they apply) and ``source`` (where the data came from).
     With a :class:`~rwhec_ros.core.verdict.Verdict`, each frame also says whether it is
     ``usable`` (and its ``verdict`` and ``why``), and ``verdict_details`` holds the fit
     statistics, the scale check and the per-frame verdicts.
@@ -188,6 +192,7 @@ def result_document(
         if accuracy is not None:
             f.update(accuracy.frame_fields(f["name"]))
     doc["excluded_edges"] = dict(excluded or {})
+    doc["rejected_pairs"] = {k: [int(i) for i in v] for k, v in (rejected_pairs or {}).items()}
     doc["identifiability"] = None if identifiability is None else dict(identifiability)
     doc["config"] = dict(config or {})
     doc["source"] = dict(source or {})
@@ -282,7 +287,8 @@ def write_outputs(
 
     Nothing is written when any target exists and ``force`` is False: ``FileExistsError``
     naming the existing files. Returns ``{"result", "launch"[, "urdf"][, "frames"][,
-    "dataset"]}`` -> path.
+    "dataset"[, "dataset_arrays"]]}`` -> path (``"dataset_arrays"``: the ``.npz`` file of a
+    large data set).
     """
     texts = [(paths.result, "result", result_yaml), (paths.launch, "launch", launch_text)]
     if urdf_text is not None:
@@ -306,7 +312,42 @@ def write_outputs(
         files[kind] = str(path)
     if dataset is not None:
         files["dataset"] = str(dataset.save(paths.dataset))
+        if dataset.writes_npz():
+            files["dataset_arrays"] = str(paths.dataset.with_suffix(".npz"))
     return files
+
+
+def solved_pairs(doc: Mapping[str, Any], problem):
+    """The pairs of ``problem`` (a :class:`~rwhec_ros.core.problem.Problem` of the result's data
+    set) that the result ``doc`` was solved on: without the edges of its ``excluded_edges`` and
+    the pairs of its ``rejected_pairs`` (outlier rejection), so that a report made later from
+    the data set shows the fit the solve had. A result without ``rejected_pairs`` (written
+    before it existed) only loses its excluded edges.
+
+    Raises ``ValueError`` naming the edge and the index when ``rejected_pairs`` does not fit
+    the data set (an index outside the edge's pairs, or an edge it does not have), e.g. a
+    result beside another run's data set.
+    """
+    from ..core.outliers.pairs import restrict_problem
+
+    excluded = set((doc.get("excluded_edges") or {}).keys())
+    rejected = dict(doc.get("rejected_pairs") or {})
+    edges = {e.name: e for e in problem.edges}
+    for name, indices in rejected.items():
+        if name not in edges:
+            raise ValueError(f"rejected_pairs: edge {name} is not in the data set")
+        for i in indices:
+            if not 0 <= int(i) < edges[name].n:
+                raise ValueError(f"rejected_pairs[{name}]: pair index {i} outside the edge's "
+                                 f"{edges[name].n} pairs in the data set")
+    if not excluded.intersection(edges) and not rejected:
+        return problem
+    masks = {}
+    for name, e in edges.items():
+        mask = np.full(e.n, name not in excluded)
+        mask[[int(i) for i in rejected.get(name, ())]] = False
+        masks[name] = mask
+    return restrict_problem(problem, masks, what="solved_pairs")
 
 
 def load_result(path: str | Path) -> dict[str, Any]:

@@ -152,7 +152,8 @@ def summary_text_lines(doc: Mapping[str, Any], width: int = 40) -> list[str]:
     rep = doc.get("reprojection")
     if rep:
         lines += ["reprojection RMS per camera:"] + textwrap.wrap(
-            ", ".join(f"{cam} {r['rms_px']:.2f} px" for cam, r in
+            # no-break spaces: a camera, its RMS and "px" stay on one line
+            ", ".join(f"{cam}\u00a0{r['rms_px']:.2f}\u00a0px" for cam, r in
                       sorted(rep.items(), key=lambda kv: natural_key(kv[0]))),
             width, initial_indent="  ", subsequent_indent="  ") + [""]
     g = doc.get("guidance")

@@ -399,7 +399,7 @@ class CalibrationSession(ImageInput):
         excl.update(solved.dropped)
         ident = solved.identifiability_dict or ident
         text = dump_document(self.result_document(result, excl, ident, verdict,
-                                                  solved.accuracy))
+                                                  solved.accuracy, solved.rejected_pairs))
         try:
             files = self._write_outputs(result, text, dataset, output_dir, force, verdict)
             write_error = ""
@@ -443,17 +443,20 @@ class CalibrationSession(ImageInput):
         identifiability: dict | None = None,
         verdict: Verdict | None = None,
         accuracy=None,
+        rejected_pairs: dict[str, list[int]] | None = None,
     ) -> dict[str, Any]:
         """The result YAML as a mapping (:func:`rwhec_ros.data.results.result_document`:
         ``certified``, ``suboptimality_bound``, ``scale``, ``frames`` with published
-        ``parent``/``child``, ``timing_s``, ``identifiability``, ``excluded_edges``, ``config``)
+        ``parent``/``child``, ``timing_s``, ``identifiability``, ``excluded_edges``,
+        ``rejected_pairs``, ``config``)
         plus this session's ``counters``; with an ``accuracy``
         (:class:`~rwhec_ros.session.accuracy.Accuracy`) the uncertainty, cross-validation and
         guidance keys."""
         doc = result_document(result, FrameNaming.from_config(self.config), excluded=excluded,
                               identifiability=identifiability,
                               config=self.config.to_parameters(), source={"type": "session"},
-                              verdict=verdict, accuracy=accuracy)
+                              verdict=verdict, accuracy=accuracy,
+                              rejected_pairs=rejected_pairs)
         doc["counters"] = plain(self.counters())
         return doc
 

@@ -79,12 +79,13 @@ def solve_options(
 
 
 def _solve(problem: Problem, options, reject_outliers: bool):
-    """``(result, solved problem, dropped edges, notes)``: a plain solve, or RANSAC + GNC-TLS
-    whose solved problem is the inlier problem."""
+    """``(result, solved problem, dropped edges, notes, rejected pairs)``: a plain solve, or
+    RANSAC + GNC-TLS whose solved problem is the inlier problem (rejected pairs: edge
+    ``"(x, y)"`` -> the indices of its rejected pairs in ``problem``, ascending)."""
     from ..core.solve import solve
 
     if not reject_outliers:
-        return solve(problem, options), problem, {}, []
+        return solve(problem, options), problem, {}, [], {}
     from ..core.outliers import RobustOptions, robust_solve
 
     robust = robust_solve(problem, options=RobustOptions(solve=options))
@@ -97,8 +98,12 @@ def _solve(problem: Problem, options, reject_outliers: bool):
         if e.name not in kept and e.name not in dropped:
             dropped[e.name] = f"outlier rejection: all {e.n} pairs rejected"
     notes = [f"outlier rejection: {len(robust.rejected)} of {problem.n_measurements} pairs "
-             f"rejected ({len(dropped)} edges dropped)"]
-    return robust.result, robust.inlier_problem, dropped, notes
+             f"rejected ({len(dropped)} edge{'' if len(dropped) == 1 else 's'} dropped)"]
+    rejected: dict[str, list[int]] = {}
+    for edge, index, _ in robust.rejected:
+        rejected.setdefault(edge, []).append(int(index))
+    return (robust.result, robust.inlier_problem, dropped, notes,
+            {edge: sorted(indices) for edge, indices in rejected.items()})
 
 
 def solve_problem(
@@ -114,7 +119,7 @@ def solve_problem(
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale)
-    result, _, dropped, notes = _solve(problem, options, reject_outliers)
+    result, _, dropped, notes, _ = _solve(problem, options, reject_outliers)
     notes = prior_notes + notes
     result.notes.extend(notes)
     return result, dropped, notes
@@ -138,6 +143,10 @@ class Solved:
     accuracy : Accuracy or None
         Per-frame uncertainty, cross-validation and guidance (:mod:`.accuracy`); None when not
         asked for.
+    rejected_pairs : dict of str to list of int
+        With outlier rejection: edge ``"(x, y)"`` -> the indices of its pairs the rejection left
+        out (indices into the problem given to :func:`solve_and_assess`, i.e. the data set's
+        pairs of that edge), ascending; edges with none rejected are not listed.
     """
 
     result: CalibrationResult
@@ -147,6 +156,7 @@ class Solved:
     identifiability: object = None
     verdict: Verdict | None = None
     accuracy: Accuracy | None = None
+    rejected_pairs: dict[str, list[int]] = field(default_factory=dict)
 
     @property
     def identifiability_dict(self) -> dict | None:
@@ -195,7 +205,7 @@ def solve_and_assess(
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale)
-    result, solved, dropped, notes = _solve(problem, options, reject_outliers)
+    result, solved, dropped, notes, rejected = _solve(problem, options, reject_outliers)
     notes = prior_notes + notes
     result.notes.extend(notes)
     ident = analyze_at_solution(solved, result)
@@ -211,4 +221,4 @@ def solve_and_assess(
                          expected_x=[*expected_x, *problem.x_names],
                          expected_y=[*expected_y, *problem.y_names],
                          excluded={**dict(excluded or {}), **dropped}, carriers=carriers)
-    return Solved(result, solved, dropped, notes, ident, verdict, acc)
+    return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected)
