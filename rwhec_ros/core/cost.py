@@ -24,9 +24,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 import scipy.sparse as sp
 
+from .cholesky import upper_cholesky, upper_cholesky_solve
 from .lie import vec
 from .problem import Problem
 
@@ -479,15 +479,13 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool, *,
     block_lower = float("nan")
     residual_norm = float("nan")
     err = None
-    try:
-        factor = scipy.linalg.cho_factor(Qee, lower=False, check_finite=False)
-    except (np.linalg.LinAlgError, ValueError):
-        factor = None
+    # the upper factor as scipy.linalg.cho_factor computes it (the lower triangle left as is)
+    factor = upper_cholesky(Qee, clean=False)
     if factor is not None:
         Qek_d = Qek.toarray() if sp.issparse(Qek) else Qek
-        G = -scipy.linalg.cho_solve(factor, Qek_d, check_finite=False)
+        G = -upper_cholesky_solve(factor, Qek_d)
         Qr_keep = Qkk + np.asarray(Qek.T @ G)
-        Rf = np.triu(factor[0])
+        Rf = np.triu(factor)
         # lower bound on lambda_min(Q_ee): half an inverse-iteration estimate, verified by a
         # shifted factorisation (only a crude bound is needed: it divides ||F||^2, ~u^2 small)
         vb = verified_min_eigenvalue(Qee, 0.5 * _inverse_iteration_min(factor, m))
@@ -549,13 +547,14 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool, *,
                        block_lower=block_lower, residual_norm=residual_norm, err_rows=err_rows)
 
 
-def _inverse_iteration_min(factor, m: int, iterations: int = 6) -> float:
-    """Estimate of ``lambda_min`` of the Cholesky-factored matrix by inverse iteration."""
+def _inverse_iteration_min(factor: np.ndarray, m: int, iterations: int = 6) -> float:
+    """Estimate of ``lambda_min`` of the matrix whose upper Cholesky factor is ``factor``
+    (:func:`~rwhec_ros.core.cholesky.upper_cholesky`) by inverse iteration."""
     x = 1.0 + 0.5 * np.sin(np.arange(m) * 1.7)  # deterministic start with mixed components
     x /= np.linalg.norm(x)
     est = float("inf")
     for _ in range(iterations):
-        y = scipy.linalg.cho_solve(factor, x, check_finite=False)
+        y = upper_cholesky_solve(factor, x)
         ny = float(np.linalg.norm(y))
         if not np.isfinite(ny) or ny == 0.0:
             break

@@ -30,6 +30,8 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
+from .cholesky import upper_cholesky
+
 __all__ = [
     "UNIT_ROUNDOFF",
     "gamma",
@@ -63,8 +65,10 @@ def nonnegative_spectral_radius_bound(R: np.ndarray, iterations: int = 4) -> flo
     """
     A = np.abs(np.asarray(R, dtype=float))
     n = A.shape[1]
-    if n == 0 or not np.any(A):
+    if n == 0:
         return 0.0
+    # (a zero A needs no test of its own: the first product is zero, the loop stops and the
+    # ratio below is 0 / 1 = 0)
     x = np.ones(n)
     for _ in range(iterations):
         y = A.T @ (A @ x)
@@ -108,16 +112,16 @@ def _shifted_cholesky_bound(A: np.ndarray, mu: float) -> float | None:
     """The lower bound proven by a successful Cholesky factorisation of ``fl(A - mu I)``, or
     ``None`` when the factorisation breaks down (see the module docstring)."""
     n = A.shape[0]
-    B = np.array(A, dtype=float, copy=True)
-    B[np.diag_indices(n)] -= mu
-    try:
-        R = scipy.linalg.cholesky(B, lower=False, check_finite=False)
-    except (np.linalg.LinAlgError, ValueError):
-        return None
-    if not np.all(np.isfinite(R)):
+    # fl(A - mu I), Fortran-ordered so that LAPACK factors it in place (the same values and
+    # layout as scipy.linalg.cholesky's own copy: the same factor, bit for bit)
+    B = np.array(A, dtype=float, order="F", copy=True)
+    shifted = np.diag(B) - mu
+    np.fill_diagonal(B, shifted)
+    shift_rounding = UNIT_ROUNDOFF * float(np.max(np.abs(shifted))) if n else 0.0
+    R = upper_cholesky(B, overwrite=True)
+    if R is None or not np.all(np.isfinite(R)):
         return None
     backward = gamma(n + 1) * nonnegative_spectral_radius_bound(R)
-    shift_rounding = UNIT_ROUNDOFF * float(np.max(np.abs(np.diag(B)))) if n else 0.0
     return float(mu - backward - shift_rounding)
 
 
