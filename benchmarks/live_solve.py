@@ -30,6 +30,11 @@ built on first use (by the node's live timer when it publishes; the CLI never bu
 *largest std*: the convergence verdict's worst translation / rotation std (predicted from the
 authors' sigma 0.1 m, kappa 125, or a posteriori, the larger). Target: under 20 ms per re-solve
 including the uncertainty on the full data.
+
+The process's allocator is set up as the node and the CLI set it up at their start
+(:func:`rwhec_ros.allocator.retain_freed_memory`: freed memory is reused instead of being
+returned to the system and mapped again); ``--default-allocator`` leaves glibc's defaults, to
+show the difference.
 """
 
 from __future__ import annotations
@@ -216,7 +221,16 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--output", type=Path, default=ROOT / "benchmarks" / "live_solve.md")
+    ap.add_argument("--default-allocator", action="store_true",
+                    help="leave glibc's malloc thresholds as they are (default: set them as the "
+                         "node and the CLI do, rwhec_ros.allocator.retain_freed_memory)")
     args = ap.parse_args()
+    allocator = "glibc defaults (--default-allocator)"
+    if not args.default_allocator:
+        from rwhec_ros.allocator import retain_freed_memory
+
+        allocator = ("as the node and the CLI set it (`retain_freed_memory`)"
+                     if retain_freed_memory() else "defaults (no glibc mallopt here)")
     if not DATA.is_dir():
         print(f"no data at {DATA}", file=sys.stderr)
         return 1
@@ -235,7 +249,8 @@ def main() -> int:
     lines = [
         "# Live re-solve cost vs number of pairs (paper real data, 16 tags x 8 cameras)",
         "",
-        f"`python benchmarks/live_solve.py --repeats {args.repeats}`; {platform.machine()}, "
+        f"`python benchmarks/live_solve.py --repeats {args.repeats}"
+        f"{' --default-allocator' if args.default_allocator else ''}`; {platform.machine()}, "
         f"{os.cpu_count()} cores, Python {platform.python_version()}; load average "
         f"{load0[0]:.1f} at the start, {load1[0]:.1f} at the end (other jobs shared the "
         "cores), total {:.0f} s.".format(time.monotonic() - t0),
@@ -243,7 +258,7 @@ def main() -> int:
         f"Machine reference (`machine_reference_ms`: a 217 x 217 `eigvalsh` on one thread): "
         f"{ref0:.2f} ms at the start, {ref1:.2f} ms at the end (lower is a faster machine; a "
         f"virtual machine's speed can drift from minute to minute); CPU stolen by the "
-        f"hypervisor during the run: {steal}.",
+        f"hypervisor during the run: {steal}. Memory allocator: {allocator}.",
         "",
         "Each row: the first fraction of every edge's pairs, re-solved by the session's "
         "`LiveSolver` end to end (snapshot under the lock, problem, `fast` solve without SDP "

@@ -47,6 +47,9 @@ def main(argv: Sequence[str] | None = None, *, stdout: TextIO | None = None,
     collected so far); a closed output pipe (``| head``) ends quietly (141). Python warnings of
     the libraries are printed once each as ``rwhec-calibrate <command>: note: <message>``.
     """
+    from ..allocator import retain_freed_memory
+
+    retain_freed_memory()  # bag/demo's live re-solves reuse their freed memory (see the module)
     out = stdout if stdout is not None else sys.stdout
     err = stderr if stderr is not None else sys.stderr
     parser = build_parser()

@@ -238,6 +238,10 @@ def rclpy_main(name: str, make_node: Callable[[], Any], args: Sequence[str] | No
     from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
     from rclpy.logging import get_logger
 
+    from ..allocator import retain_freed_memory
+
+    retain_freed_memory()  # the live re-solve reuses its freed memory (see the module)
+
     def build():
         node = make_node()
         executor = MultiThreadedExecutor()
