@@ -17,7 +17,7 @@ never by the library, since it changes the whole process.
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
+import functools
 
 __all__ = ["retain_freed_memory", "MMAP_THRESHOLD_BYTES", "TRIM_THRESHOLD_BYTES",
            "TOP_PAD_BYTES"]
@@ -35,16 +35,17 @@ _M_TOP_PAD = -2
 _M_MMAP_THRESHOLD = -3
 
 
+@functools.cache
 def retain_freed_memory() -> bool:
     """Raise glibc's ``mmap`` and trim thresholds and the top pad (module docstring).
 
     Returns True when ``mallopt`` accepted all three settings; False where there is no glibc
-    ``mallopt`` (musl, macOS, Windows): nothing changes there. Idempotent.
+    ``mallopt`` (musl, macOS, Windows): nothing changes there. Done once per process (later
+    calls return the first answer).
     """
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
+    try:  # the symbols the interpreter is linked with: glibc's mallopt on Linux
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError, TypeError):  # TypeError: Windows has no CDLL(None)
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
     mallopt.restype = ctypes.c_int

@@ -107,8 +107,8 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
 def input_line(counters: dict[str, int]) -> str:
     """``input: <counter>=<n>, ...``: the session's non-zero counters, sorted; the
     accumulator's ``pairs:<x>`` left out where the session's ``pairs_<x>`` says the same."""
-    shown = {k: v for k, v in counters.items()
-             if v and not (k.startswith("pairs:") and counters.get("pairs_" + k[6:]) == v)}
+    shown = {k: v for k, v in counters.items() if v and not (
+        k.startswith("pairs:") and counters.get("pairs_" + k.removeprefix("pairs:")) == v)}
     return "input: " + ", ".join(f"{k}={v}" for k, v in sorted(shown.items()))
 
 
