@@ -784,6 +784,51 @@ def test_ctrl_c_during_bag_saves_the_data_set_so_far(recorded, tmp_path, monkeyp
     assert data.n_pairs > 0
 
 
+def test_bag_robust_report_shows_the_pairs_the_solve_kept(recorded, tmp_path, monkeypatch):
+    """``bag --robust --report``: the report written at solve time leaves out the pairs the
+    outlier rejection rejected (the result's ``rejected_pairs``), as ``report`` does later."""
+    import rwhec_ros.data.rosbag as rosbag
+    from rwhec_ros.data.results import solved_pairs
+
+    rig, root = recorded
+    real = rosbag.read_messages
+    turn = Rotation.from_euler("x", 90, degrees=True)
+
+    def corrupted(path, topics, **kw):
+        poses = 0
+        for m in real(path, topics, **kw):
+            if m.msgtype == "geometry_msgs/msg/PoseStamped":
+                poses += 1
+                if poses in (300, 301):  # two consecutive poses 90 deg and 0.5 m off
+                    o, p = m.msg.pose.orientation, m.msg.pose.position
+                    q = (turn * Rotation.from_quat([o.x, o.y, o.z, o.w])).as_quat()
+                    o.x, o.y, o.z, o.w = (float(v) for v in q)
+                    p.x += 0.5
+            yield m
+
+    monkeypatch.setattr(rosbag, "read_messages", corrupted)
+    out = tmp_path / "out"
+    code, stdout, stderr = run(["bag", root / "poses_sqlite", "--config", root / "topic.yaml",
+                                "--robust", "--report", "-o", out, "-q"])
+    assert code == EXIT_OK, stdout + stderr
+    doc = yaml.safe_load((out / "result.yaml").read_text())
+    rejected = sum(len(v) for v in doc.get("rejected_pairs", {}).values())
+    assert rejected >= 1, doc["notes"]  # the pairs at the corrupted poses
+    offered = Dataset.load(out / "dataset.yaml").to_problem(
+        min_pairs=doc["config"]["solver.min_pairs"])
+    kept = solved_pairs(doc, offered)
+    # edges too short to solve are left out of both; the rejection took single pairs only
+    assert all("< min_pairs" in why for why in doc.get("excluded_edges", {}).values())
+    assert kept.n_measurements == offered.n_measurements - rejected
+    at_solve = (out / "report.html").read_text()
+    assert f"{kept.n_measurements} pairs on {len(kept.edges)} edges" in at_solve
+    assert f"{offered.n_measurements} pairs on" not in at_solve
+    code, stdout, stderr = run(["report", out / "result.yaml", "-o", tmp_path / "later"])
+    assert code == EXIT_OK, stdout + stderr
+    later = (tmp_path / "later" / "report.html").read_text()
+    assert f"{kept.n_measurements} pairs on {len(kept.edges)} edges" in later
+
+
 def test_image_before_its_first_camera_info_is_held_not_dropped(tmp_path):
     pytest.importorskip("rosbags.rosbag2")
     from rwhec_ros.data.rosbag import write_bag

@@ -328,9 +328,10 @@ def direct_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1
 
     ``X`` (M, 4, 4), ``Y`` (P, 4, 4); for unknown scale the residual uses ``alpha t_X``,
     ``alpha t_A`` and ``alpha t_Y`` (eq. (22)). Every pair's residuals are formed in double
-    precision and the per-pair terms summed exactly rounded (``math.fsum``), so the result is
-    accurate to about ``u L / r`` relative (translations ``L``, residuals ``r``): this is the cost
-    ``p`` a certificate compares with its dual bound.
+    precision, each pair's term (translation and rotation part together) rounded once more, and
+    the pairs' terms summed exactly rounded (``math.fsum``), so the result is accurate to about
+    ``u L / r`` relative (translations ``L``, residuals ``r``): this is the cost ``p`` a
+    certificate compares with its dual bound.
 
     The residuals of pair ``i`` are the top three rows of ``A_i X - Y B_i``: ``[R_A R_X -
     R_Y R_B | R_A t_X + t_A - R_Y t_B - t_Y]`` (translations scaled by ``alpha``), formed as
@@ -355,11 +356,11 @@ def direct_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1
     D = (np.matmul(A3, np.repeat(Xh[problem.edge_x], counts, axis=0))
          - np.matmul(np.repeat(Y[problem.edge_y, :3, :3], counts, axis=0), RBt))
     D[:, :, 3] -= np.repeat(a * Y[problem.edge_y, :3, 3], counts, axis=0)
-    sq = D * D
+    rt, rR = D[:, :, 3], D[:, :, :3]
     sigma = np.concatenate([e.sigma for e in edges])
     kappa = np.concatenate([e.kappa for e in edges])
-    terms = np.concatenate([0.5 * sq[:, :, 3].sum(axis=1) / sigma**2,
-                            0.5 * kappa * sq[:, :, :3].sum(axis=(1, 2))])
+    terms = 0.5 * (np.einsum("ni,ni->n", rt, rt) / sigma**2
+                   + kappa * np.einsum("nij,nij->n", rR, rR))
     return float(math.fsum(terms.tolist()))  # Python floats: the same sum, faster
 
 
