@@ -404,6 +404,23 @@ class GaugeFix:
         r = h * (self.G @ np.asarray(t, float).reshape(-1) - self.b)
         return float(self.rho * r @ r)
 
+    def penalty_error(self, t: np.ndarray, h: float = 1.0) -> float:
+        """A proven bound on the rounding of :meth:`penalty_value` (same arguments): entry ``i``
+        of ``r`` is off by at most ``gamma_{m+2} |h| (|G| |t| + |b|)_i`` (``m`` columns of
+        ``G``), so the value is within ``rho (2 |r| e + e^2)`` of the exact one plus
+        ``gamma_{m+3}`` of itself; the bound's own rounding is covered by ``1 + 1e-6``."""
+        from .verified import gamma
+
+        tv = np.asarray(t, float).reshape(-1)
+        r = h * (self.G @ tv - self.b)
+        m = self.G.shape[1]
+        e = float(np.linalg.norm(gamma(m + 2) * abs(h) * (np.abs(self.G) @ np.abs(tv)
+                                                          + np.abs(self.b))))
+        value = float(self.rho * r @ r)
+        err = (abs(self.rho) * e * (2.0 * float(np.linalg.norm(r)) + e)
+               + gamma(m + 3) * abs(value)) * (1.0 + 1e-6)
+        return err if np.isfinite(err) else float("inf")
+
 
 def build_gauge_fix(
     problem: Problem,

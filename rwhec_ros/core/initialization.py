@@ -106,16 +106,23 @@ def closed_form_estimate(
 
 
 def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
-    """``p`` of a certificate: the cost of ``est`` evaluated directly from the residuals of eq.
-    (33) (:func:`~rwhec_ros.core.cost.direct_cost`), plus the term of the prior that fixes
-    unobservable translations (:class:`~rwhec_ros.core.gauge.GaugeFix`) when there is one."""
-    from .cost import direct_cost
+    """``p`` of a certificate: a proven upper bound on the cost of ``est`` in exact arithmetic,
+    the cost evaluated directly from the residuals of eq. (33)
+    (:func:`~rwhec_ros.core.cost.direct_cost`) plus the term of the prior that fixes
+    unobservable translations (:class:`~rwhec_ros.core.gauge.GaugeFix`) when there is one, each
+    plus the bound on its rounding (:func:`~rwhec_ros.core.cost.direct_cost_error`,
+    :meth:`~rwhec_ros.core.gauge.GaugeFix.penalty_error`; about ``u L / r`` relative), the sum
+    rounded upwards. A certificate compares it with its dual bound, so the rounding of the cost
+    can only make it more cautious."""
+    from .cost import direct_cost_error
 
     X, Y = est.split(problem.M)
-    p = direct_cost(problem, X, Y, est.alpha)
+    p, err = direct_cost_error(problem, X, Y, est.alpha)
     if gauge is not None and gauge.has_penalty:
-        p += gauge.penalty_value(est.t, est.alpha if problem.unknown_scale else 1.0)
-    return p
+        h = est.alpha if problem.unknown_scale else 1.0
+        p += gauge.penalty_value(est.t, h)
+        err += gauge.penalty_error(est.t, h)
+    return float(np.nextafter(p + err, np.inf))
 
 
 def initial_rotations(problem: Problem, initial: tuple[np.ndarray, np.ndarray]) -> np.ndarray:

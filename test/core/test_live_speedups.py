@@ -188,3 +188,82 @@ def test_rotation_blocks_are_exactly_symmetric_without_symmetrising(unknown_scal
     _, rot = _all_edge_blocks(problem)
     np.testing.assert_array_equal(0.5 * (rot + np.swapaxes(rot, 1, 2)), rot)
     np.testing.assert_array_equal(edge_blocks(problem)[1], rot)
+
+
+def _far_world(problem, gt, far, seed):
+    """The same data seen from a world frame ``far`` metres away (known scale): ``A' = G A``,
+    ``Y' = G Y`` keep every residual in exact arithmetic, while the translations grow to
+    ``far`` and the rounding of the residuals with them (``u L / r``)."""
+    from scipy.spatial.transform import Rotation
+
+    from rwhec_ros.core.problem import Edge
+
+    G = np.eye(4)
+    G[:3, :3] = Rotation.random(random_state=seed).as_matrix()
+    G[:3, 3] = far * np.array([0.6, -0.8, 0.0])
+    edges = [Edge(e.x, e.y, G @ e.A, e.B, e.sigma, e.kappa) for e in problem.edges]
+    return problem.with_edges(edges), G @ gt.Y
+
+
+@pytest.mark.skipif(np.finfo(np.longdouble).eps >= np.finfo(float).eps,
+                    reason="numpy.longdouble is no wider than double here")
+@pytest.mark.parametrize("seed", range(4))
+def test_direct_cost_error_bounds_the_rounding_of_the_cost(seed):
+    """|p - p_exact| <= err at the truth, away from it and in a world 10 km away (where the
+    rounding is ~1e-11 relative); the bound stays far below the certificate's 1e-6."""
+    from rwhec_ros.core.cost import direct_cost_error
+
+    unknown = bool(seed % 2)
+    problem, gt = _instance(seed, unknown, n_per_edge=8, sigma=0.002 * (seed + 1))
+    alpha = gt.alpha if unknown else 1.0
+    T = np.concatenate([gt.X, gt.Y])
+    T_off = T.copy()
+    T_off[:, :3, 3] += 0.05 * np.random.default_rng(seed).standard_normal((T.shape[0], 3))
+    cases = [(problem, P[: problem.M], P[problem.M:], alpha) for P in (T, T_off)]
+    if not unknown:
+        far, Y_far = _far_world(problem, gt, 1e4, seed)
+        cases.append((far, gt.X, Y_far, 1.0))
+    for pr, X, Y, a in cases:
+        exact = _exact_direct_cost(pr, X, Y, a)
+        p, err = direct_cost_error(pr, X, Y, a)
+        assert p == direct_cost(pr, X, Y, a)
+        assert abs(p - exact) <= err, (p, exact, err)
+        assert 0.0 < err <= 1e-7 * exact
+    if not unknown:  # the far world's rounding is real: the bound is not vacuous
+        p, err = direct_cost_error(far, gt.X, Y_far)
+        assert abs(p - _exact_direct_cost(far, gt.X, Y_far)) > 1e-4 * err  # ~1e-3 measured
+
+
+def test_certificate_cost_is_a_proven_upper_bound():
+    """The certificate's p is the direct cost plus its rounding bound, rounded up: at least the
+    exact cost of the returned estimate, and no further from it than the bound."""
+    from rwhec_ros.core.cost import direct_cost_error
+
+    problem, gt = _instance(3, n_per_edge=10, sigma=0.005)
+    far, _ = _far_world(problem, gt, 100.0, 3)  # (10 km: not certified, rho_hat 2e-3)
+    res = solve(far, SolveOptions(mode="fast"))
+    assert res.certified, res.certificate.message
+    p, err = direct_cost_error(far, res.X, res.Y, res.scale)
+    exact = _exact_direct_cost(far, res.X, res.Y, res.scale)
+    assert p + err <= res.certificate.primal_cost <= np.nextafter(p + err, np.inf)
+    assert exact <= res.certificate.primal_cost <= exact + 2 * err
+
+
+def test_gauge_penalty_error_bounds_its_rounding():
+    """GaugeFix.penalty_error against the penalty in exact rational arithmetic."""
+    from rwhec_ros.core.gauge import GaugeFix
+
+    rng = np.random.default_rng(4)
+    n = 5
+    G = rng.standard_normal((3, 3 * n))
+    t = 1e3 * rng.standard_normal((n, 3))  # large translations, a nearly met prior
+    h = 0.7
+    b = G @ t.reshape(-1) + 1e-9 * rng.standard_normal(3)
+    fix = GaugeFix(directions=[], G=G, b=b, rho=3.0, V_w=np.zeros((3 * n, 0)), pinned=False)
+    value, err = fix.penalty_value(t, h), fix.penalty_error(t, h)
+    F = Fraction
+    r = [F(h) * (sum(F(g) * F(x) for g, x in zip(row, t.reshape(-1), strict=True)) - F(bi))
+         for row, bi in zip(G, b, strict=True)]
+    exact = F(3.0) * sum(x * x for x in r)
+    assert abs(F(value) - exact) <= F(err)
+    assert abs(F(value) - exact) > F(err) * F(1, 10**6)  # the rounding is real here
