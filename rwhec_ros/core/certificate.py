@@ -294,7 +294,7 @@ def certificate_from_bound(
             why.append(f"Z has {null_dim} eigenvalues <= {opts.null_tol:g} "
                        f"(smallest {np.array2string(eigs, precision=3)})")
         msg = "not certified: " + "; ".join(why)
-    return Certificate(
+    cert = Certificate(
         status=status,
         primal_cost=p,
         dual_bound=d,
@@ -307,6 +307,14 @@ def certificate_from_bound(
         lambda_min_lower=float(bound.lambda_min_lower),
         margins=margins,
     )
+    if cert.rounding_decides:
+        rounding = margins["rounding"] + margins["schur"]
+        cert.message += (f"; the bound's rounding terms alone ({rounding:.2g}) exceed the gap "
+                         f"rho_hat <= {opts.rho_tol:g} allows ({opts.rho_tol * denom:.2g}): the "
+                         "coordinates are large for the size of the residuals (e.g. a world "
+                         "frame far from the data); poses expressed about a nearby origin may "
+                         "be certified")
+    return cert
 
 
 def certify(

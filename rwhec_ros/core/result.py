@@ -92,6 +92,20 @@ class Certificate:
     def certified(self) -> bool:
         return self.status is Status.CERTIFIED_OPTIMAL
 
+    @property
+    def rounding_decides(self) -> bool:
+        """Not certified on the bound alone (one-dimensional null space, ``rho_hat`` above the
+        tolerance) while the bound's rounding terms (``margins`` ``rounding`` + ``schur``) by
+        themselves exceed the gap the tolerance allows: the floating-point error at the data's
+        scale, not the optimisation, keeps the certificate open."""
+        rho = self.suboptimality_bound
+        if self.status is not Status.NOT_TIGHT or self.null_space_dim != 1 or not (
+                np.isfinite(rho) and rho > self.tolerance):
+            return False
+        denom = (self.primal_cost - self.dual_bound) / rho  # max(d, cost floor) of eq. (73)
+        rounding = self.margins.get("rounding", 0.0) + self.margins.get("schur", 0.0)
+        return bool(rounding > self.tolerance * denom)
+
     @staticmethod
     def local_only(
         primal_cost: float, message: str = "local solution, not certified"

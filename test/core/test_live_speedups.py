@@ -267,3 +267,30 @@ def test_gauge_penalty_error_bounds_its_rounding():
     exact = F(3.0) * sum(x * x for x in r)
     assert abs(F(value) - exact) <= F(err)
     assert abs(F(value) - exact) > F(err) * F(1, 10**6)  # the rounding is real here
+
+
+def test_far_world_frame_is_not_certified_and_says_why():
+    """1 km from the world origin the rounding terms of the bound alone exceed the gap 1e-6
+    allows: not certified, and the certificate and the verdict say it is the coordinates (not
+    the optimisation) and what to do; the same data about the origin are certified."""
+    from rwhec_ros.core.result import Certificate, Status
+    from rwhec_ros.core.verdict import assess
+
+    problem, gt = _instance(3, n_per_edge=10, sigma=0.005)
+    near = solve(problem, SolveOptions(mode="fast"))
+    assert near.certified and not near.certificate.rounding_decides
+    far, _ = _far_world(problem, gt, 1e3, 3)
+    res = solve(far, SolveOptions(mode="fast"))
+    c = res.certificate
+    assert not res.certified and c.rounding_decides, c.message
+    assert c.margins["rounding"] > c.tolerance * (c.primal_cost - c.dual_bound) \
+        / c.suboptimality_bound
+    assert "poses expressed about a nearby origin may be certified" in c.message
+    verdict = assess(res, far)
+    assert any("express the poses about an origin near the data" in r.message
+               for r in verdict.reasons), [r.message for r in verdict.reasons]
+    assert not any("--mode sdp" in r.message for r in verdict.reasons)
+    # a certificate that fails for another reason (a wide gap, small rounding terms) does not
+    other = Certificate(Status.NOT_TIGHT, 2.0, 1.0, 1.0, 0.0, np.zeros(6), 1, 1e-6,
+                        margins={"eigenvalue": 0.0, "rounding": 1e-9, "schur": 0.0})
+    assert not other.rounding_decides

@@ -63,6 +63,14 @@ _CERTIFICATE_REASONS = {
 
 def certificate_reasons(b: Builder, result: CalibrationResult) -> None:
     c = result.certificate
+    if c.rounding_decides:  # not the optimisation: another solve mode would not help
+        b.add("caution", "certificate",
+              f"not proven globally optimal (rho_hat={c.suboptimality_bound:.2g}): the bound's "
+              "rounding terms alone exceed what the tolerance allows, because the coordinates "
+              "are large for the size of the residuals (e.g. a world or map frame far from the "
+              "data); express the poses about an origin near the data and solve again",
+              why="not proven optimal (large coordinates)")
+        return
     if c.status in _CERTIFICATE_REASONS:
         level, code, text, why = _CERTIFICATE_REASONS[c.status]
         b.add(level, code, text.format(message=c.message,
