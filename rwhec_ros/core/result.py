@@ -42,6 +42,19 @@ class Status(str, Enum):
     LOCAL_ONLY = "local_only"
 
 
+def rounding_decides(status: str, rho: float, tolerance: float, primal_cost: float,
+                     dual_bound: float, null_space_dim: int, margins: dict) -> bool:
+    """:attr:`Certificate.rounding_decides` from its fields as the result YAML's
+    ``certificate`` section holds them (``status`` as its value, e.g. ``"not_tight"``)."""
+    rho = float("nan") if rho is None else float(rho)
+    if status != Status.NOT_TIGHT.value or int(null_space_dim) != 1 or not (
+            np.isfinite(rho) and rho > tolerance):
+        return False
+    denom = (float(primal_cost) - float(dual_bound)) / rho  # max(d, cost floor) of eq. (73)
+    rounding = float(margins.get("rounding", 0.0)) + float(margins.get("schur", 0.0))
+    return bool(rounding > tolerance * denom)
+
+
 @dataclass
 class Certificate:
     """Global-optimality certificate of a solution (paper Section 9.3, eq. (71)-(73)).
@@ -98,13 +111,9 @@ class Certificate:
         tolerance) while the bound's rounding terms (``margins`` ``rounding`` + ``schur``) by
         themselves exceed the gap the tolerance allows: the floating-point error at the data's
         scale, not the optimisation, keeps the certificate open."""
-        rho = self.suboptimality_bound
-        if self.status is not Status.NOT_TIGHT or self.null_space_dim != 1 or not (
-                np.isfinite(rho) and rho > self.tolerance):
-            return False
-        denom = (self.primal_cost - self.dual_bound) / rho  # max(d, cost floor) of eq. (73)
-        rounding = self.margins.get("rounding", 0.0) + self.margins.get("schur", 0.0)
-        return bool(rounding > self.tolerance * denom)
+        return rounding_decides(self.status.value, self.suboptimality_bound, self.tolerance,
+                                self.primal_cost, self.dual_bound, self.null_space_dim,
+                                self.margins)
 
     @staticmethod
     def local_only(

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..core.problem import Problem
+from ..core.result import rounding_decides
 from ..core.verdict import FitStatistics
 from .accuracy import REPROJECTION_HEADING, accuracy_sections
 from .figure import BANNER_COLORS
@@ -37,6 +38,15 @@ def certificate_words(doc: Mapping[str, Any]) -> str:
     rho_hat = 5.4e-09)``."""
     status = str(doc.get("status", ""))
     words = _STATUS_WORDS.get(status, status.replace("_", " ") or "no certificate")
+    c = doc.get("certificate") or {}
+    try:
+        if rounding_decides(status, doc.get("suboptimality_bound"), c["tolerance"],
+                            c["primal_cost"], c["dual_bound"], c["null_space_dim"],
+                            c.get("margins") or {}):
+            words = ("not certified: the bound's rounding exceeds the tolerance (coordinates "
+                     "large for the residuals: express the poses about a nearby origin)")
+    except (KeyError, TypeError, ValueError):  # an older or partial result: the status words
+        pass
     rho = doc.get("suboptimality_bound", float("nan"))
     rho = float("nan") if rho is None else float(rho)
     if np.isfinite(rho):

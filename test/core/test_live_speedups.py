@@ -290,6 +290,10 @@ def test_far_world_frame_is_not_certified_and_says_why():
     assert any("express the poses about an origin near the data" in r.message
                for r in verdict.reasons), [r.message for r in verdict.reasons]
     assert not any("--mode sdp" in r.message for r in verdict.reasons)
+    from rwhec_ros.report.page import certificate_words  # the report says it too
+    assert "express the poses about a nearby origin" in certificate_words(res.to_dict())
+    assert "may be a local optimum" not in certificate_words(res.to_dict())
+    assert certificate_words(near.to_dict()).startswith("certified globally optimal")
     # a certificate that fails for another reason (a wide gap, small rounding terms) does not
     other = Certificate(Status.NOT_TIGHT, 2.0, 1.0, 1.0, 0.0, np.zeros(6), 1, 1e-6,
                         margins={"eigenvalue": 0.0, "rounding": 1e-9, "schur": 0.0})
