@@ -357,9 +357,9 @@ def direct_cost_error(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: flo
     |R_Y| |R_B|)`` for the rotation residual and ``gamma_10 (|R_A| |alpha t_X| + |alpha t_A| +
     |R_Y| |t_B| + |alpha t_Y|)`` for the translation one (Frobenius and Euclidean norms; a
     pair's ``|[R_A | alpha t_A]|`` stands for both ``|R_A|`` and ``|alpha t_A|``, and
-    ``|[R_B | t_B]|`` for both of its parts), so
-    with computed residual norms ``rho`` and bounds ``e`` the exact term lies within ``1/2 w
-    (2 rho e + e^2)`` of the one from the computed residuals; squaring, the weights and the
+    ``|[R_B | t_B]|`` for both of its parts). With computed residual norms ``rho`` and bounds
+    ``e``, the exact term lies within ``1/2 w (2 rho e + e^2)`` of the one from the computed
+    residuals (``w`` the weight: ``1 / sigma^2`` or ``kappa``); squaring, the weights and the
     exactly rounded sum add ``gamma_20 p``. The bound's own evaluation (positive terms, a few
     roundings each) is covered by a factor ``1 + 1e-6``. A few array operations per pair: no
     second pass over the products.
