@@ -306,6 +306,7 @@ def certificate_from_bound(
         message=msg,
         lambda_min_lower=float(bound.lambda_min_lower),
         margins=margins,
+        cost_floor=float(cost_floor),
     )
     if cert.rounding_decides:
         rounding = margins["rounding"] + margins["schur"]

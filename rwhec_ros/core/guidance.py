@@ -46,6 +46,7 @@ from .information import (
 )
 from .lie import invert_transform, make_transform, so3_exp
 from .problem import Problem
+from .recentre import recentred_analysis
 from .solve import blas_threads
 from .uncertainty import UncertaintyOptions, covariance_of, frame_covariances
 
@@ -421,6 +422,10 @@ def suggest_next_motion(
 def _suggest(problem: Problem, result, opts: GuidanceOptions, info: Information | None,
              top: int) -> Guidance:
     check_result_frames(problem, result)
+    # far from the pose stream's origin: the same analysis about a nearby point (exact; a given
+    # ``info`` is the same matrix in exact arithmetic)
+    problem, result = recentred_analysis(problem, result,
+                                         priors=bool(opts.uncertainty.gauge.priors))
     if info is None:
         info = information_matrix(problem, result.X, result.Y, result.scale)
     cov = covariance_of(info, problem, opts.uncertainty)

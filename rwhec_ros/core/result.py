@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -87,6 +87,9 @@ class Certificate:
     margins : dict of str to float
         What the rounding analysis subtracted from ``lambda_s`` (unscaled cost units):
         ``eigenvalue``, ``rounding``, ``schur`` (see :mod:`rwhec_ros.core.certificate`).
+    cost_floor : float
+        The cost regarded as zero at the scale of the data (unscaled): ``rho_hat``'s denominator
+        is ``max(d, cost_floor)``; ``nan`` where no bound was computed.
     """
 
     status: Status
@@ -100,10 +103,40 @@ class Certificate:
     message: str = ""
     lambda_min_lower: float = float("nan")
     margins: dict = field(default_factory=dict)
+    cost_floor: float = float("nan")
 
     @property
     def certified(self) -> bool:
         return self.status is Status.CERTIFIED_OPTIMAL
+
+    def with_bounds(self, primal_cost: float, dual_bound: float, why: str,
+                    margin: tuple[str, float] | None = None) -> Certificate:
+        """This certificate with another ``p`` (a proven upper bound on the cost of the estimate
+        that is returned) and ``d`` (a proven lower bound on the optimum), e.g. of the same
+        problem solved about another origin (:mod:`rwhec_ros.core.recentre`): ``rho_hat``
+        recomputed with the same cost floor, and a certificate whose ``rho_hat`` then exceeds
+        the tolerance is ``not_tight``, with ``why`` (what the new bounds are) in its message.
+        Other statuses keep theirs (new bounds cannot prove more than the old ones did; ``rho_hat``
+        in the message is updated). ``margin`` ``(name, value)``: what the new ``d`` subtracted,
+        added to :attr:`margins`."""
+        p, d = float(primal_cost), float(dual_bound)
+        floor = float(self.cost_floor)
+        denom = max(d, floor) if np.isfinite(floor) else float("nan")
+        rho = (p - d) / denom if np.isfinite(d) and np.isfinite(denom) and denom > 0 \
+            else float("nan")
+        old = f"rho_hat={self.suboptimality_bound:.3g}"
+        message = self.message.replace(old, f"rho_hat={rho:.3g}")
+        status = self.status
+        if status is Status.CERTIFIED_OPTIMAL and not rho <= self.tolerance:
+            status = Status.NOT_TIGHT
+            message = (f"not certified: rho_hat={rho:.3g} > {self.tolerance:g} with {why} "
+                       f"(p={p:.10g}, d={d:.10g})")
+        margins = dict(self.margins)
+        if margin is not None:
+            margins[margin[0]] = float(margin[1])
+        return replace(self, primal_cost=p, dual_bound=d, suboptimality_bound=rho, status=status,
+                       message=message, eigenvalues=np.array(self.eigenvalues, copy=True),
+                       margins=margins)
 
     @property
     def rounding_decides(self) -> bool:

@@ -33,7 +33,7 @@ import scipy.sparse.linalg
 from threadpoolctl import ThreadpoolController
 
 from .certificate import CertificateOptions, certificate_matrix, certify
-from .cost import StateLayout, build_cost_matrices, reduce_cost
+from .cost import StateLayout, build_cost_matrices, direct_cost_error, reduce_cost
 from .gauge import (
     GaugeFix,
     GaugeOptions,
@@ -58,6 +58,14 @@ from .local_solver import (
     strengthen_certificate,
 )
 from .problem import Problem
+from .recentre import (
+    Recentring,
+    far_scale_words,
+    recentred_options,
+    recentred_problem,
+    recentring_for,
+    restore_estimate,
+)
 from .relaxation import (
     ConstraintSet,
     SdpOptions,
@@ -484,7 +492,36 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
     """
     options = options or SolveOptions()
     with blas_threads(options.blas_threads):
+        rc = None if options.gauge.priors else recentring_for(problem)
+        if rc is not None:
+            res = _solve_recentred(problem, options, rc)
+            if res is not None:
+                return res
         return _solve(problem, options)
+
+
+def _solve_recentred(problem: Problem, options: SolveOptions, rc: Recentring
+                     ) -> CalibrationResult | None:
+    """:func:`_solve` of the problem about ``rc``'s point (:mod:`rwhec_ros.core.recentre`), mapped
+    back to the given frames with a certificate of the given problem and the returned estimate;
+    None when the re-centred solve finds an unobservable translation direction (fixed by a
+    default about the given origin: solve as given)."""
+    t0 = time.perf_counter()
+    recentred, E = recentred_problem(problem, rc)
+    res = _solve(recentred, recentred_options(options, rc))
+    if res.unobservable:
+        return None
+    restore_estimate(res, problem, recentred, rc, E, _proven_cost)
+    res.timing_s["total"] = time.perf_counter() - t0
+    return res
+
+
+def _proven_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float) -> float:
+    """A proven upper bound on the cost (eq. (33)) of ``(X, Y, alpha)`` on ``problem``'s data
+    (no gauge term: for results without unobservable directions), as
+    :func:`~rwhec_ros.core.initialization.primal_cost` bounds it."""
+    p, err = direct_cost_error(problem, X, Y, alpha if problem.unknown_scale else 1.0)
+    return float(np.nextafter(p + err, np.inf))
 
 
 @functools.lru_cache(maxsize=1)
@@ -594,6 +631,9 @@ def _check_identifiability(prep: _Prepared, options: SolveOptions,
                        f"{options.min_scale:g}: the data do not determine the scale (too much "
                        "noise, outliers, or too little translation relative to the tags)")
     if reasons:
+        far = far_scale_words(problem)
+        if far is not None:
+            reasons.append(far)
         _downgrade(res, Status.NOT_IDENTIFIABLE, "not identifiable: " + "; ".join(reasons) + ".")
 
 

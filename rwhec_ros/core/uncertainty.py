@@ -52,6 +52,7 @@ from .information import (
     information_matrix,
 )
 from .problem import Problem
+from .recentre import recentred_analysis
 from .solve import blas_threads
 
 __all__ = [
@@ -577,6 +578,8 @@ def frame_uncertainty(problem: Problem, result, options: UncertaintyOptions | No
     t0 = time.perf_counter()
     check_result_frames(problem, result)
     opts = options or UncertaintyOptions()
+    # far from the pose stream's origin: the same information about a nearby point (exact)
+    problem, result = recentred_analysis(problem, result, priors=bool(opts.gauge.priors))
     assemble = (information_from_edge_blocks if opts.information == "edge_blocks"
                 else information_matrix)
     with blas_threads(opts.blas_threads):
