@@ -302,3 +302,26 @@ def test_unknown_scale_far_tag_carrier_is_not_moved_and_says_so():
     assert "express the poses about an origin near the data" in res.certificate.message
     near = solve(problem)  # the same data about the origin: determined, certified
     assert near.certified and "express the poses" not in near.certificate.message
+
+
+def test_scale_check_of_far_data_is_that_of_the_near_data(monkeypatch):
+    """The verdict's scale check (the known-scale data solved again with an unknown scale) on
+    data whose tag carrier's origin is 10 km away: the scale 3 % off that the near data show,
+    with the same std (without the re-centring: not determined)."""
+    from rwhec_ros.core.verdict.scale_check import check_scale
+
+    problem, _ = _instance(12)
+    edges = []
+    for e in problem.edges:
+        B = e.B.copy()
+        B[:, :3, 3] *= 1.03  # tags configured 3 % too large
+        edges.append(Edge(e.x, e.y, e.A, B, e.sigma, e.kappa))
+    near = problem.with_edges(edges)
+    far, _ = _far_tags(near, 1e4)
+    a, b = check_scale(near), check_scale(far)
+    assert a.available and b.available
+    assert a.alpha == pytest.approx(1.03, abs=5 * a.std)
+    assert b.alpha == pytest.approx(a.alpha, rel=1e-9, abs=0)
+    assert b.std == pytest.approx(a.std, rel=1e-6, abs=0)
+    monkeypatch.setattr(recentre_module, "RECENTRE_MIN_OFFSET_M", np.inf)
+    assert not check_scale(far).available

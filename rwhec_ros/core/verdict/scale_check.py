@@ -35,6 +35,7 @@ import numpy as np
 
 from ..cost import StateLayout, build_cost_matrix
 from ..problem import Problem
+from ..recentre import recentred_problem, recentring_for
 from ..result import CalibrationResult, Status
 from .fit import goodness_of_fit
 
@@ -115,6 +116,13 @@ def check_scale(problem: Problem, *, mode: str = "fast") -> ScaleCheck:
 
     if problem.unknown_scale:
         raise ValueError("problem: the scale check is for known-scale problems")
+    rc = recentring_for(problem)
+    if rc is not None:
+        # far from a carrier's origin the unknown-scale solve (which re-centres only the camera
+        # carrier) and the information of alpha lose the scale to rounding: check it about a
+        # point near the data, where alpha, its std and the fit are the same (a diagnostic: the
+        # tag carrier's shift rounds by ~u |c|, far below the noise)
+        problem = recentred_problem(problem, rc)[0]
     free = problem.with_edges(problem.edges, unknown_scale=True)
     res = solve(free, SolveOptions(mode=mode))
     status = res.certificate.status
