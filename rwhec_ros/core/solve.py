@@ -493,27 +493,34 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
     options = options or SolveOptions()
     with blas_threads(options.blas_threads):
         rc = None if options.gauge.priors else recentring_for(problem)
-        if rc is not None:
-            res = _solve_recentred(problem, options, rc)
-            if res is not None:
-                return res
-        return _solve(problem, options)
+        if rc is None:
+            return _solve(problem, options)
+        res, why_not = _solve_recentred(problem, options, rc)
+        if res is not None:
+            return res
+        res = _solve(problem, options)
+        if why_not and res.certificate.status is Status.NOT_IDENTIFIABLE:
+            res.certificate.message = res.certificate.message.rstrip(".") + "; " + why_not
+        return res
 
 
 def _solve_recentred(problem: Problem, options: SolveOptions, rc: Recentring
-                     ) -> CalibrationResult | None:
+                     ) -> tuple[CalibrationResult | None, str]:
     """:func:`_solve` of the problem about ``rc``'s point (:mod:`rwhec_ros.core.recentre`), mapped
     back to the given frames with a certificate of the given problem and the returned estimate;
-    None when the re-centred solve finds an unobservable translation direction (fixed by a
-    default about the given origin: solve as given)."""
+    ``(None, words)`` to solve as given: when the re-centred solve finds an unobservable
+    translation direction (fixed by a default about the given origin; words empty) or, with
+    unknown scale, no bound on the scale could be proven (words for a not-identifiable status:
+    the coordinates may be the cause)."""
     t0 = time.perf_counter()
     recentred, E = recentred_problem(problem, rc)
     res = _solve(recentred, recentred_options(options, rc))
     if res.unobservable:
-        return None
-    restore_estimate(res, problem, recentred, rc, E, _proven_cost)
+        return None, ""
+    if not restore_estimate(res, problem, recentred, rc, E, _proven_cost):
+        return None, far_scale_words(rc)
     res.timing_s["total"] = time.perf_counter() - t0
-    return res
+    return res, ""
 
 
 def _proven_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float) -> float:
@@ -631,9 +638,6 @@ def _check_identifiability(prep: _Prepared, options: SolveOptions,
                        f"{options.min_scale:g}: the data do not determine the scale (too much "
                        "noise, outliers, or too little translation relative to the tags)")
     if reasons:
-        far = far_scale_words(problem)
-        if far is not None:
-            reasons.append(far)
         _downgrade(res, Status.NOT_IDENTIFIABLE, "not identifiable: " + "; ".join(reasons) + ".")
 
 

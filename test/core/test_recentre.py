@@ -241,12 +241,15 @@ def test_with_bounds_recomputes_rho_and_the_status():
     assert no_floor.status is Status.NOT_TIGHT and np.isnan(no_floor.suboptimality_bound)
 
 
+@pytest.mark.parametrize("unknown_scale", [False, True])
 @pytest.mark.parametrize("distance", [1e3, 1e6])
-def test_far_tag_carrier_is_certified_with_the_estimate_of_the_near_data(distance, monkeypatch):
-    """Known scale, the tag carrier's origin far away: re-centred with the rounding of
-    ``R_A c`` in the bounds (the margin ``recentring``), certified, the near estimate."""
+def test_far_tag_carrier_is_certified_with_the_estimate_of_the_near_data(unknown_scale, distance,
+                                                                          monkeypatch):
+    """The tag carrier's origin far away: re-centred with the rounding of ``R_A c`` in the
+    bounds (the margin ``recentring``; with unknown scale times a proven bound on the scale),
+    certified, the near estimate."""
     seed = 9
-    problem, _ = _instance(seed)
+    problem, _ = _instance(seed, unknown_scale)
     near = solve(problem)
     far, S = _far_tags(problem, distance)
     rc = recentring_for(far)
@@ -259,9 +262,81 @@ def test_far_tag_carrier_is_certified_with_the_estimate_of_the_near_data(distanc
     np.testing.assert_allclose(res.Y, near.Y, rtol=0, atol=1e-9)
     np.testing.assert_allclose(res.X, np.linalg.inv(S) @ near.X, rtol=0,
                                atol=1e-9 + 1e-15 * distance)
+    assert res.scale == pytest.approx(near.scale, rel=1e-9, abs=0)
     monkeypatch.setattr(recentre_module, "RECENTRE_MIN_OFFSET_M", np.inf)
     as_given = solve(far)
     assert not as_given.certified and not _recentred_note(as_given, TAG)
+
+
+def _fraction_solve(H, b):
+    """``H z = b`` in exact rational arithmetic (Gaussian elimination, H nonsingular)."""
+    n = len(b)
+    A = [[Fraction(v) for v in row] + [Fraction(bv)] for row, bv in zip(H, b, strict=True)]
+    for i in range(n):
+        piv = next(r for r in range(i, n) if A[r][i] != 0)
+        A[i], A[piv] = A[piv], A[i]
+        for r in range(i + 1, n):
+            f = A[r][i] / A[i][i]
+            if f:
+                A[r] = [a - f * p for a, p in zip(A[r], A[i], strict=True)]
+    z = [Fraction(0)] * n
+    for i in reversed(range(n)):
+        z[i] = (A[i][n] - sum(A[i][k] * z[k] for k in range(i + 1, n))) / A[i][i]
+    return z
+
+
+def test_pose_misfit_and_scale_bounds_hold_in_exact_arithmetic():
+    """The misfit of the pose translations alone: the proven lower bound is below the exact
+    minimum (rational arithmetic, with the bound's rounded-down weights) and not far below it;
+    the scale bound holds at the optimum."""
+    from rwhec_ros.core.recentre import pose_misfit_lower_bound, scale_bound
+    from rwhec_ros.core.verified import gamma
+
+    problem, _ = _instance(13, unknown_scale=True)
+    far, _ = _far_tags(problem, 1e4)
+    shifted, E = recentred_problem(far, recentring_for(far))
+    m = pose_misfit_lower_bound(shifted)
+    st = shifted.stacked()
+    M, n = shifted.M, shifted.n_frames
+    F = np.vectorize(Fraction, otypes=[object])
+    R, t = F(st["A"][:, :3, :3]), F(st["A"][:, :3, 3])
+    w = [Fraction((1.0 - gamma(6)) / (2.0 * s * s)) for s in st["sigma"]]  # as the bound's
+    H = [[Fraction(0)] * (3 * n) for _ in range(3 * n)]
+    b = [Fraction(0)] * (3 * n)
+    for i in range(len(w)):
+        cols = {3 * int(st["xi"][i]) + a: R[i][:, a] for a in range(3)}
+        cols.update({3 * (M + int(st["yi"][i])) + a: -np.eye(3, dtype=int)[:, a].astype(object)
+                     for a in range(3)})
+        for p_, cp in cols.items():
+            b[p_] += w[i] * sum(cp[r] * t[i][r] for r in range(3))
+            for q_, cq in cols.items():
+                H[p_][q_] += w[i] * sum(cp[r] * cq[r] for r in range(3))
+    z = _fraction_solve(H, [-v for v in b])
+    exact = Fraction(0)
+    for i in range(len(w)):
+        j, k = 3 * int(st["xi"][i]), 3 * (M + int(st["yi"][i]))
+        g = [sum(R[i][r, a] * z[j + a] for a in range(3)) + t[i][r] - z[k + r]
+             for r in range(3)]
+        exact += w[i] * sum(v * v for v in g)
+    assert 0.0 < m <= exact
+    assert m >= 0.99 * float(exact)
+    res = solve(far)
+    assert res.certified
+    assert abs(res.scale) <= scale_bound(shifted, E, res.certificate.primal_cost)
+
+
+def test_no_scale_bound_solves_as_given_and_says_so(monkeypatch):
+    """With unknown scale and no provable bound on the scale (here forced), the far tag
+    carrier is solved as given: not certified, and the status says the coordinates may be the
+    reason and what to do."""
+    problem, _ = _instance(11, unknown_scale=True)
+    far, _ = _far_tags(problem, 300.0)
+    monkeypatch.setattr(recentre_module, "pose_misfit_lower_bound", lambda problem: 0.0)
+    res = solve(far)
+    assert res.certificate.status is Status.NOT_IDENTIFIABLE and not _recentred_note(res, TAG)
+    assert "express the poses about an origin near the data" in res.certificate.message
+    near = solve(problem)  # the same data about the origin: determined, certified
+    assert near.certified and "express the poses" not in near.certificate.message
 
 
 def test_tag_carrier_bounds_hold_in_exact_arithmetic():
@@ -291,19 +366,6 @@ def test_tag_carrier_bounds_hold_in_exact_arithmetic():
     assert Fraction(res.certificate.dual_bound) <= _exact_cost(problem, near.X, near.Y)
 
 
-def test_unknown_scale_far_tag_carrier_is_not_moved_and_says_so():
-    """With unknown scale the tag carrier is not re-centred (no bound on alpha delta): not
-    certified, and the status says the coordinates may be the reason and what to do."""
-    problem, _ = _instance(11, unknown_scale=True)
-    far, _ = _far_tags(problem, 300.0)
-    assert recentring_for(far) is None
-    res = solve(far)
-    assert res.certificate.status is Status.NOT_IDENTIFIABLE and not _recentred_note(res, TAG)
-    assert "express the poses about an origin near the data" in res.certificate.message
-    near = solve(problem)  # the same data about the origin: determined, certified
-    assert near.certified and "express the poses" not in near.certificate.message
-
-
 def test_scale_check_of_far_data_is_that_of_the_near_data(monkeypatch):
     """The verdict's scale check (the known-scale data solved again with an unknown scale) on
     data whose tag carrier's origin is 10 km away: the scale 3 % off that the near data show,
@@ -325,3 +387,24 @@ def test_scale_check_of_far_data_is_that_of_the_near_data(monkeypatch):
     assert b.std == pytest.approx(a.std, rel=1e-6, abs=0)
     monkeypatch.setattr(recentre_module, "RECENTRE_MIN_OFFSET_M", np.inf)
     assert not check_scale(far).available
+
+
+def test_identifiability_and_verdict_of_far_data_are_those_of_the_near_data(monkeypatch):
+    """Unknown scale, the tag carrier's origin 100 km away: the identifiability report (per edge
+    and the numeric check) and the verdict are those of the data about the origin (without the
+    re-centring the far data looked not identifiable)."""
+    from rwhec_ros.core.identifiability import analyze
+    from rwhec_ros.core.verdict import assess
+
+    problem, _ = _instance(14, unknown_scale=True)
+    far, _ = _far_tags(problem, 1e5)
+    near_res, far_res = solve(problem), solve(far)
+    assert near_res.certified and far_res.certified
+    a = analyze(problem, solution=(near_res.X, near_res.Y, near_res.scale))
+    b = analyze(far, solution=(far_res.X, far_res.Y, far_res.scale))
+    assert a.identifiable and b.identifiable and b.verdict == a.verdict
+    assert [e.status for e in b.edges] == [e.status for e in a.edges]
+    assert assess(far_res, far).level == assess(near_res, problem).level
+    monkeypatch.setattr(recentre_module, "RECENTRE_MIN_OFFSET_M", np.inf)
+    c = analyze(far, solution=(far_res.X, far_res.Y, far_res.scale))
+    assert not c.identifiable

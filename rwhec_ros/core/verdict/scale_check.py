@@ -118,10 +118,10 @@ def check_scale(problem: Problem, *, mode: str = "fast") -> ScaleCheck:
         raise ValueError("problem: the scale check is for known-scale problems")
     rc = recentring_for(problem)
     if rc is not None:
-        # far from a carrier's origin the unknown-scale solve (which re-centres only the camera
-        # carrier) and the information of alpha lose the scale to rounding: check it about a
-        # point near the data, where alpha, its std and the fit are the same (a diagnostic: the
-        # tag carrier's shift rounds by ~u |c|, far below the noise)
+        # far from a carrier's origin the information of alpha (from the cost matrix) loses the
+        # scale to rounding, as the unknown-scale solve would without its own re-centring:
+        # check it about a point near the data, where alpha, its std and the fit are the same
+        # (a diagnostic: the tag carrier's shift rounds by ~u |c|, far below the noise)
         problem = recentred_problem(problem, rc)[0]
     free = problem.with_edges(problem.edges, unknown_scale=True)
     res = solve(free, SolveOptions(mode=mode))
