@@ -327,7 +327,8 @@ def pose_misfit_lower_bound(problem: Problem) -> float:
         if rows is not cols:
             np.add.at(H, (c_idx, r_idx), blocks)
             np.add.at(H_abs, (c_idx, r_idx), absb)
-    dH = gamma(N + 8) * float(np.max(H_abs.sum(axis=1))) * (1.0 + gamma(d + 2))
+    H = 0.5 * (H + H.T)  # symmetric as stored (verified_min_eigenvalue); u |H| more below
+    dH = gamma(N + 10) * float(np.max(H_abs.sum(axis=1))) * (1.0 + gamma(d + 2))
     vb = verified_min_eigenvalue(H)
     lam = (vb.lower - dH) * (1.0 - 4.0 * UNIT_ROUNDOFF)
     if not (vb.verified and lam > 0.0):
