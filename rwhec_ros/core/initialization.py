@@ -23,7 +23,7 @@ from .problem import Problem
 from .verified import lanczos_start
 
 __all__ = ["Estimate", "rotations_from_vector", "closed_form_estimate", "estimate_from_rotations",
-           "primal_cost", "initial_rotations"]
+           "primal_cost", "proven_cost", "initial_rotations"]
 
 
 @dataclass
@@ -114,14 +114,26 @@ def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
     :meth:`~rwhec_ros.core.gauge.GaugeFix.penalty_error`; about ``u L / r`` relative), the sum
     rounded upwards. A certificate compares it with its dual bound, so the rounding of the cost
     can only make it more cautious."""
+    X, Y = est.split(problem.M)
+    if gauge is None or not gauge.has_penalty:
+        return proven_cost(problem, X, Y, est.alpha)
     from .cost import direct_cost_error
 
-    X, Y = est.split(problem.M)
     p, err = direct_cost_error(problem, X, Y, est.alpha)
-    if gauge is not None and gauge.has_penalty:
-        h = est.alpha if problem.unknown_scale else 1.0
-        p += gauge.penalty_value(est.t, h)
-        err += gauge.penalty_error(est.t, h)
+    h = est.alpha if problem.unknown_scale else 1.0
+    p += gauge.penalty_value(est.t, h)
+    err += gauge.penalty_error(est.t, h)
+    return float(np.nextafter(p + err, np.inf))
+
+
+def proven_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1.0) -> float:
+    """A proven upper bound on the cost (eq. (33), no prior term) of ``X`` (M, 4, 4), ``Y``
+    (P, 4, 4) and ``alpha`` (used for unknown scale only) on ``problem``'s data: the direct cost
+    plus the bound on its rounding (:func:`~rwhec_ros.core.cost.direct_cost_error`), rounded
+    upwards; :func:`primal_cost` without a prior."""
+    from .cost import direct_cost_error
+
+    p, err = direct_cost_error(problem, X, Y, alpha if problem.unknown_scale else 1.0)
     return float(np.nextafter(p + err, np.inf))
 
 

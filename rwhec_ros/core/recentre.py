@@ -67,7 +67,8 @@ from .problem import Edge, Problem
 from .verified import UNIT_ROUNDOFF, gamma
 
 __all__ = ["CAMERA", "TAG", "Recentring", "recentring_for", "recentred_problem",
-           "recentred_options", "restore_estimate", "recentred_analysis",
+           "recentred_frames", "recentred_options", "restore_estimate", "scale_bound",
+           "pose_misfit_lower_bound", "recentred_analysis", "far_scale_words",
            "RECENTRE_MIN_OFFSET_M", "RECENTRE_MIN_GAIN"]
 
 #: Re-centre only when the offset is at least this long (metres): closer than that the
@@ -177,7 +178,7 @@ def recentred_problem(problem: Problem, rc: Recentring) -> tuple[Problem, float]
     metric (0 for the exact camera carrier's shift; see the module docstring). Frames,
     precisions and the scale model unchanged, cached edge blocks dropped (they belong to the
     given data). ``ValueError`` when a camera carrier's offset is not exact (use
-    :func:`recentring_for`) or a tag carrier's is asked for unknown scale."""
+    :func:`recentring_for`)."""
     c = np.asarray(rc.offset, dtype=float).reshape(3)
     edges, e2 = [], 0.0
     for e in problem.edges:
@@ -199,11 +200,14 @@ def recentred_problem(problem: Problem, rc: Recentring) -> tuple[Problem, float]
                     unknown_scale=problem.unknown_scale), E)
 
 
-def _moved(T: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Copies of transforms (N, 4, 4) with their translations ``- c``."""
-    T = np.array(T, dtype=float, copy=True)
-    T[:, :3, 3] -= c
-    return T
+def recentred_frames(X: np.ndarray, Y: np.ndarray, rc: Recentring, back: bool = False
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """``(X, Y)`` expressed about ``rc``'s point: the moved carrier's frames (``Y`` for the
+    camera carrier, ``X`` for the tag carrier) copied with their translations ``- c``
+    (``+ c`` with ``back``, to the given frames); the other stack as it is."""
+    moved = np.array(Y if rc.carrier == CAMERA else X, dtype=float, copy=True)
+    moved[:, :3, 3] += rc.offset if back else -rc.offset
+    return (X, moved) if rc.carrier == CAMERA else (moved, Y)
 
 
 def recentred_options(options, rc: Recentring):
@@ -211,10 +215,7 @@ def recentred_options(options, rc: Recentring):
     shallow copy, the caller's options are not changed."""
     if options.initial is None:
         return options
-    X, Y = options.initial
-    if rc.carrier == CAMERA:
-        return replace(options, initial=(X, _moved(Y, rc.offset)))
-    return replace(options, initial=(_moved(X, rc.offset), Y))
+    return replace(options, initial=recentred_frames(*options.initial, rc))
 
 
 def restore_estimate(result, problem: Problem, recentred: Problem, rc: Recentring, E: float,
@@ -226,15 +227,12 @@ def restore_estimate(result, problem: Problem, recentred: Problem, rc: Recentrin
     False (and ``result`` unchanged) when, with unknown scale, no bound on the scale at the
     optimum could be proven (:func:`pose_misfit_lower_bound`): then solve as given."""
     c = rc.offset
-    moved = np.array(result.Y if rc.carrier == CAMERA else result.X, dtype=float, copy=True)
-    moved[:, :3, 3] += c
-    back = _moved(moved, c)
+    X_r, Y_r = recentred_frames(result.X, result.Y, rc, back=True)  # what is returned
+    moved = Y_r if rc.carrier == CAMERA else X_r
     exact = all(_exact_difference(moved[:, i, 3], float(c[i])) for i in range(3) if c[i] != 0.0)
-    X_r, Y_r = (result.X, moved) if rc.carrier == CAMERA else (moved, result.Y)
     alpha = float(result.scale) if problem.unknown_scale else 1.0
-    if exact:
-        X_b, Y_b = (result.X, back) if rc.carrier == CAMERA else (back, result.Y)
-        p = proven_cost(recentred, X_b, Y_b, result.scale)
+    if exact:  # the returned estimate, exactly about the point again
+        p = proven_cost(recentred, *recentred_frames(X_r, Y_r, rc), result.scale)
         if E > 0.0:  # the shifted data's rounding, alpha delta_i per pair
             aE = abs(alpha) * E * (1.0 + 4.0 * UNIT_ROUNDOFF)
             p = float(np.nextafter((p + 2.0 * aE * np.sqrt(p) + aE * aE)
@@ -377,10 +375,7 @@ def recentred_analysis(problem: Problem, result, priors: bool = False):
     if rc is None:
         return problem, result
     shifted = copy.copy(result)
-    if rc.carrier == CAMERA:
-        shifted.Y = _moved(result.Y, rc.offset)
-    else:
-        shifted.X = _moved(result.X, rc.offset)
+    shifted.X, shifted.Y = recentred_frames(result.X, result.Y, rc)
     return recentred_problem(problem, rc)[0], shifted
 
 

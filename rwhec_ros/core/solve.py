@@ -33,7 +33,7 @@ import scipy.sparse.linalg
 from threadpoolctl import ThreadpoolController
 
 from .certificate import CertificateOptions, certificate_matrix, certify
-from .cost import StateLayout, build_cost_matrices, direct_cost_error, reduce_cost
+from .cost import StateLayout, build_cost_matrices, reduce_cost
 from .gauge import (
     GaugeFix,
     GaugeOptions,
@@ -46,6 +46,7 @@ from .initialization import (
     estimate_from_rotations,
     initial_rotations,
     primal_cost,
+    proven_cost,
     rotations_from_vector,
 )
 from .lie import make_transform
@@ -517,18 +518,10 @@ def _solve_recentred(problem: Problem, options: SolveOptions, rc: Recentring
     res = _solve(recentred, recentred_options(options, rc))
     if res.unobservable:
         return None, ""
-    if not restore_estimate(res, problem, recentred, rc, E, _proven_cost):
+    if not restore_estimate(res, problem, recentred, rc, E, proven_cost):
         return None, far_scale_words(rc)
     res.timing_s["total"] = time.perf_counter() - t0
     return res, ""
-
-
-def _proven_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float) -> float:
-    """A proven upper bound on the cost (eq. (33)) of ``(X, Y, alpha)`` on ``problem``'s data
-    (no gauge term: for results without unobservable directions), as
-    :func:`~rwhec_ros.core.initialization.primal_cost` bounds it."""
-    p, err = direct_cost_error(problem, X, Y, alpha if problem.unknown_scale else 1.0)
-    return float(np.nextafter(p + err, np.inf))
 
 
 @functools.lru_cache(maxsize=1)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..problem import Problem
-from ..recentre import CAMERA, recentred_problem, recentring_for
+from ..recentre import recentred_frames, recentred_problem, recentring_for
 from .edge import EdgeIdentifiability, EdgeStatistics, analyze_edge
 from .numeric import NumericCheck, numeric_check
 from .status import (
@@ -333,10 +333,7 @@ def analyze(
         # identifiability of the problem does not depend on where the origins are)
         problem = recentred_problem(problem, rc)[0]
         if solution is not None:
-            X, Y, alpha = solution
-            T = np.array(Y if rc.carrier == CAMERA else X, dtype=float, copy=True)
-            T[:, :3, 3] -= rc.offset
-            solution = (X, T, alpha) if rc.carrier == CAMERA else (T, Y, alpha)
+            solution = (*recentred_frames(solution[0], solution[1], rc), solution[2])
     edges = [analyze_edge(EdgeStatistics.from_edge(e), problem.unknown_scale, thr)
              for e in problem.edges]
     numeric = numeric_check(problem, thresholds=thr, solution=solution) if full else None
