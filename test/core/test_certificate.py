@@ -30,6 +30,7 @@ from rwhec_ros.core.local_solver import (
 from rwhec_ros.core.relaxation import so3_constraint_matrices
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.synthetic import random_instance, random_rotations
+from rwhec_ros.core.verified import gamma
 
 N_ROT = 2  # two rotations: Z is 19 x 19 and |y|^2 = 3 n + 1 = 7
 D = 9 * N_ROT + 1
@@ -173,6 +174,39 @@ def test_unverifiable_reduction_is_ill_conditioned():
     assert "translation block" in c.message
 
 
+def test_no_shifted_factorisation_gives_no_bound():
+    """The branch of rigorous_dual_bound where every shifted Cholesky factorisation of Z fails:
+    an estimate of lambda_min above the whole spectrum (1.0 for the spectrum 0.05..1, of an
+    eigensolver that went wrong) puts every shift mu = estimate - gap (the gap grows from
+    gamma_{n+1} max|Z_ii| ~ 1e-15 to ~1e-8 in 8 attempts) above lambda_max, so fl(Z - mu I) is
+    negative definite and no factorisation succeeds, deterministically on any machine. No bound:
+    -inf, with the reason."""
+    Z = _crafted(_spectrum(0.05))
+    b = rigorous_dual_bound(Z, np.zeros(D), 1.0, ExactReduction(D), 1.0, N_ROT, 1.0 + 1e-3)
+    assert b.value == float("-inf") and b.lambda_min_lower == float("-inf")
+    assert b.reason == "no shifted factorisation of Z succeeded"
+    # the same Z with a right estimate is bounded (the failure is the factorisation's alone)
+    ok = rigorous_dual_bound(Z, np.zeros(D), 1.0, ExactReduction(D), 1.0, N_ROT, 0.05)
+    assert np.isfinite(ok.value) and ok.reason == ""
+
+
+def test_no_shifted_factorisation_is_not_certified(monkeypatch):
+    """Through certify_from_Z: when the eigenvalue estimate it factorises Z against is wrong
+    (above the spectrum), no shifted factorisation succeeds and the status is ill-conditioned
+    with that reason, never certified (the data are otherwise a clear certificate)."""
+    import rwhec_ros.core.certificate as certificate
+
+    def estimate_above_spectrum(Z, k):
+        return np.full(k, float(np.linalg.eigvalsh(Z)[-1]) + 1e-3)
+
+    assert _cert(_spectrum(0.0)).status is Status.CERTIFIED_OPTIMAL
+    monkeypatch.setattr(certificate, "smallest_eigenvalues", estimate_above_spectrum)
+    c = _cert(_spectrum(0.0))
+    assert c.status is Status.ILL_CONDITIONED
+    assert "no shifted factorisation of Z succeeded" in c.message
+    assert c.dual_bound == float("-inf")
+
+
 def test_schur_residual_lowers_the_bound():
     """||F||^2 / l_e times |y|^2 = 7 is subtracted: residual 1e-3, block bound 1 -> 7e-6."""
     red = ExactReduction(D, residual_norm=1e-3, block_lower=1.0)
@@ -233,8 +267,12 @@ def test_fast_multipliers_reproduce_the_fast_certificate_matrix():
     Z2, lam_s = fast_certificate_matrix(Qs, R)
     np.testing.assert_allclose(Z1, Z2, atol=1e-12 * np.abs(Qs).max())
     assert lam[-1] == pytest.approx(lam_s)
-    D_ = cons.apply(handedness_multipliers(R))
-    np.testing.assert_allclose(D_, handedness_direction(R), atol=1e-15)
+    hm = handedness_multipliers(R)
+    D_ = cons.apply(hm)
+    # the same matrix assembled in another order: each entry a sum of at most max_terms terms,
+    # so the two are within 2 gamma_{max_terms} of the sum of the terms' absolute values
+    absD = np.asarray(cons.abs_C @ np.abs(hm)).reshape(cons.d, cons.d, order="F")
+    assert np.all(np.abs(D_ - handedness_direction(R)) <= 2.0 * gamma(cons.max_terms) * absD)
     z = np.concatenate([np.swapaxes(R, 1, 2).reshape(-1), [1.0]])
     np.testing.assert_allclose(D_ @ z, 0.0, atol=1e-12)  # the handedness direction keeps Z z
 
