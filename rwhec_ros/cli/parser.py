@@ -146,8 +146,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "a node parameter file, full (its cameras, carriers and targets replace "
                      "the data's) or partial (e.g. noise, keyframe, solver), on top of the "
                      "settings the data give (default: none)")
-    _add_mount(p, "the data's mount (manifest mount or camera_carrier, "
-                  "industrial_calibration's static_camera), else the configuration's carriers")
+    _add_mount(p, "the data's mount: the manifest's mount or camera_carrier, "
+                  "industrial_calibration's static_camera; else the configuration's carriers")
     p.add_argument("--intrinsics", action="append", default=None, metavar="[CAMERA=]FILE",
                    help="intrinsics of a camera: a ROS camera_calibration YAML or an OpenCV "
                         "FileStorage YAML/XML; repeatable, CAMERA= with several cameras "
@@ -163,7 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
                      ("file", "FILE", "the pose list (.csv, or .yaml/.yml)"),
                      "take the noise, solver and output settings from a node parameter file "
                      "(default: none)")
-    _add_mount(p, "the file's mount (YAML)")
+    _add_mount(p, "the YAML file's mount, else the configuration's carriers")
     p.add_argument("--sigma", type=float, default=None,
                    help="translation std of B [m] (default: the configuration's noise.sigma, "
                         "else 0.005)")
