@@ -138,8 +138,10 @@ class CaptureGate:
         outcome to each), :data:`NOT_CAPTURED` (capture-only mode: leave it out) or None (the
         ordinary path)."""
         capture = config.capture
+        if capture.mode == "continuous":  # the live path as it was: no rest tracking at all
+            return None
         rest = self._at_rest_ns(camera, stamp_ns, A, AtRestRule.from_sync(config.sync))
-        if capture.mode != "continuous" and rest >= int(round(capture.rest_s * _NS_PER_S)):
+        if rest >= int(round(capture.rest_s * _NS_PER_S)):
             takers = [req for req in self._requests if req.wants(camera, stamp_ns)]
             for req in takers:
                 req.claimed.add(camera)
