@@ -257,3 +257,71 @@ def test_the_eye_in_hand_A_is_the_inverse_of_the_written_pose(eye_in_hand, tmp_p
     _, A, _ = _pairs(tmp_path / "o" / "dataset.yaml")[("board", "cam0")]
     expected = np.array([invert_transform(v.T_parent_child) for v in samples.views])
     np.testing.assert_allclose(A, expected, atol=1e-12)
+
+
+def test_two_cameras_with_intrinsics_per_camera(eye_in_hand, tmp_path):
+    """Several cameras per view: images {camera: file}, --intrinsics CAMERA=FILE. cam1 is given
+    cam0's images, so it must come out equal to cam0 (the same pairs, one more edge each)."""
+    doc = yaml.safe_load((eye_in_hand / "samples.yaml").read_text())
+    doc["cameras"] = {"cam0": {"intrinsics": "cam0.yaml"}, "cam1": {}}
+    for v in doc["views"]:
+        v["images"] = {"cam0": v["image"], "cam1": v.pop("image")}
+    (tmp_path / "images").symlink_to(eye_in_hand / "images")
+    (tmp_path / "cam0.yaml").write_text(ros_intrinsics_yaml())
+    (tmp_path / "samples.yaml").write_text(yaml.safe_dump(doc))
+    code, out, err = run(["samples", tmp_path, "-o", tmp_path / "o", "-q"])
+    assert code == EXIT_BAD_INPUT and "no intrinsics for camera cam1" in err, err
+    assert "--intrinsics CAMERA=FILE per camera" in err
+    code, out, err = run(["samples", tmp_path, "--intrinsics", tmp_path / "cam0.yaml",
+                          "-o", tmp_path / "o"])
+    assert code == EXIT_BAD_INPUT and "say which, --intrinsics CAMERA=FILE" in err, err
+    code, out, err = run(["samples", tmp_path, "--intrinsics", f"cam1={tmp_path / 'cam0.yaml'}",
+                          "-o", tmp_path / "o", "-q"])
+    assert code == EXIT_OK, out + err
+    got = frames(tmp_path / "o" / "result.yaml")
+    np.testing.assert_allclose(got["cam1"], got["cam0"], atol=1e-6)
+    assert set(_pairs(tmp_path / "o" / "dataset.yaml")) == {
+        ("board", "cam0"), ("tag_3", "cam0"), ("board", "cam1"), ("tag_3", "cam1")}
+
+
+def test_a_tool_layout_takes_the_configurations_frames_and_camera(eye_in_hand, tmp_path):
+    """An industrial_calibration folder of the same views (frames base -> tool, camera cam0)
+    with a node parameter file naming them base_link -> tool0 and mako: the fixed carrier is the
+    base, the single camera is renamed; the pairs are those of the manifest run."""
+    from rwhec_ros.core.lie import transform_to_quat_xyzw
+
+    samples = read_samples(eye_in_hand)
+    (tmp_path / "poses").mkdir()
+    data = []
+    for i, v in enumerate(samples.views):
+        q, t = transform_to_quat_xyzw(v.T_parent_child)
+        (tmp_path / "poses" / f"{i}.yaml").write_text(yaml.safe_dump(dict(
+            zip(("x", "y", "z", "qx", "qy", "qz", "qw"), map(float, [*t, *q]), strict=True))))
+        data.append({"image": str(v.images["cam0"]), "pose": f"poses/{i}.yaml"})
+    (tmp_path / "cal_data.yaml").write_text(yaml.safe_dump({
+        "data": data, "static_camera": False,
+        "intrinsics": {"fx": 560.0, "fy": 558.0, "cx": 322.0, "cy": 241.0}}))
+    (tmp_path / "cam.yaml").write_text(ros_intrinsics_yaml())  # with the distortion
+    manifest_doc = yaml.safe_load((eye_in_hand / "samples.yaml").read_text())
+    config = tmp_path / "node.yaml"
+    config.write_text(yaml.safe_dump({"/**": {"ros__parameters": {
+        "camera_carrier": {"frame": "tool0", "moving": True},
+        "tag_carrier": {"frame": "base_link", "moving": False},
+        "pose_source": {"type": "tf", "parent": "base_link", "child": "tool0"},
+        "cameras": {"names": ["mako"], "mako": {"image_topic": "/i", "camera_info_topic": "/c"}},
+        "targets": manifest_doc["targets"], "tags": manifest_doc["tags"]}}}))
+    code, out, err = run(["samples", tmp_path, "--config", config, "--intrinsics",
+                          tmp_path / "cam.yaml", "-o", tmp_path / "o", "-q"])
+    assert code == EXIT_OK, out + err
+    doc = yaml.safe_load((tmp_path / "o" / "result.yaml").read_text())
+    assert {(f["name"], f["parent"]) for f in doc["frames"]} == {
+        ("mako", "tool0"), ("board", "base_link"), ("tag_3", "base_link")}
+    code, out, err = run(["samples", eye_in_hand, "-o", tmp_path / "m", "-q"])
+    assert code == EXIT_OK, out + err
+    ref = _pairs(tmp_path / "m" / "dataset.yaml")
+    got = _pairs(tmp_path / "o" / "dataset.yaml")
+    for (x, y), (stamps, A, B) in ref.items():
+        s2, A2, B2 = got[(x, "mako")]
+        assert np.array_equal(stamps, s2)
+        np.testing.assert_allclose(A2, A, atol=1e-9)
+        np.testing.assert_allclose(B2, B, atol=1e-9)

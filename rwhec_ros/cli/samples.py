@@ -33,8 +33,8 @@ from .common import (
     solver_overrides,
 )
 
-__all__ = ["cmd_samples", "samples_parameters", "resolve_frames", "file_message",
-           "SAMPLES_DEFAULTS"]
+__all__ = ["cmd_samples", "samples_parameters", "resolve_frames", "match_cameras",
+           "file_message", "SAMPLES_DEFAULTS"]
 
 _NS_PER_S = 1_000_000_000
 #: Settings of a stop-and-go data set where ``--config`` does not give them: every view is
@@ -164,6 +164,20 @@ def resolve_frames(samples, file_flat: dict[str, Any], mount_flag: str | None
             "pose_source.parent": parent, "pose_source.child": child}, False
 
 
+def match_cameras(samples, file_flat: dict[str, Any]):
+    """``samples`` with its single camera renamed to the configuration's single camera when
+    their names differ (a tool's layout calls it ``cam0``); unchanged otherwise."""
+    from dataclasses import replace
+
+    names = list(file_flat.get("cameras.names") or ())
+    if len(names) != 1 or len(samples.cameras) != 1 or samples.cameras[0] == names[0]:
+        return samples
+    old, new = samples.cameras[0], str(names[0])
+    views = tuple(replace(v, images={new: v.images[old]}) for v in samples.views)
+    return replace(samples, cameras=(new,), views=views,
+                   intrinsics={new: samples.intrinsics.get(old)})
+
+
 def _has(flat: dict[str, Any], *prefixes: str) -> bool:
     return any(k.startswith(prefixes) for k in flat)
 
@@ -222,13 +236,14 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
     samples = read_samples(args.path, args.layout)
     for note in samples.notes:
         say.progress(f"note: {note}")
-    intrinsics = _intrinsics(samples, args.intrinsics)
     file_flat = ({} if args.config is None
                  else read_parameter_file(args.config, args.node_name))
+    samples = match_cameras(samples, file_flat)
+    intrinsics = _intrinsics(samples, args.intrinsics)
     flat, invert, warnings = samples_parameters(samples, file_flat, _mount_flag(args))
     flat.update(solver_overrides(args))
     flat.update(prior_overrides(args, flat))
-    where = "samples" if args.config is None else f"config file {str(args.config)!r}"
+    where = samples.source if args.config is None else f"config file {str(args.config)!r}"
     config = config_from_parameters(flat, where)
     for text in warnings:
         say.warning("samples", text)
