@@ -453,7 +453,7 @@ def test_demo_end_to_end_and_report_subcommand(tmp_path):
 
 # --- one meaning per option --------------------------------------------------------------------
 
-SOLVING = ("csv", "bag", "dataset", "demo")
+SOLVING = ("csv", "bag", "samples", "poses", "dataset", "demo")
 SHARED = {"output", "force", "config", "node_name", "mode", "min_pairs", "robust", "report",
           "prior",
           "quiet"}

@@ -17,6 +17,10 @@ Subcommands (shared options: ``-o DIR``, ``--force``, ``--config FILE``, ``--nod
     rwhec-calibrate csv DIR [shared] [--sigma S] [--kappa K] [--unknown-scale]
                             [--camera-carrier FRAME] [--tag-carrier FRAME]
     rwhec-calibrate bag BAG --config FILE [shared]
+    rwhec-calibrate samples DIR [shared] [--eye-in-hand | --eye-to-hand]
+                            [--intrinsics [CAMERA=]FILE] [--layout NAME]
+    rwhec-calibrate poses FILE [shared] [--eye-in-hand | --eye-to-hand] [--sigma S] [--kappa K]
+                          [--unknown-scale]
     rwhec-calibrate dataset FILE [shared] [--camera-carrier FRAME] [--tag-carrier FRAME]
     rwhec-calibrate demo [shared] [--cameras N] [--tags N] [--seconds S] [--rate HZ] [--seed S]
     rwhec-calibrate report RESULT.yaml [--dataset FILE] [-o DIR] [--force]
@@ -28,7 +32,11 @@ time order, into a :class:`~rwhec_ros.session.CalibrationSession` through the no
 :class:`~rwhec_ros.session.handlers.MessageHandlers`, with the same configuration file as the node
 (PoseStamped topic, or ``/tf`` + ``/tf_static`` looked up at each image stamp). Unlike the node,
 images are processed synchronously (none is dropped) and the tf lookup sees the whole recording
-(the node waits ``sync.tf_timeout_s``). ``dataset`` solves a saved data set
+(the node waits ``sync.tf_timeout_s``). ``samples``
+feeds a folder of stop-and-go views (our manifest, industrial_calibration's and
+camera_calibration_toolkit's folders; :mod:`.samples`) through the same session, ``poses`` solves
+a list of robot and target-in-camera poses like ``csv`` (:mod:`.pose_list`); formats in
+``docs/formats.md``. ``dataset`` solves a saved data set
 (:mod:`rwhec_ros.data.dataset`). ``demo`` runs the simulated rig of :mod:`rwhec_ros.simulation`
 through rendering, detection, synchronisation and the solver, and compares with the truth.
 
@@ -41,6 +49,7 @@ collected so far).
 
 Modules: :mod:`.parser` (options and help), :mod:`.common` (output rule, settings, solving),
 :mod:`.files` (``csv``, ``dataset``, ``report``), :mod:`.replay` (``bag``, ``demo``),
+:mod:`.samples` (``samples``), :mod:`.pose_list` (``poses``),
 :mod:`.main` (dispatch).
 """
 

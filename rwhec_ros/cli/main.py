@@ -23,13 +23,17 @@ from .common import (
 )
 from .files import cmd_csv, cmd_dataset, cmd_report
 from .parser import build_parser
+from .pose_list import cmd_poses
 from .replay import cmd_bag, cmd_demo
+from .samples import cmd_samples
 
 __all__ = ["main"]
 
 _COMMANDS: dict[str, Callable[[argparse.Namespace, Printer], int]] = {
     "csv": cmd_csv,
     "bag": cmd_bag,
+    "samples": cmd_samples,
+    "poses": cmd_poses,
     "dataset": cmd_dataset,
     "demo": cmd_demo,
     "report": cmd_report,

@@ -121,13 +121,15 @@ def _replay(args, say: Printer, session, handlers, routes,
     from ..messages import stamp_to_ns
     from ..session.info_wait import CameraInfoWait
     from ..session.replay import ReplayFeeder
+    from ..sync.at_rest import AtRestRule
 
     config = session.config
     ps = config.pose_source
     tf = None
     if ps.type == "tf":  # the whole recording's tf first: lookups never wait for later data
         tf = tf_tree_type(max_gap_ns=int(round(config.sync.max_gap_s * 1e9)),
-                          tolerance_ns=int(round(config.sync.extrapolation_tolerance_s * 1e9)))
+                          tolerance_ns=int(round(config.sync.extrapolation_tolerance_s * 1e9)),
+                          at_rest=AtRestRule.from_sync(config.sync))
         progress = Progress(say.err, "reading /tf", enabled=not args.quiet)
         for m in read_messages(args.bag, ["/tf", "/tf_static"], on_progress=progress):
             tf.add_message(m.msg, static=m.topic == "/tf_static")

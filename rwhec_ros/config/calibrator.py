@@ -14,6 +14,7 @@ import yaml
 from .sections import (
     AccuracyConfig,
     CameraConfig,
+    CaptureConfig,
     CarrierConfig,
     ConvergenceConfig,
     DetectionConfig,
@@ -28,7 +29,14 @@ from .sections import (
     TagsConfig,
     TargetsConfig,
 )
-from .specs import GLOBAL_SPECS, IMAGE_QOS, IMAGE_TRANSPORTS, POSE_SOURCE_TYPES, SOLVER_MODES
+from .specs import (
+    CAPTURE_MODES,
+    GLOBAL_SPECS,
+    IMAGE_QOS,
+    IMAGE_TRANSPORTS,
+    POSE_SOURCE_TYPES,
+    SOLVER_MODES,
+)
 from .targets import build_targets
 from .validation import (
     check_choice,
@@ -70,6 +78,7 @@ class CalibratorConfig:
     accuracy: AccuracyConfig = field(default_factory=AccuracyConfig)
     convergence: ConvergenceConfig = field(default_factory=ConvergenceConfig)
     targets: TargetsConfig = field(default_factory=TargetsConfig)
+    capture: CaptureConfig = field(default_factory=CaptureConfig)
 
     # --- names ------------------------------------------------------------------------------
     @property
@@ -257,6 +266,14 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         detection_threads=check_int_or_auto(v, "sync.detection_threads", 1),
         max_pending_images=check_positive_int(v, "sync.max_pending_images", 0),
         tf_timeout_s=check_positive(v, "sync.tf_timeout_s", allow_zero=True),
+        at_rest_max_gap_s=check_positive(v, "sync.at_rest_max_gap_s", allow_zero=True),
+        at_rest_translation_m=check_positive(v, "sync.at_rest_translation_m", allow_zero=True),
+        at_rest_rotation_rad=check_positive(v, "sync.at_rest_rotation_rad", allow_zero=True),
+    )
+    capture = CaptureConfig(
+        mode=check_choice(v, "capture.mode", CAPTURE_MODES),
+        rest_s=check_positive(v, "capture.rest_s", allow_zero=True),
+        timeout_s=check_positive(v, "capture.timeout_s"),
     )
     keyframe = KeyframeConfig(
         min_rotation_rad=check_positive(v, "keyframe.min_rotation_rad"),
@@ -329,6 +346,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         accuracy=accuracy,
         convergence=convergence,
         targets=targets,
+        capture=capture,
     )
 
 

@@ -20,6 +20,7 @@ __all__ = [
     "OutputConfig",
     "RosConfig",
     "AccuracyConfig",
+    "CaptureConfig",
 ]
 
 
@@ -113,7 +114,8 @@ class SyncConfig:
     """Pose/image time matching. Seconds here; the session converts to integer nanoseconds.
 
     ``image_queue_size`` counts per camera; ``detection_threads`` is an integer or ``"auto"``
-    (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`).
+    (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`). ``at_rest_*``: the
+    stop-and-go rule of :mod:`rwhec_ros.sync.at_rest`.
     """
 
     max_gap_s: float
@@ -123,6 +125,9 @@ class SyncConfig:
     detection_threads: int | str
     max_pending_images: int
     tf_timeout_s: float
+    at_rest_max_gap_s: float = 2.0
+    at_rest_translation_m: float = 0.0005
+    at_rest_rotation_rad: float = 0.001
 
 
 @dataclass(frozen=True)
@@ -209,3 +214,14 @@ class AccuracyConfig:
 
     cross_validation_folds: int = 5
     guidance: bool = True
+
+
+@dataclass(frozen=True)
+class CaptureConfig:
+    """Which images become candidate views (:mod:`rwhec_ros.session.capture`): ``mode``
+    ``"continuous"``, ``"capture"`` or ``"both"``; a capture takes each camera's next image
+    whose pose has been at rest for ``rest_s`` and answers after at most ``timeout_s``."""
+
+    mode: str = "continuous"
+    rest_s: float = 0.5
+    timeout_s: float = 10.0

@@ -27,6 +27,7 @@ __all__ = [
     "POSE_SOURCE_TYPES",
     "IMAGE_QOS",
     "IMAGE_TRANSPORTS",
+    "CAPTURE_MODES",
 ]
 
 #: Node name used by the console script, the launch files and the example configurations.
@@ -48,6 +49,8 @@ SOLVER_MODES = ("fast", "sdp", "local")
 POSE_SOURCE_TYPES = ("topic", "tf")
 IMAGE_QOS = ("sensor_data", "reliable")
 IMAGE_TRANSPORTS = ("raw", "compressed")
+#: ``capture.mode`` values: which images become candidate views (:mod:`rwhec_ros.session.capture`).
+CAPTURE_MODES = ("continuous", "capture", "both")
 #: ``targets.<name>.type`` values: one tag of ``tags.family`` with its own frame name, a
 #: Kalibr-style AprilGrid, a ChArUco board (:mod:`rwhec_ros.vision.boards`).
 TARGET_TYPES = ("tag", "aprilgrid", "charuco")
@@ -135,11 +138,29 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="images waiting for a later pose to bracket their stamp"),
     ParamSpec("sync.tf_timeout_s", "double", 0.2,
               doc="wait [s] for tf at an image stamp (pose_source.type 'tf')"),
+    ParamSpec("sync.at_rest_max_gap_s", "double", 2.0,
+              doc="stop-and-go: an image between two pose samples further apart than "
+                  "sync.max_gap_s but at most this [s], that agree within sync.at_rest_*, gets "
+                  "the pose at rest (an image newer than the newest sample waits this long for "
+                  "one after it when the two newest agree); 0 = off"),
+    ParamSpec("sync.at_rest_translation_m", "double", 0.0005,
+              doc="two pose samples are the same pose at rest when their translations differ "
+                  "by at most this [m] ..."),
+    ParamSpec("sync.at_rest_rotation_rad", "double", 0.001,
+              doc="... and their rotations by at most this [rad]"),
     ParamSpec("keyframe.min_rotation_rad", "double", 0.05,
               doc="a new pair needs this rotation [rad] from the last kept one (same edge)"),
     ParamSpec("keyframe.min_translation_m", "double", 0.02,
               doc="... or this translation [m]"),
     ParamSpec("keyframe.max_pairs_per_edge", "int", 300, doc="cap on kept pairs per edge"),
+    ParamSpec("capture.mode", "string", "continuous",
+              doc="'continuous' (every image is a candidate view, kept by the keyframe test), "
+                  "'capture' (only the images taken by the ~/capture service) or 'both'"),
+    ParamSpec("capture.rest_s", "double", 0.5,
+              doc="~/capture takes each camera's next image whose pose has been at rest "
+                  "(sync.at_rest_* tolerances, over that camera's images) for this long [s]"),
+    ParamSpec("capture.timeout_s", "double", 10.0,
+              doc="~/capture answers with what it has after this long [s]"),
     ParamSpec("detection.corner_refinement", "string", "edge",
               doc="corner refinement: 'edge' (sub-pixel edge-line fit, the most accurate "
                   "measured, see benchmarks/perception.md), or cv2.aruco's 'subpix', "

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..core.lie import invert_transform
 from ..messages import transform_stamped_to_transform
+from ..sync.at_rest import AtRestRule, at_rest_lookup
 from ..sync.buffer import PoseBuffer
 
 __all__ = [
@@ -179,11 +180,16 @@ class TfTree:
     tolerance_ns : int
         A stamp this close [ns] to a sample it cannot be interpolated around gets that sample
         (``sync.extrapolation_tolerance_s``).
+    at_rest : AtRestRule, optional
+        Stop-and-go (``sync.at_rest_*``): a stamp between two samples of a link further apart
+        than ``max_gap_ns`` that agree gets the link at rest (:mod:`rwhec_ros.sync.at_rest`).
     """
 
-    def __init__(self, *, max_gap_ns: int, tolerance_ns: int = 0) -> None:
+    def __init__(self, *, max_gap_ns: int, tolerance_ns: int = 0,
+                 at_rest: AtRestRule | None = None) -> None:
         self.max_gap_ns = int(max_gap_ns)
         self.tolerance_ns = int(tolerance_ns)
+        self.at_rest = at_rest
         if self.max_gap_ns < 1:
             raise ValueError(f"max_gap_ns: must be >= 1, got {max_gap_ns!r}")
         if self.tolerance_ns < 0:
@@ -250,6 +256,8 @@ class TfTree:
             else:
                 buf = self._dynamic[frame]
                 link = buf.lookup(stamp_ns)
+                if link is None:
+                    link = at_rest_lookup(buf, stamp_ns, self.at_rest)
                 if link is None:
                     status = buf.lookup_status(stamp_ns).value
                     raise LookupError(

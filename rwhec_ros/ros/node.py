@@ -16,7 +16,8 @@ Interfaces (relative names, so the node can be namespaced):
   subscription), history depth ``ros.image_queue_depth``, and
   ``pose_source.topic`` (``geometry_msgs/PoseStamped``) or, with ``pose_source.type: tf``, looks
   ``T_parent_child`` up on tf at every image stamp (tf2 ``Buffer`` + ``TransformListener``);
-* services ``calibrate``, ``~/reset``, ``~/save_dataset`` (``std_srvs/Trigger``);
+* services ``calibrate``, ``~/reset``, ``~/save_dataset`` and ``~/capture`` (``std_srvs/Trigger``;
+  ``~/capture`` takes one view now, :mod:`rwhec_ros.ros.capture`);
 * publishes the extrinsics on ``/tf_static`` (``StaticTransformBroadcaster``, child frames from
   the configuration; only the frames the verdict finds usable unless ``output.publish_unusable``,
   the others named in the ``calibrate`` response and the log), ``~/suboptimality_bound``
@@ -100,6 +101,7 @@ from ..session.responses import (
     should_publish_tf,
 )
 from ..vision.annotate import annotate_detections
+from .capture import add_capture_service
 from .params import config_from_node
 from .process import rclpy_main
 
@@ -206,6 +208,7 @@ class CalibratorNode(Node):
                             callback_group=self._service_group)
         self.create_service(Trigger, "~/save_dataset", self._on_save_dataset,
                             callback_group=self._service_group)
+        add_capture_service(self)  # ~/capture (rwhec_ros.ros.capture): one view now, for arms
 
         # --- publishers ---------------------------------------------------------------------------
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,

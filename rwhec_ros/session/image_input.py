@@ -9,7 +9,11 @@ Order of the work for one image of camera ``c`` at stamp ``s``:
 1. cheap checks (known camera, intrinsics, stamp; for an array its type and size);
 2. ``A`` at ``s``: the given pose (tf), or the pose buffer. An image newer than the newest pose
    waits, *undecoded*, for a pose after its stamp (``sync.max_pending_images``; the pose that
-   brackets it processes it);
+   brackets it processes it); where the buffer cannot serve ``s`` the stop-and-go rule of
+   :mod:`rwhec_ros.sync.at_rest` may (counted ``pose_at_rest``); then ``capture.mode`` and the
+   pending captures (:mod:`rwhec_ros.session.capture`): in capture-only mode an image no
+   capture takes is left out here, undecoded (``images_not_captured``); an image a capture
+   takes skips the motion gate;
 3. **motion gate** (``detection.motion_gate``): the keyframe test of
    :class:`~rwhec_ros.sync.accumulator.PairAccumulator` depends on the stamp and ``A`` only, so
    before any pixel is read the session asks every edge ``(target, c)`` whether it would keep a
@@ -61,9 +65,11 @@ from typing import Any
 
 import numpy as np
 
+from ..sync.at_rest import AtRestRule, at_rest_lookup, waits_at_rest
 from ..sync.buffer import LookupStatus
 from ..vision.detection import RejectReason
 from ..vision.target_detector import TargetDetector
+from .capture import NOT_CAPTURED
 from .outcomes import ImageOutcome
 
 __all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS", "LOOK_BACK_IMAGES"]
@@ -102,7 +108,7 @@ class ImageInput:
     docstring). It uses the session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
     ``_pending``, ``_counters``, ``_camera_counts``, ``_rejections``, ``_intrinsics``,
     ``_data_version``, ``_x_names``, ``_target_specs``, ``_local``, ``_detector_config``,
-    ``config`` and
+    ``_capture``, ``config`` and
     ``_pose_to_A``."""
 
     # --- public --------------------------------------------------------------------------------
@@ -225,11 +231,17 @@ class ImageInput:
     # --- pose ----------------------------------------------------------------------------------
     def _waits(self, stamp: int) -> bool:
         """The image should wait for a later pose (lock held): newer than the newest pose and
-        a later pose could still serve it, so that ``A`` is interpolated, not held."""
+        a later pose could still serve it, so that ``A`` is interpolated, not held; or the
+        stream is at rest and a later pose may confirm it (:func:`~rwhec_ros.sync.at_rest.
+        waits_at_rest`)."""
         newest = self._buffer.newest_ns
         status = self._buffer.lookup_status(stamp)
         bracketed = newest is not None and stamp <= newest
-        return not bracketed and (status.retry or status is LookupStatus.OK)
+        if bracketed:
+            return False
+        if status.retry or status is LookupStatus.OK:
+            return True
+        return waits_at_rest(self._buffer, stamp, AtRestRule.from_sync(self.config.sync))
 
     def _pose_at(self, stamp: int, *, final: bool) -> tuple[str, np.ndarray | None, str]:
         """``("wait", None, "")``, ``("ok", A, "")`` or ``("rejected", None, reason)`` for an
@@ -238,6 +250,10 @@ class ImageInput:
             return "wait", None, ""
         A = self._buffer.lookup(stamp)
         if A is not None:
+            return "ok", A, ""
+        A = at_rest_lookup(self._buffer, stamp, AtRestRule.from_sync(self.config.sync))
+        if A is not None:  # stop-and-go: the stream was at rest across the image
+            self._count("pose_at_rest")
             return "ok", A, ""
         return "rejected", None, f"no_pose_at_stamp:{self._buffer.lookup_status(stamp).value}"
 
@@ -291,8 +307,25 @@ class ImageInput:
 
     def _examine(self, camera: str, stamp: int, image: ImageSource, intrinsics,
                  A: np.ndarray) -> ImageOutcome:
-        """Steps 3-5 of the module docstring for an image whose ``A`` is known (lock NOT held)."""
-        gate = self.config.detection.motion_gate
+        """An image whose ``A`` is known (lock NOT held): first ``capture.mode`` and the pending
+        captures (:class:`~rwhec_ros.session.capture.CaptureGate`): left out in capture-only
+        mode, or taken by a capture (searched without the motion gate, its outcome delivered);
+        then steps 3-5 of the module docstring."""
+        with self._lock:
+            take = self._capture.decide(camera, stamp, A, self.config)
+            if take == NOT_CAPTURED:
+                self._count("images_not_captured")
+        if take == NOT_CAPTURED:
+            return ImageOutcome(camera, stamp, "skipped", reasons=["images_not_captured"])
+        outcome = self._search(camera, stamp, image, intrinsics, A, gate=take is None)
+        for request in take or ():
+            request.deliver(camera, outcome)
+        return outcome
+
+    def _search(self, camera: str, stamp: int, image: ImageSource, intrinsics,
+                A: np.ndarray, *, gate: bool) -> ImageOutcome:
+        """Steps 3-5 of the module docstring (the motion gate only with ``gate``)."""
+        gate = gate and self.config.detection.motion_gate
         with self._lock:
             wanted = self._keepable_targets(camera, stamp, A) if gate else None
             if gate and not self._worth_searching(camera, A, wanted):

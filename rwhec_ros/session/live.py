@@ -34,6 +34,7 @@ from ..sync.buffer import PoseBuffer
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .accuracy import AccuracyOptions
+from .capture import CaptureGate, CaptureMixin
 from .image_input import CAMERA_COUNTERS, LOOK_BACK_IMAGES, ImageInput
 from .live_solve import LiveSolver, PairsSnapshot
 from .outcomes import SolveOutcome, edge_rows
@@ -47,11 +48,12 @@ __all__ = ["CalibrationSession"]
 _NS_PER_S = 1_000_000_000
 
 
-class CalibrationSession(ImageInput):
+class CalibrationSession(ImageInput, CaptureMixin):
     """Accumulate synchronised measurement pairs live and calibrate on request.
 
     Images go in through :meth:`add_image` (:class:`~rwhec_ros.session.image_input.ImageInput`:
-    pose, motion gate, tags, pairs), poses through :meth:`add_pose`.
+    pose, motion gate, tags, pairs), poses through :meth:`add_pose`; :meth:`capture` takes a
+    view now (:class:`~rwhec_ros.session.capture.CaptureMixin`, ``capture.mode``).
 
     Parameters
     ----------
@@ -113,6 +115,7 @@ class CalibrationSession(ImageInput):
         self._x_names = config.x_names
         self._intrinsics: dict[str, CameraIntrinsics] = {}
         self._last_outcome: SolveOutcome | None = None
+        self._capture = CaptureGate()  # capture.mode and ~/capture (rwhec_ros.session.capture)
         # never reset: the live solver compares them across resets
         self._data_version = 0
         self._calibrations = 0
@@ -500,6 +503,7 @@ class CalibrationSession(ImageInput):
         kept)."""
         with self._lock:
             self._init_data()
+            self._capture.forget()
             self._data_version += 1
             self._resets += 1
         self.live.forget()
