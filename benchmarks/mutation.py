@@ -18,8 +18,8 @@ a mutant at module or class level (a default value, run at import) runs the test
 target's ``TESTS`` files instead; a mutant on a line no test executes survives without a run.
 ``--select files`` runs every test of the ``TESTS`` files (slow: minutes per surviving mutant).
 
-Targets (``TARGETS``): ``rwhec_ros/core/certificate.py``, ``rwhec_ros/core/verified.py`` and
-the large-rig path's ``rwhec_ros/core/sparse_certificate.py`` (every line but docstrings), and
+Targets (``TARGETS``): ``rwhec_ros/core/certificate.py``, ``rwhec_ros/core/numerics/verified.py``
+and the large-rig path's ``rwhec_ros/core/sparse_certificate.py`` (every line but docstrings), and
 the status decisions of ``rwhec_ros/core/solve.py`` and ``rwhec_ros/core/sparse_fast.py`` (the
 functions named there).
 
@@ -55,7 +55,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 TARGETS = {
     "rwhec_ros/core/certificate.py": None,  # every function and class
-    "rwhec_ros/core/verified.py": None,
+    "rwhec_ros/core/numerics/verified.py": None,
     "rwhec_ros/core/solve.py": {
         "_certify", "_failed_certificate", "_solve_fast", "_solve_sdp", "_check_identifiability",
         "_downgrade", "_rotation_gauge_words", "_estimate",
@@ -69,7 +69,7 @@ TARGETS = {
 TESTS = {
     "rwhec_ros/core/certificate.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
                                       "test/core/test_solve.py"],
-    "rwhec_ros/core/verified.py": ["test/core/test_verified_rounding.py",
+    "rwhec_ros/core/numerics/verified.py": ["test/core/test_verified_rounding.py",
                                    "test/core/test_verified.py", "test/core/test_certificate.py"],
     "rwhec_ros/core/solve.py": ["test/core/test_solve_status.py", "test/core/test_certificate.py",
                                 "test/core/test_gauge.py", "test/core/test_solve.py"],
@@ -118,7 +118,7 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
        "the rounding differs)" for d in ("Gt -> GtE", "drop abs", "drop USub", "1 -> 2",
                                           "1 -> 0", "Mult -> Div", "1e-08 -> x100",
                                           "1e-08 -> /100")},
-    **{("rwhec_ros/core/verified.py", src, d): why for src, d, why in [
+    **{("rwhec_ros/core/numerics/verified.py", src, d): why for src, d, why in [
         ("if n == 0 or not np.any(A):", "Or -> And",
          "for a zero A the power iteration stops at once (top = 0) and returns 0 as well"),
         ("if n == 0 or not np.any(A):", "0 -> -1",

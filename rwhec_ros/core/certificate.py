@@ -19,7 +19,7 @@ bound on ``y^T (S_G - K - Z_fl) y`` from the entrywise rounding bounds of the re
 scaling and of forming ``K`` (the sum of the bound matrix, or ``3 n + 1`` times its largest row
 sum), ``||F||`` bounded by the backward error of the Cholesky solve and ``l_e`` a proven lower
 bound on ``lambda_min(Q_ee)``. ``lambda_min(Z_fl)`` is bounded from below by a shifted Cholesky
-factorisation with a backward-error margin (:mod:`rwhec_ros.core.verified`). The relative
+factorisation with a backward-error margin (:mod:`rwhec_ros.core.numerics.verified`). The relative
 suboptimality bound of the returned estimate with cost ``p`` (evaluated directly from the
 residuals of eq. (33), never from the reduced cost) is ``rho_hat = (p - d) / max(d, floor)``
 (eq. (73)).
@@ -41,9 +41,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cost import ReducedCost
+from .numerics.verified import UNIT_ROUNDOFF, gamma, smallest_eigenvalues, verified_min_eigenvalue
 from .relaxation import ConstraintSet
 from .result import Certificate, Status
-from .verified import UNIT_ROUNDOFF, gamma, smallest_eigenvalues, verified_min_eigenvalue
 
 __all__ = ["CertificateOptions", "DualBound", "ExactReduction", "certificate_matrix",
            "rigorous_dual_bound", "certify_from_Z", "certificate_from_bound", "certify"]

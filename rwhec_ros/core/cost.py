@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .cholesky import upper_cholesky, upper_cholesky_solve
 from .lie import vec
+from .numerics.cholesky import upper_cholesky, upper_cholesky_solve
 from .problem import Problem
 
 __all__ = [
@@ -364,7 +364,7 @@ def direct_cost_error(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: flo
     roundings each) is covered by a factor ``1 + 1e-6``. A few array operations per pair: no
     second pass over the products.
     """
-    from .verified import gamma
+    from .numerics.verified import gamma
 
     X = np.asarray(X, float)
     Y = np.asarray(Y, float)
@@ -437,13 +437,13 @@ class ReducedCost:
         when it is singular (unidentifiable translations): ``Qr`` then comes from the
         pseudo-inverse (minimum-norm recovery) and proves nothing.
     block_lower : float
-        Proven lower bound on ``lambda_min(Q_ee)`` (:func:`~rwhec_ros.core.verified.
+        Proven lower bound on ``lambda_min(Q_ee)`` (:func:`~rwhec_ros.core.numerics.verified.
         verified_min_eigenvalue`).
     residual_norm : float
         Upper bound on ``||Q_ee G + Q_ey||_2`` for the recovery ``t = G y`` actually used (the
         backward error of the Cholesky solve, Higham Thm. 10.4; or, with ``residual=
         "extended"``, the Frobenius norm of the extended-precision bound of
-        :mod:`rwhec_ros.core.extended_residual`).
+        :mod:`rwhec_ros.core.numerics.extended_residual`).
     err_rows : ndarray, shape (9 (M + P) + 1,)
         Row sums of an entrywise bound ``E`` on ``|Qr - S_G|``, where ``S_G = Q_yy + G^T Q_ee G +
         G^T Q_ey + Q_ey^T G`` is the exact reduced cost *for this G* (for any ``G`` and ``u``,
@@ -503,14 +503,14 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool, *,
     ``residual`` chooses the bound on the residual ``F = Q_ee G + Q_ey`` of the recovery:
     ``"cholesky"`` (default), the backward error of the solve, computed with matrix-vector
     products only; ``"extended"``, ``F`` evaluated in extended precision with a proven bound
-    (:func:`~rwhec_ros.core.extended_residual.residual_bound`: a few matrix products, usually
-    hundreds of times tighter). ``Qr``, ``recover``, the block bound and the product terms are
-    the same either way (bit for bit); only ``err_rows`` and ``residual_norm`` differ.
+    (:func:`~rwhec_ros.core.numerics.extended_residual.residual_bound`: a few matrix products,
+    usually hundreds of times tighter). ``Qr``, ``recover``, the block bound and the product terms
+    are the same either way (bit for bit); only ``err_rows`` and ``residual_norm`` differ.
     """
     if residual not in ("cholesky", "extended"):
         raise ValueError(f"residual: expected 'cholesky' or 'extended', got {residual!r}")
-    from .extended_residual import residual_bound
-    from .verified import gamma, nonnegative_spectral_radius_bound, verified_min_eigenvalue
+    from .numerics.extended_residual import residual_bound
+    from .numerics.verified import gamma, nonnegative_spectral_radius_bound, verified_min_eigenvalue
 
     nt = layout.n_t
     a = layout.alpha
@@ -604,7 +604,7 @@ def reduce_cost(Q: sp.spmatrix, layout: StateLayout, unknown_scale: bool, *,
 
 def _inverse_iteration_min(factor: np.ndarray, m: int, iterations: int = 6) -> float:
     """Estimate of ``lambda_min`` of the matrix whose upper Cholesky factor is ``factor``
-    (:func:`~rwhec_ros.core.cholesky.upper_cholesky`) by inverse iteration."""
+    (:func:`~rwhec_ros.core.numerics.cholesky.upper_cholesky`) by inverse iteration."""
     x = 1.0 + 0.5 * np.sin(np.arange(m) * 1.7)  # deterministic start with mixed components
     x /= np.linalg.norm(x)
     est = float("inf")

@@ -242,7 +242,7 @@ def _positive_definite(E, tau: float) -> bool:
     """Whether ``E - tau I`` has a (floating-point) Cholesky / ``L D L^T`` factorisation with
     positive pivots."""
     if sp.issparse(E):
-        from .sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+        from .numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 
         try:
             return SparseLDL(upper_with_diagonal(E - tau * sp.eye(E.shape[0]))).positive_definite
@@ -269,8 +269,8 @@ def _weak_eigenpairs(E, opts: GaugeOptions, info_floor: float
         return w[weak], V[:, weak].copy(), w_max
     import scipy.sparse.linalg as spla
 
-    from .sparse_ldl import SparseLDL, upper_with_diagonal
-    from .verified import lanczos_start
+    from .numerics.sparse_ldl import SparseLDL, upper_with_diagonal
+    from .numerics.verified import lanczos_start
 
     m = E.shape[0]
     w_top = spla.eigsh(E, k=1, which="LA", tol=1e-8, return_eigenvectors=False,
@@ -409,7 +409,7 @@ class GaugeFix:
         of ``r`` is off by at most ``gamma_{m+2} |h| (|G| |t| + |b|)_i`` (``m`` columns of
         ``G``), so the value is within ``rho (2 |r| e + e^2)`` of the exact one plus
         ``gamma_{m+3}`` of itself; the bound's own rounding is covered by ``1 + 1e-6``."""
-        from .verified import gamma
+        from .numerics.verified import gamma
 
         tv = np.asarray(t, float).reshape(-1)
         r = h * (self.G @ tv - self.b)

@@ -19,8 +19,8 @@ import scipy.sparse.linalg as spla
 
 from .cost import ReducedCost, StateLayout, build_cost_matrices
 from .lie import make_transform, project_to_so3, unvec
+from .numerics.verified import lanczos_start
 from .problem import Problem
-from .verified import lanczos_start
 
 __all__ = ["Estimate", "rotations_from_vector", "closed_form_estimate", "estimate_from_rotations",
            "primal_cost", "proven_cost", "initial_rotations"]

@@ -63,8 +63,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .numerics.verified import UNIT_ROUNDOFF, gamma
 from .problem import Edge, Problem
-from .verified import UNIT_ROUNDOFF, gamma
 
 __all__ = ["CAMERA", "TAG", "Recentring", "recentring_for", "recentred_problem",
            "recentred_frames", "recentred_options", "restore_estimate", "scale_bound",
@@ -299,7 +299,7 @@ def pose_misfit_lower_bound(problem: Problem) -> float:
     Hessian ``2 H`` (strong convexity); ``q(z)`` from below and ``|grad q(z)|`` from above with
     the rounding of the residuals (``gamma_5`` of each of their 5-term sums) and of the sums,
     ``lambda_min(H)`` by a verified Cholesky bound less the rounding in forming ``H``."""
-    from .verified import verified_min_eigenvalue
+    from .numerics.verified import verified_min_eigenvalue
 
     M, n = problem.M, problem.n_frames
     N = problem.n_measurements

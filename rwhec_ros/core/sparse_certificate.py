@@ -17,10 +17,10 @@ z``, because ``y^T K y = lambda_s`` on the constraint set.
 **Theorem (the sparse bound).** Let ``Z_fl`` be ``Z`` as computed, ``|Z - Z_fl| <= E``
 entrywise (``E`` symmetric, nonnegative), and choose shifts ``delta_i >= 0`` on the free
 coordinates and ``mu`` on ``y``. Let ``A = fl(Z_fl + Diag(-delta, mu I))`` and suppose its
-``L D L^T`` factorisation (:class:`~rwhec_ros.core.sparse_ldl.SparseLDL`) runs to completion with
-every pivot ``D_ii > 0``, so that ``(I + L) D (I + L)^T = P^T (A + dA) P`` is positive
-semidefinite, and let ``w`` be weights with ``(|dA| 1)_i <= w_i``
-(:meth:`~rwhec_ros.core.sparse_ldl.SparseLDL.backward_error_rows`). Put::
+``L D L^T`` factorisation (:class:`~rwhec_ros.core.numerics.sparse_ldl.SparseLDL`) runs to
+completion with every pivot ``D_ii > 0``, so that ``(I + L) D (I + L)^T = P^T (A + dA) P`` is
+positive semidefinite, and let ``w`` be weights with ``(|dA| 1)_i <= w_i``
+(:meth:`~rwhec_ros.core.numerics.sparse_ldl.SparseLDL.backward_error_rows`). Put::
 
     c_i = w_i + u |A_ii| + (E 1)_i.
 
@@ -78,12 +78,12 @@ import scipy.sparse.linalg as spla
 
 from .certificate import CertificateOptions, DualBound, certificate_from_bound
 from .local_solver import handedness_multipliers
+from .numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+from .numerics.verified import UNIT_ROUNDOFF, gamma, lanczos_start
 from .relaxation import _PATTERN
 from .result import Certificate, Status
-from .sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 from .sparse_problem import FullForm
 from .sparse_solver import rotation_blocks
-from .verified import UNIT_ROUNDOFF, gamma, lanczos_start
 
 __all__ = ["CertificatePattern", "first_order_multipliers", "sparse_dual_bound", "certify_sparse"]
 

@@ -40,13 +40,13 @@ import scipy.sparse.linalg as spla
 from .cost import StateLayout, edge_blocks
 from .gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
 from .initialization import Estimate, initial_rotations, primal_cost
+from .numerics.verified import lanczos_start
 from .problem import Problem
 from .result import CalibrationResult, Certificate
 from .sparse_certificate import CertificatePattern, certify_sparse
 from .sparse_problem import FullForm, build_full_form, pruned_gauge, translation_block
 from .sparse_solver import NewtonSystem, refine_rotations_sparse, rotation_blocks
 from .sparsity import elimination_front
-from .verified import lanczos_start
 
 __all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "SPARSE_ALWAYS_FRAMES", "use_sparse",
            "SparsePrepared", "prepare_sparse", "estimate_sparse", "solve_fast_sparse",

@@ -39,9 +39,9 @@ import scipy.sparse.linalg as spla
 from .cost import StateLayout, edge_blocks
 from .gauge import GaugeFix
 from .initialization import Estimate, rotations_from_vector
+from .numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+from .numerics.verified import lanczos_start
 from .problem import Problem
-from .sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
-from .verified import lanczos_start
 
 __all__ = ["TREE_ARITY", "PRUNE_REL", "pruned_gauge", "penalty_tree", "translation_block",
            "FullForm", "build_full_form"]
@@ -205,7 +205,8 @@ class FullForm:
 
     def factor_free(self) -> SparseLDL:
         """The ``L D L^T`` factorisation of ``Q_ff`` (built once). Raises
-        :class:`~rwhec_ros.core.sparse_ldl.FactorizationError` when ``Q_ff`` is not positive
+        :class:`~rwhec_ros.core.numerics.sparse_ldl.FactorizationError` when ``Q_ff`` is not
+        positive
         definite (translations the gauge analysis did not catch)."""
         if self._ff is None:
             nf = self.n_free

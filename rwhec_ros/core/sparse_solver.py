@@ -15,7 +15,7 @@ sparse_problem`) and right perturbations ``R_l <- R_l exp(omega_l^)``:
   ``S_l = sym(R_l^T G_l)``, ``J`` block-diagonal (``omega_l -> vec(R_l omega_l^)``), so solving
   ``(H + Diag(0, lambda I)) [df; omega] = [0; -g]`` gives exactly the damped Newton step
   ``(H_red + lambda I) omega = -g`` of the dense solver, with one sparse ``L D L^T``
-  factorisation (:class:`~rwhec_ros.core.sparse_ldl.SparseLDL`) on a pattern fixed once.
+  factorisation (:class:`~rwhec_ros.core.numerics.sparse_ldl.SparseLDL`) on a pattern fixed once.
 
 The damping, the acceptance test and the stopping rules are those of the dense solver (the damping
 scale uses the diagonal of ``J^T Q_rr J + D``, an upper bound on that of ``H_red``), so both reach
@@ -29,7 +29,7 @@ import scipy.sparse as sp
 
 from .lie import vee
 from .local_solver import LocalSolution, LocalSolverOptions, _basis_jacobian, damped_newton
-from .sparse_ldl import SparseLDL
+from .numerics.sparse_ldl import SparseLDL
 from .sparse_problem import FullForm
 
 __all__ = ["NewtonSystem", "refine_rotations_sparse", "rotation_blocks"]
@@ -128,7 +128,7 @@ class NewtonSystem:
 
     def factor(self, damping: float) -> SparseLDL:
         """Factorise the assembled matrix plus ``damping`` on the rotation diagonal. Raises
-        :class:`~rwhec_ros.core.sparse_ldl.FactorizationError` on a zero pivot."""
+        :class:`~rwhec_ros.core.numerics.sparse_ldl.FactorizationError` on a zero pivot."""
         data = self._data.copy()
         data[self._pos_om] += damping
         if self._factor is None:

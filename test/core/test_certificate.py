@@ -285,7 +285,7 @@ def test_certificate_matrix_rounding_bound_holds_in_exact_arithmetic():
 def test_certificate_matrix_rounding_bound_is_the_documented_formula():
     """err_rows = gamma_{t+1} rows(|C||lambda|) + gamma_3 rows(|Q'| + |K|), t the most
     constraints on one entry of Z (counted here from the dense constraint matrices)."""
-    from rwhec_ros.core.verified import gamma
+    from rwhec_ros.core.numerics.verified import gamma
 
     Qs, cons, lam = _constraint_case(7)
     Z, err = certificate_matrix(Qs, cons, lam)
@@ -498,7 +498,7 @@ def test_inflation_factors_that_are_the_same_double():
     """Why two mutants of the rounding term are equivalent (benchmarks/mutation.py): as doubles,
     1 + gamma_1 == 1 + gamma_2 (= 1 + 2^-52) and 1 + gamma_3 == 1 + gamma_4 (= 1 + 2^-51), while
     1 + gamma_2 < 1 + gamma_3."""
-    from rwhec_ros.core.verified import gamma
+    from rwhec_ros.core.numerics.verified import gamma
 
     assert 1.0 + gamma(1) == 1.0 + gamma(2) == 1.0 + 2.0**-52
     assert 1.0 + gamma(3) == 1.0 + gamma(4) == 1.0 + 2.0**-51

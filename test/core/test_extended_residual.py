@@ -1,5 +1,5 @@
 """The extended-precision residual bound of the Schur reduction and the certificate retry that
-uses it (rwhec_ros.core.extended_residual, cost.reduce_cost(residual="extended"),
+uses it (rwhec_ros.core.numerics.extended_residual, cost.reduce_cost(residual="extended"),
 solve._certify).
 
 The data set ``fixtures/precise_rig.npz`` is a 3-camera, 6-tag part (252 pairs) of the camera-rate
@@ -19,7 +19,7 @@ import pytest
 
 import rwhec_ros.core.solve as solve_module
 from rwhec_ros.core.cost import StateLayout, build_cost_matrices, reduce_cost
-from rwhec_ros.core.extended_residual import extended_dtype, residual_bound
+from rwhec_ros.core.numerics.extended_residual import extended_dtype, residual_bound
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.result import Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve

@@ -20,10 +20,10 @@ from rwhec_ros.core.local_solver import (
     fast_certificate_multipliers,
     refine_rotations,
 )
+from rwhec_ros.core.numerics.verified import gamma
 from rwhec_ros.core.relaxation import frame_constraints, so3_constraint_matrices
 from rwhec_ros.core.solve import SolveOptions, _prepare, solve
 from rwhec_ros.core.synthetic import random_instance
-from rwhec_ros.core.verified import gamma
 
 
 def _instance(seed, unknown_scale=False, n_per_edge=15, sigma=0.01):

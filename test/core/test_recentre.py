@@ -289,8 +289,8 @@ def test_pose_misfit_and_scale_bounds_hold_in_exact_arithmetic():
     """The misfit of the pose translations alone: the proven lower bound is below the exact
     minimum (rational arithmetic, with the bound's rounded-down weights) and not far below it;
     the scale bound holds at the optimum."""
+    from rwhec_ros.core.numerics.verified import gamma
     from rwhec_ros.core.recentre import pose_misfit_lower_bound, scale_bound
-    from rwhec_ros.core.verified import gamma
 
     problem, _ = _instance(13, unknown_scale=True)
     far, _ = _far_tags(problem, 1e4)

@@ -18,6 +18,8 @@ import scipy.sparse as sp
 from rwhec_ros.core.certificate import CertificateOptions
 from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.local_solver import handedness_direction
+from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL
+from rwhec_ros.core.numerics.verified import UNIT_ROUNDOFF, gamma
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions
 from rwhec_ros.core.sparse_certificate import (
@@ -33,10 +35,8 @@ from rwhec_ros.core.sparse_certificate import (
     sparse_dual_bound,
 )
 from rwhec_ros.core.sparse_fast import estimate_sparse, prepare_sparse
-from rwhec_ros.core.sparse_ldl import FactorizationError, SparseLDL
 from rwhec_ros.core.sparse_solver import refine_rotations_sparse, rotation_blocks
 from rwhec_ros.core.synthetic import random_instance
-from rwhec_ros.core.verified import UNIT_ROUNDOFF, gamma
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_gauge import _planar_rig  # noqa: E402
