@@ -94,7 +94,7 @@ DEFINITIONS = f"""\
 
 All costs are ``f = 1/2 sum_pairs (|alpha (R_A t_X + t_A - t_Y) - R_Y t_B|^2 / sigma^2 +
 kappa |R_A R_X - R_Y R_B|_F^2)`` (eq. (33) with the 1/2 of eq. (42); metric ``t``; ``alpha = 1``
-for known scale) -- the same number as ``rwhec_ros.core.cost.direct_cost`` (checked in
+for known scale) -- the same number as ``rwhec_ros.core.model.cost.direct_cost`` (checked in
 ``test/core/test_certificate_soundness.py``). The feasible set is rotations in SO(3), any
 translations and, for unknown scale, ``alpha > 0`` (the checker allows ``alpha = 0`` as the limit
 of feasible points). ``p``, ``d``, ``rho_hat``, ``rho_tol`` are the certificate's

@@ -34,10 +34,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rwhec_ros.core.cost import build_cost_matrices  # noqa: E402
 from rwhec_ros.core.guidance import GuidanceOptions, suggest_next_motion  # noqa: E402
 from rwhec_ros.core.information import information_from_cost_matrix  # noqa: E402
 from rwhec_ros.core.lie import invert_transform, so3_log  # noqa: E402
+from rwhec_ros.core.model.cost import build_cost_matrices  # noqa: E402
 from rwhec_ros.core.problem import Edge, Problem  # noqa: E402
 from rwhec_ros.core.scenarios import (  # noqa: E402
     fixed_cameras_hand_target,

@@ -5,7 +5,7 @@ and ``lambda_s`` of ``s^2 = 1``, every feasible ``x = [t; y]`` (``y = [vec R; s]
 SO(3), ``s^2 = 1``) satisfies ``x^T Q x = lambda_s + x^T Z_full(lambda) x`` with
 ``Z_full = Q - K(lambda)``, where ``K(lambda) = lambda_s E_ss + sum_c lambda_c A_c`` touches only
 the ``y`` block. With the recovery ``t = G y`` of the Schur reduction
-(:func:`~rwhec_ros.core.cost.reduce_cost`) and ``t = u + G y``, for ANY ``G``::
+(:func:`~rwhec_ros.core.model.cost.reduce_cost`) and ``t = u + G y``, for ANY ``G``::
 
     x^T Z_full x = u^T Q_ee u + 2 u^T F y + y^T (S_G - K) y,    F = Q_ee G + Q_ey,
 
@@ -28,7 +28,7 @@ Scope of the proof: the cost matrix ``Q`` as computed from the data in double pr
 entries carry a relative rounding error of ~``N u``, which moves the cost by ~``N u L^2 /
 sigma^2`` relative -- about 1e-7 for 300 pairs per edge at sigma = 1 mm and 2 m translations --
 and cannot be amplified, because a translation block with weak directions is handled by
-:mod:`rwhec_ros.core.gauge` before any certificate is computed).
+:mod:`rwhec_ros.core.model.gauge` before any certificate is computed).
 
 The status is CERTIFIED_OPTIMAL only when ``rho_hat <= rho_tol`` AND the computed ``Z`` has a
 one-dimensional (numerical) null space (the relaxation is tight with a unique rank-one solution).
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cost import ReducedCost
+from .model.cost import ReducedCost
 from .numerics.verified import UNIT_ROUNDOFF, gamma, smallest_eigenvalues, verified_min_eigenvalue
 from .relaxation import ConstraintSet
 from .result import Certificate, Status
@@ -109,7 +109,7 @@ class DualBound:
 class ExactReduction:
     """Reduction bounds of a problem given directly on the reduced variables (no translations to
     eliminate, no rounding in a reduction): what :func:`certify_from_Z` needs from a
-    :class:`~rwhec_ros.core.cost.ReducedCost`, for matrices given as they are (tests, crafted
+    :class:`~rwhec_ros.core.model.cost.ReducedCost`, for matrices given as they are (tests, crafted
     certificates)."""
 
     size: int

@@ -45,8 +45,8 @@ from .information import (
     scatter_information,
 )
 from .lie import invert_transform, make_transform, so3_exp
+from .model.recentre import recentred_analysis
 from .problem import Problem
-from .recentre import recentred_analysis
 from .solve import blas_threads
 from .uncertainty import UncertaintyOptions, covariance_of, frame_covariances
 

@@ -17,8 +17,8 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .cost import ReducedCost, StateLayout, build_cost_matrices
 from .lie import make_transform, project_to_so3, unvec
+from .model.cost import ReducedCost, StateLayout, build_cost_matrices
 from .numerics.verified import lanczos_start
 from .problem import Problem
 
@@ -79,7 +79,7 @@ def closed_form_estimate(
     problem: Problem, reduced: ReducedCost, Q_rot: np.ndarray | sp.spmatrix | None = None
 ) -> Estimate:
     """Closed-form (uncertified) estimate; see the module docstring. ``Q_rot`` is the rotation-only
-    cost matrix of :func:`~rwhec_ros.core.cost.build_cost_matrices` (built if not given)."""
+    cost matrix of :func:`~rwhec_ros.core.model.cost.build_cost_matrices` (built if not given)."""
     n = problem.n_frames
     layout = StateLayout(problem.M, problem.P)
     if Q_rot is None:
@@ -108,16 +108,16 @@ def closed_form_estimate(
 def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
     """``p`` of a certificate: a proven upper bound on the cost of ``est`` in exact arithmetic,
     the cost evaluated directly from the residuals of eq. (33)
-    (:func:`~rwhec_ros.core.cost.direct_cost`) plus the term of the prior that fixes
-    unobservable translations (:class:`~rwhec_ros.core.gauge.GaugeFix`) when there is one, each
-    plus the bound on its rounding (:func:`~rwhec_ros.core.cost.direct_cost_error`,
-    :meth:`~rwhec_ros.core.gauge.GaugeFix.penalty_error`; about ``u L / r`` relative), the sum
+    (:func:`~rwhec_ros.core.model.cost.direct_cost`) plus the term of the prior that fixes
+    unobservable translations (:class:`~rwhec_ros.core.model.gauge.GaugeFix`) when there is one,
+    each plus the bound on its rounding (:func:`~rwhec_ros.core.model.cost.direct_cost_error`,
+    :meth:`~rwhec_ros.core.model.gauge.GaugeFix.penalty_error`; about ``u L / r`` relative), the sum
     rounded upwards. A certificate compares it with its dual bound, so the rounding of the cost
     can only make it more cautious."""
     X, Y = est.split(problem.M)
     if gauge is None or not gauge.has_penalty:
         return proven_cost(problem, X, Y, est.alpha)
-    from .cost import direct_cost_error
+    from .model.cost import direct_cost_error
 
     p, err = direct_cost_error(problem, X, Y, est.alpha)
     h = est.alpha if problem.unknown_scale else 1.0
@@ -129,9 +129,9 @@ def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
 def proven_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1.0) -> float:
     """A proven upper bound on the cost (eq. (33), no prior term) of ``X`` (M, 4, 4), ``Y``
     (P, 4, 4) and ``alpha`` (used for unknown scale only) on ``problem``'s data: the direct cost
-    plus the bound on its rounding (:func:`~rwhec_ros.core.cost.direct_cost_error`), rounded
+    plus the bound on its rounding (:func:`~rwhec_ros.core.model.cost.direct_cost_error`), rounded
     upwards; :func:`primal_cost` without a prior."""
-    from .cost import direct_cost_error
+    from .model.cost import direct_cost_error
 
     p, err = direct_cost_error(problem, X, Y, alpha if problem.unknown_scale else 1.0)
     return float(np.nextafter(p + err, np.inf))

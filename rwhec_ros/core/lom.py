@@ -54,8 +54,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .cost import direct_cost
 from .lie import hat, make_transform, project_to_so3, so3_exp, so3_log
+from .model.cost import direct_cost
 from .problem import Problem, check_transforms
 
 __all__ = [
@@ -90,7 +90,7 @@ class LomResult:
     initial_cost : float
         Eq. (78) at the start.
     mle_cost : float
-        The paper's MLE objective (eq. (33), :func:`~rwhec_ros.core.cost.direct_cost`) at the
+        The paper's MLE objective (eq. (33), :func:`~rwhec_ros.core.model.cost.direct_cost`) at the
         solution, for comparison with the certified solver (LOM minimises eq. (78), not this).
     gradient_norm : float
         Infinity norm of ``J^T W e`` at the solution.

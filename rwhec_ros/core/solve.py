@@ -12,8 +12,8 @@ All modes scale the data matrix by an upper bound on the optimum (the cost at th
 estimate) before any numerical work, so that tolerances are relative to the optimal cost.
 
 Before the reduction, translation directions the data do not determine (motion about one
-axis, :mod:`rwhec_ros.core.gauge`) are fixed by the user's priors or the documented default; the
-certificate (:mod:`rwhec_ros.core.certificate`) then applies to that problem and the status says
+axis, :mod:`rwhec_ros.core.model.gauge`) are fixed by the user's priors or the documented default;
+the certificate (:mod:`rwhec_ros.core.certificate`) then applies to that problem and the status says
 what was fixed. The primal cost ``p`` of every certificate is the cost of the returned estimate
 evaluated directly from the residuals of eq. (33) (plus the prior's term), never the reduced
 cost. Numerical failures (Clarabel, eigensolvers, singular systems) become the status
@@ -33,14 +33,6 @@ import scipy.sparse.linalg
 from threadpoolctl import ThreadpoolController
 
 from .certificate import CertificateOptions, certificate_matrix, certify
-from .cost import StateLayout, build_cost_matrices, reduce_cost
-from .gauge import (
-    GaugeFix,
-    GaugeOptions,
-    axis_words,
-    build_gauge_fix,
-    find_unobservable_directions,
-)
 from .initialization import (
     closed_form_estimate,
     estimate_from_rotations,
@@ -58,8 +50,15 @@ from .local_solver import (
     refine_rotations,
     strengthen_certificate,
 )
-from .problem import Problem
-from .recentre import (
+from .model.cost import StateLayout, build_cost_matrices, reduce_cost
+from .model.gauge import (
+    GaugeFix,
+    GaugeOptions,
+    axis_words,
+    build_gauge_fix,
+    find_unobservable_directions,
+)
+from .model.recentre import (
     Recentring,
     far_scale_words,
     recentred_options,
@@ -67,6 +66,7 @@ from .recentre import (
     recentring_for,
     restore_estimate,
 )
+from .problem import Problem
 from .relaxation import (
     ConstraintSet,
     SdpOptions,
@@ -121,7 +121,7 @@ class SolveOptions:
         leaves the BLAS library's own setting.
     gauge : GaugeOptions
         When a translation direction counts as unobservable, and the user's priors that fix such
-        directions (:mod:`rwhec_ros.core.gauge`).
+        directions (:mod:`rwhec_ros.core.model.gauge`).
     min_scale : float
         Unknown scale only: an estimate ``alpha`` at or below this positive floor (0.01: tags 100
         times smaller than their nominal size) is never certified -- the data do not determine
@@ -285,7 +285,7 @@ def _residual_bound_decides(cert: Certificate, options: SolveOptions,
 
 def _tighten_reduction(prep: _Prepared) -> bool:
     """Replace the reduction's residual bound by the extended-precision one
-    (:func:`~rwhec_ros.core.cost.reduce_cost` with ``residual="extended"``), once per problem;
+    (:func:`~rwhec_ros.core.model.cost.reduce_cost` with ``residual="extended"``), once per problem;
     False when it was done already or the reduction is not the same bit for bit (then the
     bound would not be about the matrix the solvers used, and nothing changes)."""
     if prep.tightened or prep.Q is None or not prep.reduced.verified:
@@ -507,9 +507,9 @@ def solve(problem: Problem, options: SolveOptions | None = None) -> CalibrationR
 
 def _solve_recentred(problem: Problem, options: SolveOptions, rc: Recentring
                      ) -> tuple[CalibrationResult | None, str]:
-    """:func:`_solve` of the problem about ``rc``'s point (:mod:`rwhec_ros.core.recentre`), mapped
-    back to the given frames with a certificate of the given problem and the returned estimate;
-    ``(None, words)`` to solve as given: when the re-centred solve finds an unobservable
+    """:func:`_solve` of the problem about ``rc``'s point (:mod:`rwhec_ros.core.model.recentre`),
+    mapped back to the given frames with a certificate of the given problem and the returned
+    estimate; ``(None, words)`` to solve as given: when the re-centred solve finds an unobservable
     translation direction (fixed by a default about the given origin; words empty) or, with
     unknown scale, no bound on the scale could be proven (words for a not-identifiable status:
     the coordinates may be the cause)."""

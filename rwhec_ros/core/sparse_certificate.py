@@ -4,7 +4,7 @@ The dense certificate (:mod:`rwhec_ros.core.certificate`) bounds the smallest ei
 reduced ``Z = Q' - K(lambda)``, whose ``Q'`` is dense for large rigs. Here the multipliers are the
 same first-order ones (:func:`~rwhec_ros.core.local_solver.fast_certificate_multipliers`: the
 blocks ``Gamma_l`` of the orthogonality constraints (50b) and ``lambda_s`` of ``s^2 = 1``), but the
-bound is proven on the *unreduced* matrix (:mod:`rwhec_ros.core.sparse_problem` for ``z = [f;
+bound is proven on the *unreduced* matrix (:mod:`rwhec_ros.core.model.sparse_cost` for ``z = [f;
 y]``)::
 
     Z = Q_s - K,   K = Diag(0_f, Gamma_1 (x) I_3, ..., Gamma_n (x) I_3, lambda_s - sum tr Gamma_l),
@@ -51,7 +51,7 @@ direction ``lambda_h`` of :func:`~rwhec_ros.core.local_solver.handedness_multipl
 matrix ``D`` has ``D z = 0``), its entries' rounding added to ``E``.
 
 Scope, as for the dense certificate: ``Q`` as computed in double precision -- here the unreduced
-cost of :mod:`rwhec_ros.core.sparse_problem`, with the gauge penalty as its spring tree and the
+cost of :mod:`rwhec_ros.core.model.sparse_cost`, with the gauge penalty as its spring tree and the
 translations shifted by the prior's particular solution, the same problem in exact arithmetic --
 and ``p`` the direct cost of eq. (33) plus the penalty at the returned estimate.
 
@@ -78,11 +78,11 @@ import scipy.sparse.linalg as spla
 
 from .certificate import CertificateOptions, DualBound, certificate_from_bound
 from .local_solver import handedness_multipliers
+from .model.sparse_cost import FullForm
 from .numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 from .numerics.verified import UNIT_ROUNDOFF, gamma, lanczos_start
 from .relaxation import _PATTERN
 from .result import Certificate, Status
-from .sparse_problem import FullForm
 from .sparse_solver import rotation_blocks
 
 __all__ = ["CertificatePattern", "first_order_multipliers", "sparse_dual_bound", "certify_sparse"]

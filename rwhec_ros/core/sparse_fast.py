@@ -6,8 +6,8 @@ square and dense as soon as many cameras share a target, so its local solve and 
 This path never forms ``Q'``:
 
 1. the cost on the unreduced variables with the gauge penalty as sparse springs
-   (:mod:`rwhec_ros.core.sparse_problem`); unobservable translations found by a sparse ``L D L^T``
-   and Lanczos (:mod:`rwhec_ros.core.gauge`);
+   (:mod:`rwhec_ros.core.model.sparse_cost`); unobservable translations found by a sparse ``L D
+   L^T`` and Lanczos (:mod:`rwhec_ros.core.model.gauge`);
 2. the closed-form start by shift-invert Lanczos on the sparse rotation-only cost;
 3. Riemannian Newton with variable projection (:mod:`rwhec_ros.core.sparse_solver`);
 4. the certificate proven on the sparse ``Z(lambda)`` (:mod:`rwhec_ros.core.sparse_certificate`),
@@ -37,14 +37,14 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .cost import StateLayout, edge_blocks
-from .gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
 from .initialization import Estimate, initial_rotations, primal_cost
+from .model.cost import StateLayout, edge_blocks
+from .model.gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
+from .model.sparse_cost import FullForm, build_full_form, pruned_gauge, translation_block
 from .numerics.verified import lanczos_start
 from .problem import Problem
 from .result import CalibrationResult, Certificate
 from .sparse_certificate import CertificatePattern, certify_sparse
-from .sparse_problem import FullForm, build_full_form, pruned_gauge, translation_block
 from .sparse_solver import NewtonSystem, refine_rotations_sparse, rotation_blocks
 from .sparsity import elimination_front
 

@@ -29,8 +29,8 @@ import scipy.sparse as sp
 
 from .lie import vee
 from .local_solver import LocalSolution, LocalSolverOptions, _basis_jacobian, damped_newton
+from .model.sparse_cost import FullForm
 from .numerics.sparse_ldl import SparseLDL
-from .sparse_problem import FullForm
 
 __all__ = ["NewtonSystem", "refine_rotations_sparse", "rotation_blocks"]
 
@@ -67,7 +67,7 @@ class NewtonSystem:
     Parameters
     ----------
     Qs : scipy.sparse.csr_matrix
-        The (scaled) symmetric cost on ``z`` (:class:`~rwhec_ros.core.sparse_problem.FullForm`).
+        The (scaled) symmetric cost on ``z`` (:class:`~rwhec_ros.core.model.sparse_cost.FullForm`).
     n_free, n : int
         Free variables and rotations.
     """

@@ -23,12 +23,12 @@ perturbations ``R_hat exp(w^)``; ``phi = R_hat w``.
 
 Unobservable directions are never reported as huge numbers. Translation directions the data do
 not determine are found exactly as :func:`~rwhec_ros.core.solve.solve` finds them
-(:mod:`rwhec_ros.core.gauge`, same :class:`~rwhec_ros.core.gauge.GaugeOptions`), and any further
-null direction of the (Jacobi-normalised) information matrix, e.g. a rotation the data do not
-fix, is found by its eigenvalues. The covariance is computed on the complement of those
+(:mod:`rwhec_ros.core.model.gauge`, same :class:`~rwhec_ros.core.model.gauge.GaugeOptions`), and any
+further null direction of the (Jacobi-normalised) information matrix, e.g. a rotation the data do
+not fix, is found by its eigenvalues. The covariance is computed on the complement of those
 directions; every axis of a frame (and the scale) that takes part in one is *unobservable*: its
 entries are NaN (``None`` in :meth:`FrameUncertainty.to_dict`) and it is named in words. When
-user priors pin every such direction (the :class:`~rwhec_ros.core.gauge.TranslationPrior` s
+user priors pin every such direction (the :class:`~rwhec_ros.core.model.gauge.TranslationPrior` s
 given to the solve), the covariance is instead the one *given the priors* (the priors exact) and
 no axis is unobservable.
 
@@ -44,15 +44,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from .gauge import GaugeOptions, axis_words, build_gauge_fix, unobservable_directions_of_block
 from .information import (
     Information,
     check_result_frames,
     information_from_edge_blocks,
     information_matrix,
 )
+from .model.gauge import GaugeOptions, axis_words, build_gauge_fix, unobservable_directions_of_block
+from .model.recentre import recentred_analysis
 from .problem import Problem
-from .recentre import recentred_analysis
 from .solve import blas_threads
 
 __all__ = [

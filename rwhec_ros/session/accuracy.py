@@ -230,7 +230,7 @@ def assess_accuracy(problem: Problem, result, *, solve_options=None,
     :class:`~rwhec_ros.vision.reprojection.CornerObservation` and camera -> intrinsics) give the
     reprojection error per camera (observations of frames the result lacks are left out). A part
     that fails leaves a note and None; nothing raises for the data's sake."""
-    from ..core.gauge import GaugeOptions
+    from ..core.model.gauge import GaugeOptions
     from ..core.solve import SolveOptions
 
     opts = options or AccuracyOptions()

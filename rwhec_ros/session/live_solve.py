@@ -35,8 +35,8 @@ that does not certify is solved again from the closed form, so the statuses are 
 start (``test/test_live_solve.py`` checks estimates and certificates against cold solves).
 
 The cost's edge blocks are kept from one re-solve to the next
-(:class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`: an edge that only gained pairs at its end,
-as the accumulator's lineages tell without a look at the pairs, has only those summed) and set
+(:class:`~rwhec_ros.core.model.edge_cache.EdgeBlockCache`: an edge that only gained pairs at its
+end, as the accumulator's lineages tell without a look at the pairs, has only those summed) and set
 as the problem's ``precomputed_blocks``, which the solve and the
 uncertainty (``information="edge_blocks"``: the information matrix from the blocks, not from
 the pairs) both use; the results equal the fresh, pair-by-pair ones to rounding.
@@ -56,7 +56,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..core.edge_cache import EdgeBlockCache
+from ..core.model.edge_cache import EdgeBlockCache
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
 from ..core.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty

@@ -19,7 +19,6 @@ from rwhec_ros.core.certificate import (
     certify_from_Z,
     rigorous_dual_bound,
 )
-from rwhec_ros.core.cost import StateLayout, build_cost_matrices, reduce_cost
 from rwhec_ros.core.local_solver import (
     fast_certificate_matrix,
     fast_certificate_multipliers,
@@ -27,6 +26,7 @@ from rwhec_ros.core.local_solver import (
     handedness_multipliers,
     refine_rotations,
 )
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices, reduce_cost
 from rwhec_ros.core.relaxation import so3_constraint_matrices
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.synthetic import random_instance, random_rotations

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rwhec_ros.core.cost import (
+from rwhec_ros.core.model.cost import (
     StateLayout,
     build_cost_matrix,
     direct_cost,

@@ -9,9 +9,9 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from rwhec_ros.core import solve as solve_module
-from rwhec_ros.core.cost import direct_cost
-from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior, axis_words
 from rwhec_ros.core.lie import invert_transform, make_transform
+from rwhec_ros.core.model.cost import direct_cost
+from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior, axis_words
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve

@@ -188,8 +188,8 @@ def test_real_data_converges():
     assert problem.n_measurements == 3230
     # start: the paper's frame layout with a rough guess is not available, so use the exact
     # minimiser of the rotation-only linear problem via our own identifiability machinery
-    from rwhec_ros.core.cost import StateLayout, build_cost_matrix
     from rwhec_ros.core.identifiability.numeric import _initial_point
+    from rwhec_ros.core.model.cost import StateLayout, build_cost_matrix
 
     layout = StateLayout(problem.M, problem.P)
     R, t, _, _ = _initial_point(problem, build_cost_matrix(problem), layout)

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rwhec_ros.core.cost import direct_cost
 from rwhec_ros.core.lie import invert_transform, rotation_distance, so3_exp
+from rwhec_ros.core.model.cost import direct_cost
 from rwhec_ros.core.outliers import (
     GncOptions,
     RansacOptions,

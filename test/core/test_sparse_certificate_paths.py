@@ -16,8 +16,8 @@ import pytest
 import scipy.sparse as sp
 
 from rwhec_ros.core.certificate import CertificateOptions
-from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.local_solver import handedness_direction
+from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL
 from rwhec_ros.core.numerics.verified import UNIT_ROUNDOFF, gamma
 from rwhec_ros.core.result import Status

@@ -7,15 +7,16 @@ import pytest
 import scipy.sparse as sp
 from test_gauge import _planar_rig
 
-from rwhec_ros.core import gauge as gauge_module
-from rwhec_ros.core.cost import DENSE_MAX_SIZE, StateLayout, build_cost_matrices, reduce_cost
-from rwhec_ros.core.gauge import (
+from rwhec_ros.core.initialization import estimate_from_rotations
+from rwhec_ros.core.model import gauge as gauge_module
+from rwhec_ros.core.model.cost import DENSE_MAX_SIZE, StateLayout, build_cost_matrices, reduce_cost
+from rwhec_ros.core.model.gauge import (
     GaugeOptions,
     TranslationPrior,
     build_gauge_fix,
     find_unobservable_directions,
 )
-from rwhec_ros.core.initialization import estimate_from_rotations
+from rwhec_ros.core.model.sparse_cost import build_full_form
 from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 from rwhec_ros.core.problem import Problem
 from rwhec_ros.core.result import Status
@@ -26,7 +27,6 @@ from rwhec_ros.core.sparse_certificate import (
     sparse_dual_bound,
 )
 from rwhec_ros.core.sparse_fast import prepare_sparse, use_sparse
-from rwhec_ros.core.sparse_problem import build_full_form
 from rwhec_ros.core.sparse_solver import refine_rotations_sparse
 from rwhec_ros.core.sparsity import elimination_front
 from rwhec_ros.core.synthetic import (

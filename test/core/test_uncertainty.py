@@ -7,11 +7,11 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from rwhec_ros.core.cost import build_cost_matrices, direct_cost
-from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.identifiability import numeric_check
 from rwhec_ros.core.information import information_from_cost_matrix, information_matrix
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp, so3_log
+from rwhec_ros.core.model.cost import build_cost_matrices, direct_cost
+from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
 from rwhec_ros.core.synthetic import (
@@ -77,8 +77,8 @@ def test_information_from_the_cost_matrix_agrees(unknown_scale):
 def test_information_from_the_edge_blocks_agrees(unknown_scale, offset):
     """Edge-block assembly (the live path) against the pair-by-pair one, at the optimum and away
     from it (the curvature terms of a non-zero gradient), with precomputed blocks too."""
-    from rwhec_ros.core.edge_cache import EdgeBlockCache
     from rwhec_ros.core.information import information_from_edge_blocks
+    from rwhec_ros.core.model.edge_cache import EdgeBlockCache
 
     problem, _ = _instance(5, unknown_scale)
     res = solve(problem)

@@ -9,8 +9,6 @@ blocks is the one scattered from the copies, bit for bit."""
 import numpy as np
 import pytest
 
-from rwhec_ros.core.cost import _blocks_from_sums, _finished_blocks
-from rwhec_ros.core.edge_cache import _finished
 from rwhec_ros.core.information import (
     _LOCAL_KNOWN,
     TangentLayout,
@@ -18,6 +16,8 @@ from rwhec_ros.core.information import (
     _scatter_blocks,
     information_from_edge_blocks,
 )
+from rwhec_ros.core.model.cost import _blocks_from_sums, _finished_blocks
+from rwhec_ros.core.model.edge_cache import _finished
 from rwhec_ros.core.solve import solve
 from rwhec_ros.core.synthetic import random_instance
 from rwhec_ros.core.uncertainty import (

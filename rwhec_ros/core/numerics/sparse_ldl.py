@@ -5,7 +5,7 @@ an up-looking ``L D L^T`` without pivoting): ``P^T A P = (I + L) D (I + L)^T`` f
 ``A`` given by its upper triangle (the matrix factored is the symmetric matrix that triangle
 defines). Used by the large-problem path of ``fast`` (:mod:`rwhec_ros.core.sparse_solver`,
 :mod:`rwhec_ros.core.sparse_certificate`) and by the sparse analysis of unobservable translations
-(:mod:`rwhec_ros.core.gauge`).
+(:mod:`rwhec_ros.core.model.gauge`).
 
 **Backward error.** QDLDL computes row ``k`` of ``L`` by a sparse triangular solve
 ``y_c = a_kc - sum_j l_cj y_j`` (over the ``j`` with ``l_cj != 0`` and ``l_kj != 0``), then

@@ -156,7 +156,7 @@ def pinned_frames(result: CalibrationResult) -> list[str]:
 def _along(d, problem: Problem, carriers: tuple[str, str]) -> str:
     """``the translation along world z (tags) and rig z (cameras)`` for a direction that is one
     axis per role, else the direction's own words."""
-    from ..gauge import axis_words
+    from ..model.gauge import axis_words
 
     parts = []
     for frames, carrier, role in ((problem.x_names, carriers[1], "tags"),
