@@ -99,7 +99,7 @@ for known scale) -- the same number as ``rwhec_ros.core.model.cost.direct_cost``
 translations and, for unknown scale, ``alpha > 0`` (the checker allows ``alpha = 0`` as the limit
 of feasible points). ``p``, ``d``, ``rho_hat``, ``rho_tol`` are the certificate's
 ``primal_cost``, ``dual_bound``, ``suboptimality_bound``, ``tolerance``. The product claims
-(``rwhec_ros/core/certificate.py``): ``d`` is a lower bound on the optimum and
+(``rwhec_ros/core/certify/dense.py``): ``d`` is a lower bound on the optimum and
 ``rho_hat = (p - d) / max(d, cost_floor) <= rho_tol``; the denominator is recovered as
 ``D = max(|d|, (p - d) / rho_hat)`` (``|d|`` when ``rho_hat <= 0``).
 

@@ -18,8 +18,8 @@ a mutant at module or class level (a default value, run at import) runs the test
 target's ``TESTS`` files instead; a mutant on a line no test executes survives without a run.
 ``--select files`` runs every test of the ``TESTS`` files (slow: minutes per surviving mutant).
 
-Targets (``TARGETS``): ``rwhec_ros/core/certificate.py``, ``rwhec_ros/core/numerics/verified.py``
-and the large-rig path's ``rwhec_ros/core/sparse_certificate.py`` (every line but docstrings), and
+Targets (``TARGETS``): ``rwhec_ros/core/certify/dense.py``, ``rwhec_ros/core/numerics/verified.py``
+and the large-rig path's ``rwhec_ros/core/certify/sparse.py`` (every line but docstrings), and
 the status decisions of ``rwhec_ros/core/solve.py`` and ``rwhec_ros/core/sparse_fast.py`` (the
 functions named there).
 
@@ -54,26 +54,26 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 TARGETS = {
-    "rwhec_ros/core/certificate.py": None,  # every function and class
+    "rwhec_ros/core/certify/dense.py": None,  # every function and class
     "rwhec_ros/core/numerics/verified.py": None,
     "rwhec_ros/core/solve.py": {
         "_certify", "_failed_certificate", "_solve_fast", "_solve_sdp", "_check_identifiability",
         "_downgrade", "_rotation_gauge_words", "_estimate",
     },
     # the large-rig path (issue 14): its certificate and the status decisions of its solve
-    "rwhec_ros/core/sparse_certificate.py": None,
+    "rwhec_ros/core/certify/sparse.py": None,
     "rwhec_ros/core/sparse_fast.py": {"solve_fast_sparse", "failed_result"},
 }
 
 #: The tests that reach each target, fastest first (``pytest -x`` stops at the first failure).
 TESTS = {
-    "rwhec_ros/core/certificate.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
+    "rwhec_ros/core/certify/dense.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
                                       "test/core/test_solve.py"],
     "rwhec_ros/core/numerics/verified.py": ["test/core/test_verified_rounding.py",
                                    "test/core/test_verified.py", "test/core/test_certificate.py"],
     "rwhec_ros/core/solve.py": ["test/core/test_solve_status.py", "test/core/test_certificate.py",
                                 "test/core/test_gauge.py", "test/core/test_solve.py"],
-    "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_certificate_paths.py",
+    "rwhec_ros/core/certify/sparse.py": ["test/core/test_sparse_certificate_paths.py",
                                              "test/core/test_sparse_path.py",
                                              "test/core/test_gauge.py"],
     "rwhec_ros/core/sparse_fast.py": ["test/core/test_sparse_fast.py",
@@ -82,7 +82,7 @@ TESTS = {
 }
 
 #: Mutants argued equivalent (no observable change), keyed by (file, source line, mutation).
-_CERT = "rwhec_ros/core/certificate.py"
+_CERT = "rwhec_ros/core/certify/dense.py"
 _SOLVE = "rwhec_ros/core/solve.py"
 _TERMS = "terms = int(np.diff(constraints.C.tocsr().indptr).max(initial=1))"
 EQUIVALENT: dict[tuple[str, str, str], str] = {
@@ -195,8 +195,8 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "Z is square: shape[-1] = shape[0]",
 }
 
-# the large-rig certificate (issue 19): rwhec_ros/core/sparse_certificate.py
-_SC = "rwhec_ros/core/sparse_certificate.py"
+# the large-rig certificate (issue 19): rwhec_ros/core/certify/sparse.py
+_SC = "rwhec_ros/core/certify/sparse.py"
 _SC_EY = "e_y = float(min(c_y.sum(), ny * c_y.max(initial=0.0)) * (1.0 + gamma(ny)))"
 _SC_MU0 = "mu0 = gamma(64) * float(np.abs(data[pattern.diag[nf:]]).mean()) + 1e-300"
 _SC_SLOPE = "if not np.isfinite(slope) or abs(slope) < 1e-300:"

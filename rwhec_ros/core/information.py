@@ -18,7 +18,7 @@ Tangent coordinates ``xi`` (:class:`TangentLayout`), size ``6 F`` (+1 for unknow
     xi = [dt_1 .. dt_F, (d alpha), w_1 .. w_F]
 
 with metric translations ``t_f <- t_f + dt_f`` (in the frame's parent) and *right* rotation
-perturbations ``R_f <- R_f exp(w_f^)`` (as the local solver, :mod:`rwhec_ros.core.local_solver`).
+perturbations ``R_f <- R_f exp(w_f^)`` (as the local solver, :mod:`rwhec_ros.core.local.dense`).
 The Hessian is exact: the Gauss-Newton term plus the second-order terms of the residuals (the
 curvature of ``exp`` contracted with the residuals, and the ``alpha``-translation cross terms), so
 that at a minimiser the flat directions of exact symmetries have zero eigenvalues.

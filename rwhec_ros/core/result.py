@@ -86,7 +86,7 @@ class Certificate:
         Proven lower bound on ``lambda_min(Z)`` (scaled units) used in ``dual_bound``.
     margins : dict of str to float
         What the rounding analysis subtracted from ``lambda_s`` (unscaled cost units):
-        ``eigenvalue``, ``rounding``, ``schur`` (see :mod:`rwhec_ros.core.certificate`).
+        ``eigenvalue``, ``rounding``, ``schur`` (see :mod:`rwhec_ros.core.certify.dense`).
     cost_floor : float
         The cost regarded as zero at the scale of the data (unscaled): ``rho_hat``'s denominator
         is ``max(d, cost_floor)``; ``nan`` where no bound was computed.

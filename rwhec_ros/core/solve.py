@@ -13,8 +13,8 @@ estimate) before any numerical work, so that tolerances are relative to the opti
 
 Before the reduction, translation directions the data do not determine (motion about one
 axis, :mod:`rwhec_ros.core.model.gauge`) are fixed by the user's priors or the documented default;
-the certificate (:mod:`rwhec_ros.core.certificate`) then applies to that problem and the status says
-what was fixed. The primal cost ``p`` of every certificate is the cost of the returned estimate
+the certificate (:mod:`rwhec_ros.core.certify.dense`) then applies to that problem and the status
+says what was fixed. The primal cost ``p`` of every certificate is the cost of the returned estimate
 evaluated directly from the residuals of eq. (33) (plus the prior's term), never the reduced
 cost. Numerical failures (Clarabel, eigensolvers, singular systems) become the status
 ``solver_failed``; an exception leaves :func:`solve` only for invalid input.
@@ -32,8 +32,17 @@ import scipy.sparse as sp
 import scipy.sparse.linalg
 from threadpoolctl import ThreadpoolController
 
-from .certificate import CertificateOptions, certificate_matrix, certify
-from .initialization import (
+from .certify.dense import CertificateOptions, certificate_matrix, certify
+from .certify.relaxation import (
+    ConstraintSet,
+    SdpOptions,
+    frame_constraints,
+    so3_constraint_matrices,
+    solve_dual_sdp,
+    solve_dual_sdp_arrow,
+)
+from .certify.sparsity import ArrowSplit, arrow_split, estimate_form_costs
+from .initial.closed_form import (
     closed_form_estimate,
     estimate_from_rotations,
     initial_rotations,
@@ -42,7 +51,7 @@ from .initialization import (
     rotations_from_vector,
 )
 from .lie import make_transform
-from .local_solver import (
+from .local.dense import (
     LocalSolverOptions,
     _grad_hess,
     fast_certificate_multipliers,
@@ -67,17 +76,8 @@ from .model.recentre import (
     restore_estimate,
 )
 from .problem import Problem
-from .relaxation import (
-    ConstraintSet,
-    SdpOptions,
-    frame_constraints,
-    so3_constraint_matrices,
-    solve_dual_sdp,
-    solve_dual_sdp_arrow,
-)
 from .result import CalibrationResult, Certificate, Status
 from .sparse_fast import failed_result, prepare_sparse, solve_fast_sparse, use_sparse
-from .sparsity import ArrowSplit, arrow_split, estimate_form_costs
 
 __all__ = ["SolveOptions", "solve", "MODES", "blas_threads"]
 
@@ -343,8 +343,8 @@ def _full_groups(prep: _Prepared, df: int) -> list[np.ndarray]:
 
 def _form_costs(prep: _Prepared) -> tuple[str, dict[str, float], ArrowSplit | None]:
     """``auto`` rule: the form of Problem 7 with the smallest estimated cost per Clarabel
-    iteration (:func:`rwhec_ros.core.sparsity.estimate_form_costs`), with the estimates and the
-    hub/leaf split; ``reduced`` for up to three frames, where every form is a few milliseconds.
+    iteration (:func:`rwhec_ros.core.certify.sparsity.estimate_form_costs`), with the estimates and
+    the hub/leaf split; ``reduced`` for up to three frames, where every form is a few milliseconds.
     Measured in ``benchmarks/sdp_forms.md``: the paper's 16 targets x 8 cameras pick ``arrow``,
     one target seen by many cameras (Y) picks ``full``."""
     n = prep.problem.n_frames

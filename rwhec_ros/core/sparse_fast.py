@@ -9,8 +9,8 @@ This path never forms ``Q'``:
    (:mod:`rwhec_ros.core.model.sparse_cost`); unobservable translations found by a sparse ``L D
    L^T`` and Lanczos (:mod:`rwhec_ros.core.model.gauge`);
 2. the closed-form start by shift-invert Lanczos on the sparse rotation-only cost;
-3. Riemannian Newton with variable projection (:mod:`rwhec_ros.core.sparse_solver`);
-4. the certificate proven on the sparse ``Z(lambda)`` (:mod:`rwhec_ros.core.sparse_certificate`),
+3. Riemannian Newton with variable projection (:mod:`rwhec_ros.core.local.sparse`);
+4. the certificate proven on the sparse ``Z(lambda)`` (:mod:`rwhec_ros.core.certify.sparse`),
    with ``p`` the direct cost of the returned estimate, as on the dense path.
 
 When that certificate is inconclusive and the problem has at most ``sdp_fallback_max_frames``
@@ -20,8 +20,8 @@ larger problems return the uncertified result with a note.
 **Automatic choice** (``SolveOptions.fast_form = "auto"``): the sparse path when the problem has
 at least :data:`SPARSE_MIN_FRAMES` frames and a sparse factorisation stays sparse: the work of a
 minimum-degree elimination of the camera-tag graph at the level of frames
-(:func:`~rwhec_ros.core.sparsity.elimination_front`) is at most :data:`SPARSE_MAX_WORK` ``n^3``,
-or the problem has :data:`SPARSE_ALWAYS_FRAMES` frames or more.
+(:func:`~rwhec_ros.core.certify.sparsity.elimination_front`) is at most :data:`SPARSE_MAX_WORK`
+``n^3``, or the problem has :data:`SPARSE_ALWAYS_FRAMES` frames or more.
 One target seen by every camera: fronts of one frame; 16 targets each seen by 3 of 1,000 cameras:
 fronts of at most 15 frames; a random graph of 100 cameras and 100 tags, 5 tags per camera:
 fronts of 64 frames (0.017 n^3); 50 x 50 of the same kind (0.022 n^3) is where LAPACK on the dense
@@ -37,16 +37,16 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .initialization import Estimate, initial_rotations, primal_cost
+from .certify.sparse import CertificatePattern, certify_sparse
+from .certify.sparsity import elimination_front
+from .initial.closed_form import Estimate, initial_rotations, primal_cost
+from .local.sparse import NewtonSystem, refine_rotations_sparse, rotation_blocks
 from .model.cost import StateLayout, edge_blocks
 from .model.gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
 from .model.sparse_cost import FullForm, build_full_form, pruned_gauge, translation_block
 from .numerics.verified import lanczos_start
 from .problem import Problem
 from .result import CalibrationResult, Certificate
-from .sparse_certificate import CertificatePattern, certify_sparse
-from .sparse_solver import NewtonSystem, refine_rotations_sparse, rotation_blocks
-from .sparsity import elimination_front
 
 __all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "SPARSE_ALWAYS_FRAMES", "use_sparse",
            "SparsePrepared", "prepare_sparse", "estimate_sparse", "solve_fast_sparse",
@@ -58,7 +58,7 @@ __all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "SPARSE_ALWAYS_FRAMES", "use_
 SPARSE_MIN_FRAMES = 40
 #: ``auto`` takes the sparse path while the work of a sparse factorisation, ``sum (front + 1)^2``
 #: over a minimum-degree elimination of the frame graph
-#: (:func:`~rwhec_ros.core.sparsity.elimination_front`), is at most this times ``n^3`` (the
+#: (:func:`~rwhec_ros.core.certify.sparsity.elimination_front`), is at most this times ``n^3`` (the
 #: dense path's ``O(n^3)``). Measured on random camera-tag graphs, 5 tags per camera: 50 x 50
 #: (0.022 n^3) 265 ms dense / 264 ms sparse, 100 x 100 (0.017 n^3) 1.77 s / 1.2 s (best of 3,
 #: three alternations); 30 x 30 with 3 tags per camera (0.007 n^3) 75 / 47 ms. One target and

@@ -2,14 +2,14 @@
 
 ``Z = V diag(w) V^T`` with a random orthogonal ``V`` and chosen eigenvalues ``w``; scale 1, an
 exact reduction (no translations), ``lambda_s = 1``. Each test pins one decision of
-:func:`rwhec_ros.core.certificate.certify_from_Z` (the tolerances, the dual bound of eq. (71), the
+:func:`rwhec_ros.core.certify.dense.certify_from_Z` (the tolerances, the dual bound of eq. (71), the
 solver-status and non-finite paths) so that changing it makes a test fail.
 """
 
 import numpy as np
 import pytest
 
-from rwhec_ros.core.certificate import (
+from rwhec_ros.core.certify.dense import (
     CertificateOptions,
     DualBound,
     ExactReduction,
@@ -19,7 +19,8 @@ from rwhec_ros.core.certificate import (
     certify_from_Z,
     rigorous_dual_bound,
 )
-from rwhec_ros.core.local_solver import (
+from rwhec_ros.core.certify.relaxation import so3_constraint_matrices
+from rwhec_ros.core.local.dense import (
     fast_certificate_matrix,
     fast_certificate_multipliers,
     handedness_direction,
@@ -27,7 +28,6 @@ from rwhec_ros.core.local_solver import (
     refine_rotations,
 )
 from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices, reduce_cost
-from rwhec_ros.core.relaxation import so3_constraint_matrices
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.synthetic import random_instance, random_rotations
 

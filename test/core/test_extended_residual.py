@@ -182,7 +182,7 @@ def test_precise_rig_certified_only_with_the_extended_bound(precise_rig, monkeyp
 def test_precise_rig_certified_estimate_beats_random_starts(precise_rig):
     """Independent check of the certified claim: no local solve from random rotations finds a
     lower cost than the certified estimate (up to its proven bound plus rounding of the cost)."""
-    from rwhec_ros.core.local_solver import refine_rotations
+    from rwhec_ros.core.local.dense import refine_rotations
     res = solve(precise_rig, SolveOptions(mode="fast", fallback_to_sdp=False))
     assert res.certificate.certified
     p = res.certificate.primal_cost

@@ -7,8 +7,8 @@ import contextlib
 import numpy as np
 import pytest
 
+from rwhec_ros.core.certify.relaxation import frame_constraints, so3_constraint_matrices
 from rwhec_ros.core.model.cost import StateLayout, _dense_blocks, build_cost_matrices, reduce_cost
-from rwhec_ros.core.relaxation import frame_constraints, so3_constraint_matrices
 from rwhec_ros.core.solve import SolveOptions, _blas_controller, blas_threads, solve
 from rwhec_ros.core.synthetic import random_instance
 

@@ -202,7 +202,7 @@ def test_local_solver_exception_falls_back_or_fails(monkeypatch):
 
 
 def test_nan_sdp_multipliers_become_solver_failed(monkeypatch):
-    from rwhec_ros.core.relaxation import DualSolution
+    from rwhec_ros.core.certify.relaxation import DualSolution
 
     def nan_dual(Q, cons, options=None, *a):
         return DualSolution(np.full(cons.m, np.nan), "infeasible", 0.0, 0.0, 3)
@@ -239,7 +239,7 @@ def test_the_sdp_form_asked_for_is_the_form_solved(monkeypatch, form):
     """Which SDP builder runs (spies that stop the solve), and the note naming the form: an
     explicit form is honoured; ``auto`` on 4 targets x 3 cameras picks ``arrow`` (its cost
     model, see benchmarks/sdp_forms.md)."""
-    from rwhec_ros.core.relaxation import SdpOptions
+    from rwhec_ros.core.certify.relaxation import SdpOptions
 
     called = []
 

@@ -11,8 +11,9 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from rwhec_ros.core.certificate import certificate_matrix
-from rwhec_ros.core.local_solver import (
+from rwhec_ros.core.certify.dense import certificate_matrix
+from rwhec_ros.core.certify.relaxation import frame_constraints, so3_constraint_matrices
+from rwhec_ros.core.local.dense import (
     LocalSolverOptions,
     _grad_hess,
     damped_newton,
@@ -21,7 +22,6 @@ from rwhec_ros.core.local_solver import (
 )
 from rwhec_ros.core.model.cost import build_cost_matrices, direct_cost
 from rwhec_ros.core.numerics.verified import gamma
-from rwhec_ros.core.relaxation import frame_constraints, so3_constraint_matrices
 from rwhec_ros.core.solve import SolveOptions, _prepare, solve
 from rwhec_ros.core.synthetic import random_instance
 

@@ -13,8 +13,8 @@ import pytest
 from test_gauge import _planar_rig
 
 from rwhec_ros.core import solve as solve_module
+from rwhec_ros.core.certify.relaxation import SdpOptions
 from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
-from rwhec_ros.core.relaxation import SdpOptions
 from rwhec_ros.core.result import CalibrationResult, Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve
 from rwhec_ros.core.synthetic import random_instance

@@ -12,7 +12,7 @@ import pytest
 
 from rwhec_ros.core import solve as solve_module
 from rwhec_ros.core import sparse_fast
-from rwhec_ros.core.local_solver import LocalSolverOptions
+from rwhec_ros.core.local.dense import LocalSolverOptions
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
 from rwhec_ros.core.synthetic import random_instance

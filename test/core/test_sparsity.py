@@ -4,15 +4,15 @@ cost model, and agreement of the reduced, full and arrow forms on the same probl
 import numpy as np
 import pytest
 
-from rwhec_ros.core.lie import rotation_distance
-from rwhec_ros.core.relaxation import SdpOptions, evaluate_Z, so3_constraint_matrices
-from rwhec_ros.core.solve import SolveOptions, _form_costs, _prepare, solve
-from rwhec_ros.core.sparsity import (
+from rwhec_ros.core.certify.relaxation import SdpOptions, evaluate_Z, so3_constraint_matrices
+from rwhec_ros.core.certify.sparsity import (
     arrow_split,
     clique_weights,
     cone_cost,
     estimate_form_costs,
 )
+from rwhec_ros.core.lie import rotation_distance
+from rwhec_ros.core.solve import SolveOptions, _form_costs, _prepare, solve
 from rwhec_ros.core.synthetic import random_instance
 
 # every target seen by every camera: the leaves' couplings are wider than 9 (the SVD basis)

@@ -334,7 +334,7 @@ def direct_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1
     the pairs' terms summed exactly rounded (``math.fsum``), so the result is accurate to about
     ``u L / r`` relative (translations ``L``, residuals ``r``); :func:`direct_cost_error` gives
     a proven bound, and the certificate's ``p`` is the sum of the two
-    (:func:`~rwhec_ros.core.initialization.primal_cost`).
+    (:func:`~rwhec_ros.core.initial.closed_form.primal_cost`).
 
     The residuals of pair ``i`` are the top three rows of ``A_i X - Y B_i``: ``[R_A R_X -
     R_Y R_B | R_A t_X + t_A - R_Y t_B - t_Y]`` (translations scaled by ``alpha``), formed as

@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..initialization import Estimate, rotations_from_vector
+from ..initial.closed_form import Estimate, rotations_from_vector
 from ..numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 from ..numerics.verified import lanczos_start
 from ..problem import Problem
@@ -234,7 +234,7 @@ class FullForm:
 
     def estimate(self, R: np.ndarray) -> Estimate:
         """Translations and scale for rotations ``R`` and the cost ``z^T Q z`` (the counterpart of
-        :func:`~rwhec_ros.core.initialization.estimate_from_rotations`)."""
+        :func:`~rwhec_ros.core.initial.closed_form.estimate_from_rotations`)."""
         n = self.n
         z = self.state(R)
         cost = float(z @ (self.Q @ z))
@@ -246,9 +246,9 @@ class FullForm:
 
     def closed_form_rotations(self) -> np.ndarray:
         """Rotations from the null vector of the rotation-only cost (cf.
-        :func:`~rwhec_ros.core.initialization.closed_form_estimate`), by shift-invert Lanczos on a
-        sparse factorisation. When the smallest eigenvalues are nearly equal (within 10 times the
-        smallest: rotations about one axis leave the rotation-only cost with a near-degenerate
+        :func:`~rwhec_ros.core.initial.closed_form.closed_form_estimate`), by shift-invert Lanczos
+        on a sparse factorisation. When the smallest eigenvalues are nearly equal (within 10 times
+        the smallest: rotations about one axis leave the rotation-only cost with a near-degenerate
         null space, whose Lanczos vector is then arbitrary), each of their eigenvectors is
         tried and the one with the lowest cost (translations at their optimum) is kept."""
         L = self.L_rot

@@ -3,8 +3,8 @@
 A thin layer over QDLDL (``qdldl``, the factorisation of OSQP; an AMD fill-reducing ordering and
 an up-looking ``L D L^T`` without pivoting): ``P^T A P = (I + L) D (I + L)^T`` for a symmetric
 ``A`` given by its upper triangle (the matrix factored is the symmetric matrix that triangle
-defines). Used by the large-problem path of ``fast`` (:mod:`rwhec_ros.core.sparse_solver`,
-:mod:`rwhec_ros.core.sparse_certificate`) and by the sparse analysis of unobservable translations
+defines). Used by the large-problem path of ``fast`` (:mod:`rwhec_ros.core.local.sparse`,
+:mod:`rwhec_ros.core.certify.sparse`) and by the sparse analysis of unobservable translations
 (:mod:`rwhec_ros.core.model.gauge`).
 
 **Backward error.** QDLDL computes row ``k`` of ``L`` by a sparse triangular solve

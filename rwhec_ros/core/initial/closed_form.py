@@ -17,10 +17,10 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .lie import make_transform, project_to_so3, unvec
-from .model.cost import ReducedCost, StateLayout, build_cost_matrices
-from .numerics.verified import lanczos_start
-from .problem import Problem
+from ..lie import make_transform, project_to_so3, unvec
+from ..model.cost import ReducedCost, StateLayout, build_cost_matrices
+from ..numerics.verified import lanczos_start
+from ..problem import Problem
 
 __all__ = ["Estimate", "rotations_from_vector", "closed_form_estimate", "estimate_from_rotations",
            "primal_cost", "proven_cost", "initial_rotations"]
@@ -117,7 +117,7 @@ def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
     X, Y = est.split(problem.M)
     if gauge is None or not gauge.has_penalty:
         return proven_cost(problem, X, Y, est.alpha)
-    from .model.cost import direct_cost_error
+    from ..model.cost import direct_cost_error
 
     p, err = direct_cost_error(problem, X, Y, est.alpha)
     h = est.alpha if problem.unknown_scale else 1.0
@@ -131,7 +131,7 @@ def proven_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1
     (P, 4, 4) and ``alpha`` (used for unknown scale only) on ``problem``'s data: the direct cost
     plus the bound on its rounding (:func:`~rwhec_ros.core.model.cost.direct_cost_error`), rounded
     upwards; :func:`primal_cost` without a prior."""
-    from .model.cost import direct_cost_error
+    from ..model.cost import direct_cost_error
 
     p, err = direct_cost_error(problem, X, Y, alpha if problem.unknown_scale else 1.0)
     return float(np.nextafter(p + err, np.inf))

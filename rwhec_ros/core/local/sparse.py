@@ -1,6 +1,6 @@
 """Riemannian Newton on the unreduced sparse cost: the local solver of the large-problem path.
 
-Minimises the same function as :func:`rwhec_ros.core.local_solver.refine_rotations` -- the MLE
+Minimises the same function as :func:`rwhec_ros.core.local.dense.refine_rotations` -- the MLE
 cost with the translations (and ``alpha``) at their optimum, ``f(R) = min_f z^T Q z`` over
 SO(3)^n -- without forming ``Q'``. With ``z = [f; vec R; s]`` (:mod:`rwhec_ros.core.
 sparse_problem`) and right perturbations ``R_l <- R_l exp(omega_l^)``:
@@ -27,10 +27,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .lie import vee
-from .local_solver import LocalSolution, LocalSolverOptions, _basis_jacobian, damped_newton
-from .model.sparse_cost import FullForm
-from .numerics.sparse_ldl import SparseLDL
+from ..lie import vee
+from ..model.sparse_cost import FullForm
+from ..numerics.sparse_ldl import SparseLDL
+from .dense import LocalSolution, LocalSolverOptions, _basis_jacobian, damped_newton
 
 __all__ = ["NewtonSystem", "refine_rotations_sparse", "rotation_blocks"]
 
@@ -146,7 +146,7 @@ class NewtonSystem:
 
 class _SparseModel:
     """Cost, gradient and (lazily) the Newton system of ``min_f z^T Qs z`` at ``R`` for
-    :func:`~rwhec_ros.core.local_solver.damped_newton`; the models share one
+    :func:`~rwhec_ros.core.local.dense.damped_newton`; the models share one
     :class:`NewtonSystem`, assembled for whichever model asks for a step."""
 
     def __init__(self, form: FullForm, Qs: sp.csr_matrix, system: NewtonSystem,
@@ -183,9 +183,9 @@ def refine_rotations_sparse(
     f_floor: float = 1.0,
 ) -> LocalSolution:
     """Minimise ``min_f z^T Qs z`` over SO(3)^n from ``R0`` (n, 3, 3) by damped Riemannian Newton
-    (:func:`~rwhec_ros.core.local_solver.damped_newton`) on the sparse system of the module
+    (:func:`~rwhec_ros.core.local.dense.damped_newton`) on the sparse system of the module
     docstring; ``Qs`` is ``form.Q`` divided by the data scale. The counterpart of
-    :func:`~rwhec_ros.core.local_solver.refine_rotations`, except that the gradient tolerance is
+    :func:`~rwhec_ros.core.local.dense.refine_rotations`, except that the gradient tolerance is
     relative to ``max(f, f_floor)`` (the dense solver: ``max(f, 1)``): a start far above the
     optimum makes the scaled optimum ``f << 1``, and the certificate needs the stationarity
     relative to the optimum (``f_floor``: the cost regarded as zero, scaled)."""
