@@ -10,7 +10,7 @@ Prints Markdown tables (commit the output as ``benchmarks/uncertainty.md``):
    drawn and then ``--runs`` independent noise draws of ``B`` (the paper's noise model, the stated
    ``sigma``/``kappa`` equal to the true ones); every run is solved (``fast``) and only
    certified estimates count. Per frame and axis the predicted std (root mean predicted
-   variance, :func:`~rwhec_ros.core.uncertainty.frame_uncertainty`) is compared with the
+   variance, :func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty`) is compared with the
    empirical std of the estimates' errors in the same convention (``t = t_true + dt``,
    ``R = exp(phi^) R_true``, in the frame's parent); the coverage is the fraction of
    frame-runs whose error lies in the predicted 95 % ellipsoid (``e^T C^-1 e <= chi2_6(0.95)``).
@@ -34,8 +34,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rwhec_ros.core.guidance import GuidanceOptions, suggest_next_motion  # noqa: E402
-from rwhec_ros.core.information import information_from_cost_matrix  # noqa: E402
+from rwhec_ros.core.analysis.guidance import GuidanceOptions, suggest_next_motion  # noqa: E402
+from rwhec_ros.core.analysis.information import information_from_cost_matrix  # noqa: E402
+from rwhec_ros.core.analysis.uncertainty import (  # noqa: E402
+    frame_uncertainty,
+    uncertainty_from_information,
+)
+from rwhec_ros.core.analysis.validation import cross_validate  # noqa: E402
 from rwhec_ros.core.lie import invert_transform, so3_log  # noqa: E402
 from rwhec_ros.core.model.cost import build_cost_matrices  # noqa: E402
 from rwhec_ros.core.problem import Edge, Problem  # noqa: E402
@@ -46,11 +51,6 @@ from rwhec_ros.core.scenarios import (  # noqa: E402
 )
 from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
 from rwhec_ros.core.synthetic import GroundTruth  # noqa: E402
-from rwhec_ros.core.uncertainty import (  # noqa: E402
-    frame_uncertainty,
-    uncertainty_from_information,
-)
-from rwhec_ros.core.validation import cross_validate  # noqa: E402
 from rwhec_ros.simulation.rig import demo_rig  # noqa: E402
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "paper_real_world"

@@ -8,7 +8,7 @@ thread and returns at once. The re-solve takes the kept pairs under the session'
 (read-only views that the accumulator never changes afterwards, or copies), then builds the
 problem, solves it in ``fast`` mode (paper Section 7.3, no SDP fallback: a live estimate never
 waits for the SDP) and computes every frame's uncertainty
-(:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`) outside it. So the sensor path
+(:func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty`) outside it. So the sensor path
 (``add_pose``/``add_image``, the detection workers) never waits for a live solve.
 
 A re-solve is due when (1) ``solver.live_period_s`` > 0 (0 = off; read at every tick, so it can
@@ -56,10 +56,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..core.analysis.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
 from ..core.model.edge_cache import EdgeBlockCache
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
-from ..core.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
 from ..messages import LEVEL_OK, LEVEL_WARN
 from ..sync.accumulator import problem_from_edges
 from .convergence import Convergence, convergence_of, estimate_document
@@ -102,7 +102,7 @@ def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = Non
                            ) -> tuple[CalibrationResult, Uncertainty]:
     """The live re-solve: ``fast`` without SDP fallback or outlier rejection, with the
     configuration's priors, ``solver.unobservable_std_m`` and ``solver.min_scale``, then
-    :func:`~rwhec_ros.core.uncertainty.frame_uncertainty` with the same gauge options.
+    :func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty` with the same gauge options.
 
     ``initial`` ``(X (M, 4, 4), Y (P, 4, 4))``: a warm start (the previous live estimate, in the
     problem's frame order) for the local solver instead of the closed-form estimate. The

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import yaml
 
-from rwhec_ros.core.guidance import GuidanceOptions, suggest_next_motion
+from rwhec_ros.core.analysis.guidance import GuidanceOptions, suggest_next_motion
+from rwhec_ros.core.analysis.uncertainty import frame_uncertainty
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
@@ -14,7 +15,6 @@ from rwhec_ros.core.synthetic import (
     random_instance,
     random_transforms,
 )
-from rwhec_ros.core.uncertainty import frame_uncertainty
 
 
 def _planar(seed=1):

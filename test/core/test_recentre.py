@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from rwhec_ros.core.guidance import suggest_next_motion
+from rwhec_ros.core.analysis.guidance import suggest_next_motion
+from rwhec_ros.core.analysis.uncertainty import frame_uncertainty
 from rwhec_ros.core.model import recentre as recentre_module
 from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.model.recentre import CAMERA, TAG, Recentring, recentred_problem, recentring_for
@@ -20,7 +21,6 @@ from rwhec_ros.core.problem import Edge
 from rwhec_ros.core.result import Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve
 from rwhec_ros.core.synthetic import planar_instance, random_instance
-from rwhec_ros.core.uncertainty import frame_uncertainty
 
 PAPER_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "paper_real_world"
 

@@ -365,7 +365,7 @@ def pose_misfit_lower_bound(problem: Problem) -> float:
 def recentred_analysis(problem: Problem, result, priors: bool = False):
     """``(problem, result)`` about :func:`recentring_for`'s point, for the analyses of an
     estimate that the shift leaves unchanged in exact arithmetic -- the information matrix
-    (:mod:`rwhec_ros.core.information`: every residual and its derivatives with respect to
+    (:mod:`rwhec_ros.core.analysis.information`: every residual and its derivatives with respect to
     ``t_X, t_Y, alpha`` and the rotations are the same), hence the covariances and the
     next-motion guidance -- and that far from the origin suffer the same rounding as the solve
     (with unknown scale an observable direction taken for an unobservable one). ``result`` is a

@@ -36,8 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lie import hat
-from .problem import Problem, check_transforms
+from ..lie import hat
+from ..problem import Problem, check_transforms
 
 __all__ = [
     "TangentLayout",
@@ -411,7 +411,7 @@ def information_from_edge_blocks(
     |Q_e| |x_e|``, where :func:`information_matrix` sums the residuals directly); ``H`` and
     ``Q_ee`` agree with :func:`information_matrix` to rounding.
     """
-    from .model.cost import StateLayout, edge_blocks, pack_state
+    from ..model.cost import StateLayout, edge_blocks, pack_state
 
     T, a = _check_estimate(problem, X, Y, alpha)
     F = T.shape[0]
@@ -468,7 +468,7 @@ def information_from_cost_matrix(
     """
     import scipy.sparse as sp
 
-    from .model.cost import StateLayout, pack_state
+    from ..model.cost import StateLayout, pack_state
 
     T, a = _check_estimate(problem, X, Y, alpha)
     F = T.shape[0]
