@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rwhec_ros.core.certify.relaxation import SdpOptions  # noqa: E402
 from rwhec_ros.core.solve import SolveOptions, _form_costs, _prepare, solve  # noqa: E402
-from rwhec_ros.core.synthetic import random_instance  # noqa: E402
+from rwhec_ros.simulation.synthetic import random_instance  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "paper_real_world"
 FORMS = ("reduced", "full", "arrow")

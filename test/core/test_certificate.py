@@ -29,7 +29,7 @@ from rwhec_ros.core.local.dense import (
 )
 from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices, reduce_cost
 from rwhec_ros.core.result import Status
-from rwhec_ros.core.synthetic import random_instance, random_rotations
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
 N_ROT = 2  # two rotations: Z is 19 x 19 and |y|^2 = 3 n + 1 = 7
 D = 9 * N_ROT + 1

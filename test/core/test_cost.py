@@ -10,7 +10,7 @@ from rwhec_ros.core.model.cost import (
     pack_state,
     reduce_cost,
 )
-from rwhec_ros.core.synthetic import random_instance, random_transforms
+from rwhec_ros.simulation.synthetic import random_instance, random_transforms
 
 
 @pytest.mark.parametrize("unknown_scale", [False, True])

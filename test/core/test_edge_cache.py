@@ -10,7 +10,7 @@ from rwhec_ros.core.model.cost import _edge_sums, _edge_sums_few, build_cost_mat
 from rwhec_ros.core.model.edge_cache import EdgeBlockCache
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance, random_transforms
+from rwhec_ros.simulation.synthetic import random_instance, random_transforms
 
 # The cached sums add two runs of each edge's pairs where a fresh assembly sums them in one:
 # they differ by the rounding of sums of ~100 terms of size <= max|block| (~1e-14 relative).

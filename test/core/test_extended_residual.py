@@ -23,7 +23,7 @@ from rwhec_ros.core.numerics.extended_residual import extended_dtype, residual_b
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.result import Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance, random_rotations
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
 FIXTURE = Path(__file__).parent / "fixtures" / "precise_rig.npz"
 

@@ -15,7 +15,7 @@ from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior, axis_word
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import (
+from rwhec_ros.simulation.synthetic import (
     planar_instance,
     random_instance,
     random_transforms,

@@ -23,7 +23,7 @@ from rwhec_ros.core.local.dense import (
 from rwhec_ros.core.model.cost import build_cost_matrices, direct_cost
 from rwhec_ros.core.numerics.verified import gamma
 from rwhec_ros.core.solve import SolveOptions, _prepare, solve
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.simulation.synthetic import random_instance
 
 
 def _instance(seed, unknown_scale=False, n_per_edge=15, sigma=0.01):

@@ -5,8 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rwhec_ros.core.lie import hat, invert_transform, make_transform, rotation_distance, so3_exp
-from rwhec_ros.core.lom import (
+from rwhec_ros.core.baselines.lom_solver import (
     left_jacobian_inverse,
     lom_cost,
     lom_jacobians,
@@ -14,7 +13,8 @@ from rwhec_ros.core.lom import (
     right_jacobian_inverse,
     solve_lom,
 )
-from rwhec_ros.core.synthetic import random_instance, random_rotations, random_transforms
+from rwhec_ros.core.lie import hat, invert_transform, make_transform, rotation_distance, so3_exp
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations, random_transforms
 
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
 

@@ -25,7 +25,7 @@ from rwhec_ros.core.outliers import (
 )
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import perturb_measurements, random_instance, random_transforms
+from rwhec_ros.simulation.synthetic import perturb_measurements, random_instance, random_transforms
 
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
 SIGMA, KAPPA = 0.01, 125.0

@@ -20,7 +20,7 @@ from rwhec_ros.core.model.recentre import CAMERA, TAG, Recentring, recentred_pro
 from rwhec_ros.core.problem import Edge
 from rwhec_ros.core.result import Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import planar_instance, random_instance
+from rwhec_ros.simulation.synthetic import planar_instance, random_instance
 
 PAPER_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "paper_real_world"
 

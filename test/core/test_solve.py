@@ -9,7 +9,7 @@ import pytest
 from rwhec_ros.core.lie import make_transform, rotation_distance
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance, random_rotations
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
 
@@ -172,7 +172,7 @@ def test_fast_certificate_strengthened_on_single_sphere():
     """Single-sphere trajectories (paper Sec. 8.1) violate eq. (63): the orthogonality-only
     multipliers then leave e_s in the null space of Z; the handedness direction lifts it and the
     fast path certifies without the SDP, with the same optimum as the SDP."""
-    from rwhec_ros.core.scenarios import hand_camera_sphere
+    from rwhec_ros.simulation.scenarios import hand_camera_sphere
 
     rng = np.random.default_rng(0)
     problem, _ = hand_camera_sphere(rng, sigma=0.01, kappa=125)

@@ -17,7 +17,7 @@ from rwhec_ros.core.certify.relaxation import SdpOptions
 from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.result import CalibrationResult, Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.simulation.synthetic import random_instance
 
 NULL_TOL = 1e-6  # the default CertificateOptions.null_tol; the Hessian threshold is 10x this
 
@@ -48,7 +48,7 @@ def test_explicit_arrow_form_is_solved_and_certified():
 
 
 def _sphere_problem():
-    from rwhec_ros.core.scenarios import hand_camera_sphere
+    from rwhec_ros.simulation.scenarios import hand_camera_sphere
 
     problem, _ = hand_camera_sphere(np.random.default_rng(0), sigma=0.01, kappa=125)
     return problem

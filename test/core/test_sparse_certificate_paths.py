@@ -36,7 +36,7 @@ from rwhec_ros.core.numerics.verified import UNIT_ROUNDOFF, gamma
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions
 from rwhec_ros.core.sparse_fast import estimate_sparse, prepare_sparse
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.simulation.synthetic import random_instance
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_gauge import _planar_rig  # noqa: E402

@@ -15,7 +15,7 @@ from rwhec_ros.core import sparse_fast
 from rwhec_ros.core.local.dense import LocalSolverOptions
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.simulation.synthetic import random_instance
 
 SPARSE = "sparse unreduced path (5 frames"
 DENSE_AGAIN = "solved again by the dense path"

@@ -29,7 +29,7 @@ from rwhec_ros.core.problem import Problem
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
 from rwhec_ros.core.sparse_fast import prepare_sparse, use_sparse
-from rwhec_ros.core.synthetic import (
+from rwhec_ros.simulation.synthetic import (
     random_camera_tag_graph,
     random_instance,
     random_rotations,

@@ -13,7 +13,7 @@ from rwhec_ros.core.certify.sparsity import (
 )
 from rwhec_ros.core.lie import rotation_distance
 from rwhec_ros.core.solve import SolveOptions, _form_costs, _prepare, solve
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.simulation.synthetic import random_instance
 
 # every target seen by every camera: the leaves' couplings are wider than 9 (the SVD basis)
 DENSE_4X3 = (4, 3, [(j, k) for j in range(4) for k in range(3)])

@@ -15,7 +15,7 @@ from rwhec_ros.core.model.cost import build_cost_matrices, direct_cost
 from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import (
+from rwhec_ros.simulation.synthetic import (
     perturb_measurements,
     planar_instance,
     random_instance,

@@ -25,7 +25,7 @@ from rwhec_ros.core.analysis.uncertainty import (
 from rwhec_ros.core.model.cost import _blocks_from_sums, _finished_blocks
 from rwhec_ros.core.model.edge_cache import _finished
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.simulation.synthetic import random_instance
 
 
 def _solved(seed=2):
