@@ -409,8 +409,8 @@ def _offenders(records: list[dict], limit: int) -> list[str]:
 
 def _retry_line(records: list[dict]) -> str:
     """How often the certificate's extended-precision retry fired (``"tighten"`` in the result's
-    ``timing_s``: the reduction's residual bound recomputed, :func:`rwhec_ros.core.solve.
-    _tighten_reduction`) and what came of it."""
+    ``timing_s``: the reduction's residual bound recomputed, :func:`rwhec_ros.core.pipeline.
+    dense._tighten_reduction`) and what came of it."""
     fired = [r for r in records if r.get("retry")]
     if not any("retry" in r for r in records):
         return "Extended-precision certificate retry: not recorded (log from an older harness)."

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Soundness of the certificate's extended-precision retry (``rwhec_ros.core.solve._certify``).
+"""Soundness of the certificate's extended-precision retry
+(``rwhec_ros.core.pipeline.dense._certify``).
 
 When a certificate fails on its bound alone and the Schur reduction's rounding terms take more
 than a tenth of the allowed gap, the solver recomputes the bound on the recovery's residual
@@ -314,7 +315,8 @@ def _deficit_ratio(rec: dict) -> float:
 def _exact_on(inst: Instance, with_sg: bool) -> dict:
     """Section 2 for one instance: rebuild the product's reduction (same calls as ``solve``)."""
     from rwhec_ros.core.model.cost import reduce_cost
-    from rwhec_ros.core.solve import SolveOptions, _prepare
+    from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare
+    from rwhec_ros.core.solve import SolveOptions
 
     problem = inst.to_problem()
     prep = _prepare(problem, SolveOptions(mode="fast"))

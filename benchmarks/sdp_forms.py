@@ -29,7 +29,9 @@ from threadpoolctl import threadpool_limits
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rwhec_ros.core.certify.relaxation import SdpOptions  # noqa: E402
-from rwhec_ros.core.solve import SolveOptions, _form_costs, _prepare, solve  # noqa: E402
+from rwhec_ros.core.pipeline.dense import _form_costs  # noqa: E402
+from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare  # noqa: E402
+from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
 from rwhec_ros.simulation.synthetic import random_instance  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "paper_real_world"

@@ -9,7 +9,8 @@ import pytest
 
 from rwhec_ros.core.certify.relaxation import frame_constraints, so3_constraint_matrices
 from rwhec_ros.core.model.cost import StateLayout, _dense_blocks, build_cost_matrices, reduce_cost
-from rwhec_ros.core.solve import SolveOptions, _blas_controller, blas_threads, solve
+from rwhec_ros.core.numerics.blas import _blas_controller
+from rwhec_ros.core.solve import SolveOptions, blas_threads, solve
 from rwhec_ros.simulation.synthetic import random_instance
 
 

@@ -22,7 +22,8 @@ from rwhec_ros.core.local.dense import (
 )
 from rwhec_ros.core.model.cost import build_cost_matrices, direct_cost
 from rwhec_ros.core.numerics.verified import gamma
-from rwhec_ros.core.solve import SolveOptions, _prepare, solve
+from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare
+from rwhec_ros.core.solve import SolveOptions, solve
 from rwhec_ros.simulation.synthetic import random_instance
 
 

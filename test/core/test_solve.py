@@ -99,7 +99,7 @@ def test_noisy_certified_and_agrees(graph, sigma, kappa, unknown_scale):
 def test_wrong_basin_is_never_certified(fast_form):
     """Random starts on heavy-noise 2X2Y data reach non-global stationary points; the fast
     certificate (no SDP fallback) must flag every one of them and certify the global ones --
-    on the dense path and on the large-rig sparse path (:mod:`rwhec_ros.core.sparse_fast`)."""
+    on the dense path and on the large-rig sparse path (:mod:`rwhec_ros.core.pipeline.sparse`)."""
     non_global = 0
     for seed in (3, 5, 8):
         rng = np.random.default_rng(seed)

@@ -33,9 +33,9 @@ from rwhec_ros.core.local.sparse import refine_rotations_sparse, rotation_blocks
 from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL
 from rwhec_ros.core.numerics.verified import UNIT_ROUNDOFF, gamma
+from rwhec_ros.core.pipeline.sparse import estimate_sparse, prepare_sparse
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions
-from rwhec_ros.core.sparse_fast import estimate_sparse, prepare_sparse
 from rwhec_ros.simulation.synthetic import random_instance
 
 sys.path.insert(0, str(Path(__file__).parent))

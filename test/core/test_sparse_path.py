@@ -25,10 +25,10 @@ from rwhec_ros.core.model.gauge import (
 )
 from rwhec_ros.core.model.sparse_cost import build_full_form
 from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+from rwhec_ros.core.pipeline.sparse import prepare_sparse, use_sparse
 from rwhec_ros.core.problem import Problem
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.sparse_fast import prepare_sparse, use_sparse
 from rwhec_ros.simulation.synthetic import (
     random_camera_tag_graph,
     random_instance,

@@ -12,7 +12,9 @@ from rwhec_ros.core.certify.sparsity import (
     estimate_form_costs,
 )
 from rwhec_ros.core.lie import rotation_distance
-from rwhec_ros.core.solve import SolveOptions, _form_costs, _prepare, solve
+from rwhec_ros.core.pipeline.dense import _form_costs
+from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare
+from rwhec_ros.core.solve import SolveOptions, solve
 from rwhec_ros.simulation.synthetic import random_instance
 
 # every target seen by every camera: the leaves' couplings are wider than 9 (the SVD basis)
