@@ -314,7 +314,7 @@ def _deficit_ratio(rec: dict) -> float:
 
 def _exact_on(inst: Instance, with_sg: bool) -> dict:
     """Section 2 for one instance: rebuild the product's reduction (same calls as ``solve``)."""
-    from rwhec_ros.core.model.cost import reduce_cost
+    from rwhec_ros.core.model.reduction import reduce_cost
     from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare
     from rwhec_ros.core.solve import SolveOptions
 

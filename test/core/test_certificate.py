@@ -27,7 +27,8 @@ from rwhec_ros.core.local.dense import (
     handedness_multipliers,
     refine_rotations,
 )
-from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices, reduce_cost
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices
+from rwhec_ros.core.model.reduction import reduce_cost
 from rwhec_ros.core.result import Status
 from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 

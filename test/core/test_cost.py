@@ -3,13 +3,8 @@
 import numpy as np
 import pytest
 
-from rwhec_ros.core.model.cost import (
-    StateLayout,
-    build_cost_matrix,
-    direct_cost,
-    pack_state,
-    reduce_cost,
-)
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrix, direct_cost, pack_state
+from rwhec_ros.core.model.reduction import reduce_cost
 from rwhec_ros.simulation.synthetic import random_instance, random_transforms
 
 

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import rwhec_ros.core.pipeline.dense as dense_path
-from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices, reduce_cost
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices
+from rwhec_ros.core.model.reduction import reduce_cost
 from rwhec_ros.core.numerics.extended_residual import extended_dtype, residual_bound
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.result import Certificate, Status

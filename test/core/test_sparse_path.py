@@ -16,13 +16,14 @@ from rwhec_ros.core.certify.sparsity import elimination_front
 from rwhec_ros.core.initial.closed_form import estimate_from_rotations
 from rwhec_ros.core.local.sparse import refine_rotations_sparse
 from rwhec_ros.core.model import gauge as gauge_module
-from rwhec_ros.core.model.cost import DENSE_MAX_SIZE, StateLayout, build_cost_matrices, reduce_cost
+from rwhec_ros.core.model.cost import DENSE_MAX_SIZE, StateLayout, build_cost_matrices
 from rwhec_ros.core.model.gauge import (
     GaugeOptions,
     TranslationPrior,
     build_gauge_fix,
     find_unobservable_directions,
 )
+from rwhec_ros.core.model.reduction import reduce_cost
 from rwhec_ros.core.model.sparse_cost import build_full_form
 from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 from rwhec_ros.core.pipeline.sparse import prepare_sparse, use_sparse

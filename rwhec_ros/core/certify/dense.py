@@ -5,7 +5,7 @@ and ``lambda_s`` of ``s^2 = 1``, every feasible ``x = [t; y]`` (``y = [vec R; s]
 SO(3), ``s^2 = 1``) satisfies ``x^T Q x = lambda_s + x^T Z_full(lambda) x`` with
 ``Z_full = Q - K(lambda)``, where ``K(lambda) = lambda_s E_ss + sum_c lambda_c A_c`` touches only
 the ``y`` block. With the recovery ``t = G y`` of the Schur reduction
-(:func:`~rwhec_ros.core.model.cost.reduce_cost`) and ``t = u + G y``, for ANY ``G``::
+(:func:`~rwhec_ros.core.model.reduction.reduce_cost`) and ``t = u + G y``, for ANY ``G``::
 
     x^T Z_full x = u^T Q_ee u + 2 u^T F y + y^T (S_G - K) y,    F = Q_ee G + Q_ey,
 
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.cost import ReducedCost
+from ..model.reduction import ReducedCost
 from ..numerics.verified import UNIT_ROUNDOFF, gamma, smallest_eigenvalues, verified_min_eigenvalue
 from ..result import Certificate, Status
 from .relaxation import ConstraintSet
@@ -109,7 +109,8 @@ class DualBound:
 class ExactReduction:
     """Reduction bounds of a problem given directly on the reduced variables (no translations to
     eliminate, no rounding in a reduction): what :func:`certify_from_Z` needs from a
-    :class:`~rwhec_ros.core.model.cost.ReducedCost`, for matrices given as they are (tests, crafted
+    :class:`~rwhec_ros.core.model.reduction.ReducedCost`, for matrices given as they are (tests,
+    crafted
     certificates)."""
 
     size: int

@@ -16,7 +16,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..lie import hat, project_to_so3, so3_exp, unvec, vec
-from ..model.cost import StateLayout, build_cost_matrix, reduce_cost
+from ..model.cost import StateLayout, build_cost_matrix
+from ..model.reduction import reduce_cost
 from ..problem import Problem, check_transforms
 from .status import IdentifiabilityStatus, IdentifiabilityThresholds, worst_status
 
@@ -263,7 +264,7 @@ def numeric_check(
 
     Builds ``Q`` (:func:`~rwhec_ros.core.model.cost.build_cost_matrix`), starts from ``solution``
     ``(X (M,4,4), Y (P,4,4), alpha)`` (metric) if given, else from the smallest eigenvector of the
-    reduced cost (:func:`~rwhec_ros.core.model.cost.reduce_cost`, eq. (48)) with optimal
+    reduced cost (:func:`~rwhec_ros.core.model.reduction.reduce_cost`, eq. (48)) with optimal
     translations (eq. (47)); polishes to a critical point with a damped Riemannian Newton method;
     and analyses the exact Hessian there. ``x^T Q x`` is the negative log-likelihood, so the inverse
     Hessian predicts the covariance of the estimate. Null directions (normalised eigenvalue below

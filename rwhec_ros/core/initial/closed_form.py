@@ -18,7 +18,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..lie import make_transform, project_to_so3, unvec
-from ..model.cost import ReducedCost, StateLayout, build_cost_matrices
+from ..model.cost import StateLayout, build_cost_matrices
+from ..model.reduction import ReducedCost
 from ..numerics.verified import lanczos_start
 from ..problem import Problem
 

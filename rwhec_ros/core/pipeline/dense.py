@@ -43,8 +43,9 @@ from ..local.dense import (
     refine_rotations,
     strengthen_certificate,
 )
-from ..model.cost import StateLayout, build_cost_matrices, reduce_cost
+from ..model.cost import StateLayout, build_cost_matrices
 from ..model.gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
+from ..model.reduction import reduce_cost
 from ..problem import Problem
 from ..result import CalibrationResult, Certificate, Status
 from .common import COST_FLOOR_REL, NUMERICAL_ERRORS, calibration_result, failed_certificate
@@ -156,8 +157,8 @@ def _residual_bound_decides(cert: Certificate, options: SolveOptions,
 
 def _tighten_reduction(prep: _Prepared) -> bool:
     """Replace the reduction's residual bound by the extended-precision one
-    (:func:`~rwhec_ros.core.model.cost.reduce_cost` with ``residual="extended"``), once per problem;
-    False when it was done already or the reduction is not the same bit for bit (then the
+    (:func:`~rwhec_ros.core.model.reduction.reduce_cost` with ``residual="extended"``), once per
+    problem; False when it was done already or the reduction is not the same bit for bit (then the
     bound would not be about the matrix the solvers used, and nothing changes)."""
     if prep.tightened or prep.Q is None or not prep.reduced.verified:
         return False
