@@ -19,14 +19,14 @@ from rwhec_ros.core.certify.dense import (
     certify_from_Z,
     rigorous_dual_bound,
 )
-from rwhec_ros.core.certify.relaxation import so3_constraint_matrices
-from rwhec_ros.core.local.dense import (
+from rwhec_ros.core.certify.multipliers import (
     fast_certificate_matrix,
     fast_certificate_multipliers,
     handedness_direction,
     handedness_multipliers,
-    refine_rotations,
 )
+from rwhec_ros.core.certify.relaxation import so3_constraint_matrices
+from rwhec_ros.core.local.dense import refine_rotations
 from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices
 from rwhec_ros.core.model.reduction import reduce_cost
 from rwhec_ros.core.result import Status

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from rwhec_ros.core.certify.dense import certificate_matrix
+from rwhec_ros.core.certify.multipliers import fast_certificate_multipliers
 from rwhec_ros.core.certify.relaxation import frame_constraints, so3_constraint_matrices
 from rwhec_ros.core.local.dense import (
     LocalSolverOptions,
     _grad_hess,
     damped_newton,
-    fast_certificate_multipliers,
     refine_rotations,
 )
 from rwhec_ros.core.model.cost import build_cost_matrices, direct_cost

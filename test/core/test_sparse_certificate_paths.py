@@ -16,6 +16,7 @@ import pytest
 import scipy.sparse as sp
 
 from rwhec_ros.core.certify.dense import CertificateOptions
+from rwhec_ros.core.certify.multipliers import handedness_direction
 from rwhec_ros.core.certify.sparse import (
     CertificatePattern,
     _certificate_at,
@@ -28,7 +29,6 @@ from rwhec_ros.core.certify.sparse import (
     reduced_eigenvalues,
     sparse_dual_bound,
 )
-from rwhec_ros.core.local.dense import handedness_direction
 from rwhec_ros.core.local.sparse import refine_rotations_sparse, rotation_blocks
 from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL

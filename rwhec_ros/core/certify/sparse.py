@@ -2,7 +2,7 @@
 
 The dense certificate (:mod:`rwhec_ros.core.certify.dense`) bounds the smallest eigenvalue of the
 reduced ``Z = Q' - K(lambda)``, whose ``Q'`` is dense for large rigs. Here the multipliers are the
-same first-order ones (:func:`~rwhec_ros.core.local.dense.fast_certificate_multipliers`: the
+same first-order ones (:func:`~rwhec_ros.core.certify.multipliers.fast_certificate_multipliers`: the
 blocks ``Gamma_l`` of the orthogonality constraints (50b) and ``lambda_s`` of ``s^2 = 1``), but the
 bound is proven on the *unreduced* matrix (:mod:`rwhec_ros.core.model.sparse_cost` for ``z = [f;
 y]``)::
@@ -47,7 +47,7 @@ dense rows of a hub (a target seen by every camera) do not inflate the margin of
 the entries of ``K`` on the rotation blocks are the stored ``Gamma_l`` themselves (exact). The
 final subtractions of ``d`` are rounded down by ``4 u`` of their magnitudes. The theorem holds for
 any multipliers; the *strengthened* certificate uses ``lambda + t lambda_h`` with the handedness
-direction ``lambda_h`` of :func:`~rwhec_ros.core.local.dense.handedness_multipliers` (whose
+direction ``lambda_h`` of :func:`~rwhec_ros.core.certify.multipliers.handedness_multipliers` (whose
 matrix ``D`` has ``D z = 0``), its entries' rounding added to ``E``.
 
 Scope, as for the dense certificate: ``Q`` as computed in double precision -- here the unreduced
@@ -76,13 +76,13 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..local.dense import handedness_multipliers
 from ..local.sparse import rotation_blocks
 from ..model.sparse_cost import FullForm
 from ..numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 from ..numerics.verified import UNIT_ROUNDOFF, gamma, lanczos_start
 from ..result import Certificate, Status
 from .dense import CertificateOptions, DualBound, certificate_from_bound
+from .multipliers import handedness_multipliers
 from .relaxation import _PATTERN
 
 __all__ = ["CertificatePattern", "first_order_multipliers", "sparse_dual_bound", "certify_sparse"]
@@ -107,7 +107,7 @@ _HAND_P, _HAND_Q, _HAND_TARGET = _handedness_layout()
 
 def handedness_entries(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The upper entries (n, 55) of the 10 x 10 blocks on ``[vec R_l; s]`` of the matrix ``D`` of
-    :func:`~rwhec_ros.core.local.dense.handedness_multipliers` (``D z = 0``), and of an
+    :func:`~rwhec_ros.core.certify.multipliers.handedness_multipliers` (``D z = 0``), and of an
     entrywise bound on their absolute values (the terms summed)."""
     _, _, V, Ci = _PATTERN
     n = R.shape[0]
@@ -381,9 +381,9 @@ def _handedness_matrix_y(vals: np.ndarray, n: int) -> sp.csr_matrix:
 def _strengthen(pattern: CertificatePattern, dual: _Dual, R: np.ndarray, v2: np.ndarray
                 ) -> Certificate | None:
     """A certified certificate with the multipliers ``lambda + t lambda_h`` of the handedness
-    direction (:func:`~rwhec_ros.core.local.dense.strengthen_certificate`, sparse): ``t`` moves
-    the second null direction ``v2`` up (sign from ``v2^T D v2``) in 4-fold steps from where the
-    first-order change reaches ``2 null_tol``, each ``t`` screened by the inertia of ``Z(t) -
+    direction (:func:`~rwhec_ros.core.certify.multipliers.strengthen_certificate`, sparse): ``t``
+    moves the second null direction ``v2`` up (sign from ``v2^T D v2``) in 4-fold steps from where
+    the first-order change reaches ``2 null_tol``, each ``t`` screened by the inertia of ``Z(t) -
     null_tol`` on ``y`` (one eigenvalue below ``null_tol``: the estimate's own direction); the
     rigorous bound is then computed at the middle of the passing steps (then the others, nearest
     first). ``None`` when no ``t`` certifies."""

@@ -21,6 +21,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..certify.dense import certificate_matrix, certify
+from ..certify.multipliers import (
+    fast_certificate_multipliers,
+    handedness_multipliers,
+    strengthen_certificate,
+)
 from ..certify.relaxation import (
     ConstraintSet,
     frame_constraints,
@@ -36,13 +41,7 @@ from ..initial.closed_form import (
     primal_cost,
     rotations_from_vector,
 )
-from ..local.dense import (
-    _grad_hess,
-    fast_certificate_multipliers,
-    handedness_multipliers,
-    refine_rotations,
-    strengthen_certificate,
-)
+from ..local.dense import _grad_hess, refine_rotations
 from ..model.cost import StateLayout, build_cost_matrices
 from ..model.gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
 from ..model.reduction import reduce_cost
