@@ -39,8 +39,8 @@ import numpy as np
 
 from ..lie import invert_transform, make_transform, so3_exp
 from ..model.recentre import recentred_analysis
+from ..numerics.blas import blas_threads
 from ..problem import Problem
-from ..solve import blas_threads
 from .information import (
     Information,
     check_result_frames,

@@ -51,8 +51,8 @@ from ..model.gauge import (
     unobservable_directions_of_block,
 )
 from ..model.recentre import recentred_analysis
+from ..numerics.blas import blas_threads
 from ..problem import Problem
-from ..solve import blas_threads
 from .information import (
     Information,
     check_result_frames,

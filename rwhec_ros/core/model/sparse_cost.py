@@ -36,11 +36,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..initial.closed_form import Estimate, rotations_from_vector
 from ..numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
 from ..numerics.verified import lanczos_start
 from ..problem import Problem
 from .cost import StateLayout, edge_blocks
+from .estimate import Estimate, rotations_from_vector
 from .gauge import GaugeFix
 
 __all__ = ["TREE_ARITY", "PRUNE_REL", "pruned_gauge", "penalty_tree", "translation_block",

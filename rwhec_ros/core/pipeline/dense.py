@@ -39,10 +39,10 @@ from ..initial.closed_form import (
     estimate_from_rotations,
     initial_rotations,
     primal_cost,
-    rotations_from_vector,
 )
 from ..local.dense import _grad_hess, refine_rotations
 from ..model.cost import StateLayout, build_cost_matrices
+from ..model.estimate import rotations_from_vector
 from ..model.gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
 from ..model.reduction import reduce_cost
 from ..problem import Problem

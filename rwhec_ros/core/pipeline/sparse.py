@@ -39,9 +39,10 @@ import scipy.sparse.linalg as spla
 
 from ..certify.sparse import CertificatePattern, certify_sparse
 from ..certify.sparsity import elimination_front
-from ..initial.closed_form import Estimate, initial_rotations, primal_cost
+from ..initial.closed_form import initial_rotations, primal_cost
 from ..local.sparse import NewtonSystem, refine_rotations_sparse, rotation_blocks
 from ..model.cost import StateLayout, edge_blocks
+from ..model.estimate import Estimate
 from ..model.gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
 from ..model.sparse_cost import FullForm, build_full_form, pruned_gauge, translation_block
 from ..numerics.verified import lanczos_start
