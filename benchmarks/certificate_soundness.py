@@ -94,12 +94,12 @@ DEFINITIONS = f"""\
 
 All costs are ``f = 1/2 sum_pairs (|alpha (R_A t_X + t_A - t_Y) - R_Y t_B|^2 / sigma^2 +
 kappa |R_A R_X - R_Y R_B|_F^2)`` (eq. (33) with the 1/2 of eq. (42); metric ``t``; ``alpha = 1``
-for known scale) -- the same number as ``rwhec_ros.core.cost.direct_cost`` (checked in
+for known scale) -- the same number as ``rwhec_ros.core.model.cost.direct_cost`` (checked in
 ``test/core/test_certificate_soundness.py``). The feasible set is rotations in SO(3), any
 translations and, for unknown scale, ``alpha > 0`` (the checker allows ``alpha = 0`` as the limit
 of feasible points). ``p``, ``d``, ``rho_hat``, ``rho_tol`` are the certificate's
 ``primal_cost``, ``dual_bound``, ``suboptimality_bound``, ``tolerance``. The product claims
-(``rwhec_ros/core/certificate.py``): ``d`` is a lower bound on the optimum and
+(``rwhec_ros/core/certify/dense.py``): ``d`` is a lower bound on the optimum and
 ``rho_hat = (p - d) / max(d, cost_floor) <= rho_tol``; the denominator is recovered as
 ``D = max(|d|, (p - d) / rho_hat)`` (``|d|`` when ``rho_hat <= 0``).
 
@@ -409,8 +409,8 @@ def _offenders(records: list[dict], limit: int) -> list[str]:
 
 def _retry_line(records: list[dict]) -> str:
     """How often the certificate's extended-precision retry fired (``"tighten"`` in the result's
-    ``timing_s``: the reduction's residual bound recomputed, :func:`rwhec_ros.core.solve.
-    _tighten_reduction`) and what came of it."""
+    ``timing_s``: the reduction's residual bound recomputed, :func:`rwhec_ros.core.pipeline.
+    dense._tighten_reduction`) and what came of it."""
     fired = [r for r in records if r.get("retry")]
     if not any("retry" in r for r in records):
         return "Extended-precision certificate retry: not recorded (log from an older harness)."

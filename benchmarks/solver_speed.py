@@ -37,10 +37,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rwhec_ros.core.baselines import opencv_robot_world_hand_eye  # noqa: E402
+from rwhec_ros.core.certify.relaxation import SdpOptions  # noqa: E402
 from rwhec_ros.core.lie import rotation_distance  # noqa: E402
-from rwhec_ros.core.relaxation import SdpOptions  # noqa: E402
 from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
-from rwhec_ros.core.synthetic import random_camera_tag_graph, random_instance  # noqa: E402
+from rwhec_ros.simulation.synthetic import random_camera_tag_graph, random_instance  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "paper_real_world"
 PHASES = ("build", "initialise", "local", "constraints", "compile", "solve", "extract",

@@ -339,7 +339,7 @@ def test_bag_errors_are_bad_input(recorded, tmp_path):
 
 
 def test_dataset_of_a_synthetic_problem(tmp_path):
-    from rwhec_ros.core.synthetic import random_instance
+    from rwhec_ros.simulation.synthetic import random_instance
 
     problem, gt = random_instance(np.random.default_rng(5), 3, 2, n_per_edge=10, sigma=0.005,
                                   kappa=400.0)
@@ -489,8 +489,8 @@ def test_every_option_help_ends_with_its_default():
 
 def synthetic_inputs(tmp_path) -> dict[str, list]:
     """A small synthetic problem as the paper's CSV files and as a data set."""
-    from rwhec_ros.core.synthetic import random_instance
     from rwhec_ros.data.paper_csv import write_paper_csv
+    from rwhec_ros.simulation.synthetic import random_instance
 
     problem, _ = random_instance(np.random.default_rng(7), 2, 2, n_per_edge=8, sigma=0.005,
                                  kappa=400.0)
@@ -569,8 +569,8 @@ def test_dataset_robust_flag_reaches_the_solver(tmp_path):
 def test_report_later_shows_the_pairs_the_robust_solve_kept(tmp_path):
     """``report`` on a ``--robust`` result leaves out the pairs the outlier rejection rejected
     (the result's ``rejected_pairs``), as the report written at solve time does."""
-    from rwhec_ros.core.synthetic import random_instance
     from rwhec_ros.data.results import solved_pairs
+    from rwhec_ros.simulation.synthetic import random_instance
 
     problem, _ = random_instance(np.random.default_rng(7), 2, 2, n_per_edge=12, sigma=0.005,
                                  kappa=400.0)
@@ -932,7 +932,7 @@ def test_robust_drops_the_tag_23_cam_6_edge_of_the_paper_data(paper_dir, tmp_pat
 
 
 def test_accuracy_switches_reach_the_result(tmp_path):
-    from rwhec_ros.core.synthetic import random_instance
+    from rwhec_ros.simulation.synthetic import random_instance
 
     problem, _ = random_instance(np.random.default_rng(5), 3, 2, n_per_edge=10, sigma=0.005,
                                  kappa=400.0)

@@ -179,7 +179,7 @@ class ConvergenceConfig:
 @dataclass(frozen=True)
 class PriorsConfig:
     """Known translation components ``(frame, axis, value_m)`` that fix unobservable directions
-    (:class:`rwhec_ros.core.gauge.TranslationPrior`; the axis is of the frame's carrier)."""
+    (:class:`rwhec_ros.core.model.gauge.TranslationPrior`; the axis is of the frame's carrier)."""
 
     entries: tuple[tuple[str, str, float], ...] = ()
 

@@ -65,7 +65,7 @@ def solve_options(
     """:class:`~rwhec_ros.core.solve.SolveOptions` for ``problem`` with the translation priors
     ``(frame, axis, value_m)`` of the frames it has (returns the options and a note per prior
     whose frame has no usable edge)."""
-    from ..core.gauge import GaugeOptions, TranslationPrior
+    from ..core.model.gauge import GaugeOptions, TranslationPrior
     from ..core.solve import SolveOptions
 
     kept, notes = [], []
@@ -114,7 +114,8 @@ def solve_problem(
     ``reject_outliers`` RANSAC (paper Section 9.1) + GNC-TLS re-certified on the inlier set
     (:func:`rwhec_ros.core.outliers.robust_solve`). ``priors`` (``(frame, axis, value_m)``) and
     ``unobservable_std_m`` fix translation directions the data do not determine
-    (:mod:`rwhec_ros.core.gauge`); ``min_scale`` is the unknown scale's floor. Returns (result,
+    (:mod:`rwhec_ros.core.model.gauge`); ``min_scale`` is the unknown scale's floor. Returns
+    (result,
     dropped edges, notes)."""
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,

@@ -2,14 +2,14 @@
 
 ``Z = V diag(w) V^T`` with a random orthogonal ``V`` and chosen eigenvalues ``w``; scale 1, an
 exact reduction (no translations), ``lambda_s = 1``. Each test pins one decision of
-:func:`rwhec_ros.core.certificate.certify_from_Z` (the tolerances, the dual bound of eq. (71), the
+:func:`rwhec_ros.core.certify.dense.certify_from_Z` (the tolerances, the dual bound of eq. (71), the
 solver-status and non-finite paths) so that changing it makes a test fail.
 """
 
 import numpy as np
 import pytest
 
-from rwhec_ros.core.certificate import (
+from rwhec_ros.core.certify.dense import (
     CertificateOptions,
     DualBound,
     ExactReduction,
@@ -19,18 +19,19 @@ from rwhec_ros.core.certificate import (
     certify_from_Z,
     rigorous_dual_bound,
 )
-from rwhec_ros.core.cost import StateLayout, build_cost_matrices, reduce_cost
-from rwhec_ros.core.local_solver import (
+from rwhec_ros.core.certify.multipliers import (
     fast_certificate_matrix,
     fast_certificate_multipliers,
     handedness_direction,
     handedness_multipliers,
-    refine_rotations,
 )
-from rwhec_ros.core.relaxation import so3_constraint_matrices
+from rwhec_ros.core.certify.relaxation import so3_constraint_matrices
+from rwhec_ros.core.local.dense import refine_rotations
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices
+from rwhec_ros.core.model.reduction import reduce_cost
 from rwhec_ros.core.result import Status
-from rwhec_ros.core.synthetic import random_instance, random_rotations
-from rwhec_ros.core.verified import gamma
+from rwhec_ros.core.numerics.verified import gamma
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
 N_ROT = 2  # two rotations: Z is 19 x 19 and |y|^2 = 3 n + 1 = 7
 D = 9 * N_ROT + 1
@@ -194,7 +195,7 @@ def test_no_shifted_factorisation_is_not_certified(monkeypatch):
     """Through certify_from_Z: when the eigenvalue estimate it factorises Z against is wrong
     (above the spectrum), no shifted factorisation succeeds and the status is ill-conditioned
     with that reason, never certified (the data are otherwise a clear certificate)."""
-    import rwhec_ros.core.certificate as certificate
+    import rwhec_ros.core.certify.dense as certificate
 
     def estimate_above_spectrum(Z, k):
         return np.full(k, float(np.linalg.eigvalsh(Z)[-1]) + 1e-3)
@@ -323,7 +324,7 @@ def test_certificate_matrix_rounding_bound_holds_in_exact_arithmetic():
 def test_certificate_matrix_rounding_bound_is_the_documented_formula():
     """err_rows = gamma_{t+1} rows(|C||lambda|) + gamma_3 rows(|Q'| + |K|), t the most
     constraints on one entry of Z (counted here from the dense constraint matrices)."""
-    from rwhec_ros.core.verified import gamma
+    from rwhec_ros.core.numerics.verified import gamma
 
     Qs, cons, lam = _constraint_case(7)
     Z, err = certificate_matrix(Qs, cons, lam)
@@ -536,7 +537,7 @@ def test_inflation_factors_that_are_the_same_double():
     """Why two mutants of the rounding term are equivalent (benchmarks/mutation.py): as doubles,
     1 + gamma_1 == 1 + gamma_2 (= 1 + 2^-52) and 1 + gamma_3 == 1 + gamma_4 (= 1 + 2^-51), while
     1 + gamma_2 < 1 + gamma_3."""
-    from rwhec_ros.core.verified import gamma
+    from rwhec_ros.core.numerics.verified import gamma
 
     assert 1.0 + gamma(1) == 1.0 + gamma(2) == 1.0 + 2.0**-52
     assert 1.0 + gamma(3) == 1.0 + gamma(4) == 1.0 + 2.0**-51

@@ -16,7 +16,7 @@ from rwhec_ros.core.identifiability import (
 )
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp
 from rwhec_ros.core.problem import Edge, Problem
-from rwhec_ros.core.synthetic import perturb_measurements, random_instance, random_transforms
+from rwhec_ros.simulation.synthetic import perturb_measurements, random_instance, random_transforms
 
 S = IdentifiabilityStatus
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"

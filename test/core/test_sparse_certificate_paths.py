@@ -1,4 +1,4 @@
-"""Every path of the sparse certificate (:mod:`rwhec_ros.core.sparse_certificate`) against a
+"""Every path of the sparse certificate (:mod:`rwhec_ros.core.certify.sparse`) against a
 reference: the bound against the documented algorithm and formula (module docstring, "The sparse
 bound" and "Choice of the shifts"), the eigenvalue estimates against ``numpy.linalg.eigvalsh`` of
 the dense reduced matrix, the status decisions (homogeneous ``s``, tolerances exactly at an
@@ -15,12 +15,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from rwhec_ros.core.certificate import CertificateOptions
-from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior
-from rwhec_ros.core.local_solver import handedness_direction
-from rwhec_ros.core.result import Status
-from rwhec_ros.core.solve import SolveOptions
-from rwhec_ros.core.sparse_certificate import (
+from rwhec_ros.core.certify.dense import CertificateOptions
+from rwhec_ros.core.certify.multipliers import handedness_direction
+from rwhec_ros.core.certify.sparse import (
     CertificatePattern,
     _certificate_at,
     _Dual,
@@ -32,11 +29,14 @@ from rwhec_ros.core.sparse_certificate import (
     reduced_eigenvalues,
     sparse_dual_bound,
 )
-from rwhec_ros.core.sparse_fast import estimate_sparse, prepare_sparse
-from rwhec_ros.core.sparse_ldl import FactorizationError, SparseLDL
-from rwhec_ros.core.sparse_solver import refine_rotations_sparse, rotation_blocks
-from rwhec_ros.core.synthetic import random_instance
-from rwhec_ros.core.verified import UNIT_ROUNDOFF, gamma
+from rwhec_ros.core.local.sparse import refine_rotations_sparse, rotation_blocks
+from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
+from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL
+from rwhec_ros.core.numerics.verified import UNIT_ROUNDOFF, gamma
+from rwhec_ros.core.pipeline.sparse import estimate_sparse, prepare_sparse
+from rwhec_ros.core.result import Status
+from rwhec_ros.core.solve import SolveOptions
+from rwhec_ros.simulation.synthetic import random_instance
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_gauge import _planar_rig  # noqa: E402
@@ -644,7 +644,7 @@ def test_strengthening_in_a_lowering_direction_certifies_nothing():
     """A direction u (orthogonal to y) with u^T D u > 0 makes the search step t < 0, which
     lowers the planar rig's second null direction (its v2^T D v2 < 0): no t leaves a single
     eigenvalue below null_tol; the search stops at |t| > t_max and returns None."""
-    from rwhec_ros.core.sparse_certificate import _strengthen
+    from rwhec_ros.core.certify.sparse import _strengthen
 
     c = _case("planar")
     pattern = c["pattern"]
@@ -662,7 +662,7 @@ def test_strengthening_in_a_lowering_direction_certifies_nothing():
 def test_a_failed_probe_factorisation_is_not_a_pass(monkeypatch):
     """The screen counts negative pivots; a probe whose factorisation breaks down proves nothing
     and must not count as 'one eigenvalue below null_tol': no certificate is attempted."""
-    import rwhec_ros.core.sparse_certificate as sc
+    import rwhec_ros.core.certify.sparse as sc
 
     c = _case("planar")
     pattern = c["pattern"]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rwhec_ros.core.synthetic import random_transforms
+from rwhec_ros.simulation.synthetic import random_transforms
 from rwhec_ros.sync.buffer import LookupStatus, PoseBuffer
 from rwhec_ros.sync.interpolation import interpolate_se3
 

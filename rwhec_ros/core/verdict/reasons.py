@@ -156,7 +156,7 @@ def pinned_frames(result: CalibrationResult) -> list[str]:
 def _along(d, problem: Problem, carriers: tuple[str, str]) -> str:
     """``the translation along world z (tags) and rig z (cameras)`` for a direction that is one
     axis per role, else the direction's own words."""
-    from ..gauge import axis_words
+    from ..model.gauge import axis_words
 
     parts = []
     for frames, carrier, role in ((problem.x_names, carriers[1], "tags"),
@@ -335,7 +335,7 @@ def fit_reasons(b: Builder, fit: FitStatistics, opts: VerdictOptions,
 def precision_reasons(b: Builder, uncertainty, fit: FitStatistics | None, opts: VerdictOptions,
                       problem: Problem, pinned: list[str], scale: float = 1.0) -> None:
     """Frames (and the scale) less precise than the thresholds, from ``uncertainty`` (an
-    :class:`~rwhec_ros.core.uncertainty.Uncertainty` at the solution, or None: unknown)."""
+    :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty` at the solution, or None: unknown)."""
     s = fit.noise_ratio if fit is not None and fit.testable else 1.0
     prec = frame_precisions(uncertainty, s, pinned=pinned)
     groups: dict[str, list[str]] = {"unusable": [], "caution": []}

@@ -1,10 +1,10 @@
 """The certificate of the large-problem path: a rigorous dual bound from a sparse ``Z(lambda)``.
 
-The dense certificate (:mod:`rwhec_ros.core.certificate`) bounds the smallest eigenvalue of the
+The dense certificate (:mod:`rwhec_ros.core.certify.dense`) bounds the smallest eigenvalue of the
 reduced ``Z = Q' - K(lambda)``, whose ``Q'`` is dense for large rigs. Here the multipliers are the
-same first-order ones (:func:`~rwhec_ros.core.local_solver.fast_certificate_multipliers`: the
+same first-order ones (:func:`~rwhec_ros.core.certify.multipliers.fast_certificate_multipliers`: the
 blocks ``Gamma_l`` of the orthogonality constraints (50b) and ``lambda_s`` of ``s^2 = 1``), but the
-bound is proven on the *unreduced* matrix (:mod:`rwhec_ros.core.sparse_problem` for ``z = [f;
+bound is proven on the *unreduced* matrix (:mod:`rwhec_ros.core.model.sparse_cost` for ``z = [f;
 y]``)::
 
     Z = Q_s - K,   K = Diag(0_f, Gamma_1 (x) I_3, ..., Gamma_n (x) I_3, lambda_s - sum tr Gamma_l),
@@ -17,10 +17,10 @@ z``, because ``y^T K y = lambda_s`` on the constraint set.
 **Theorem (the sparse bound).** Let ``Z_fl`` be ``Z`` as computed, ``|Z - Z_fl| <= E``
 entrywise (``E`` symmetric, nonnegative), and choose shifts ``delta_i >= 0`` on the free
 coordinates and ``mu`` on ``y``. Let ``A = fl(Z_fl + Diag(-delta, mu I))`` and suppose its
-``L D L^T`` factorisation (:class:`~rwhec_ros.core.sparse_ldl.SparseLDL`) runs to completion with
-every pivot ``D_ii > 0``, so that ``(I + L) D (I + L)^T = P^T (A + dA) P`` is positive
-semidefinite, and let ``w`` be weights with ``(|dA| 1)_i <= w_i``
-(:meth:`~rwhec_ros.core.sparse_ldl.SparseLDL.backward_error_rows`). Put::
+``L D L^T`` factorisation (:class:`~rwhec_ros.core.numerics.sparse_ldl.SparseLDL`) runs to
+completion with every pivot ``D_ii > 0``, so that ``(I + L) D (I + L)^T = P^T (A + dA) P`` is
+positive semidefinite, and let ``w`` be weights with ``(|dA| 1)_i <= w_i``
+(:meth:`~rwhec_ros.core.numerics.sparse_ldl.SparseLDL.backward_error_rows`). Put::
 
     c_i = w_i + u |A_ii| + (E 1)_i.
 
@@ -47,11 +47,11 @@ dense rows of a hub (a target seen by every camera) do not inflate the margin of
 the entries of ``K`` on the rotation blocks are the stored ``Gamma_l`` themselves (exact). The
 final subtractions of ``d`` are rounded down by ``4 u`` of their magnitudes. The theorem holds for
 any multipliers; the *strengthened* certificate uses ``lambda + t lambda_h`` with the handedness
-direction ``lambda_h`` of :func:`~rwhec_ros.core.local_solver.handedness_multipliers` (whose
+direction ``lambda_h`` of :func:`~rwhec_ros.core.certify.multipliers.handedness_multipliers` (whose
 matrix ``D`` has ``D z = 0``), its entries' rounding added to ``E``.
 
 Scope, as for the dense certificate: ``Q`` as computed in double precision -- here the unreduced
-cost of :mod:`rwhec_ros.core.sparse_problem`, with the gauge penalty as its spring tree and the
+cost of :mod:`rwhec_ros.core.model.sparse_cost`, with the gauge penalty as its spring tree and the
 translations shifted by the prior's particular solution, the same problem in exact arithmetic --
 and ``p`` the direct cost of eq. (33) plus the penalty at the returned estimate.
 
@@ -76,14 +76,14 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .certificate import CertificateOptions, DualBound, certificate_from_bound
-from .local_solver import handedness_multipliers
+from ..local.sparse import rotation_blocks
+from ..model.sparse_cost import FullForm
+from ..numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+from ..numerics.verified import UNIT_ROUNDOFF, gamma, lanczos_start
+from ..result import Certificate, Status
+from .dense import CertificateOptions, DualBound, certificate_from_bound
+from .multipliers import handedness_multipliers
 from .relaxation import _PATTERN
-from .result import Certificate, Status
-from .sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
-from .sparse_problem import FullForm
-from .sparse_solver import rotation_blocks
-from .verified import UNIT_ROUNDOFF, gamma, lanczos_start
 
 __all__ = ["CertificatePattern", "first_order_multipliers", "sparse_dual_bound", "certify_sparse"]
 
@@ -94,7 +94,7 @@ MAX_ATTEMPTS = 16
 def _handedness_layout() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Local upper pairs ``(p, q)``, ``p <= q`` of one rotation's ``[vec R; s]`` (``s`` local 9)
     and the scatter matrix from the constraint entries of
-    :func:`~rwhec_ros.core.relaxation.so3_constraint_matrices` to them."""
+    :func:`~rwhec_ros.core.certify.relaxation.so3_constraint_matrices` to them."""
     P, Qi, _, _ = _PATTERN
     pp, qq = np.triu_indices(10)
     slot = {(int(a), int(b)): k for k, (a, b) in enumerate(zip(pp, qq, strict=True))}
@@ -107,7 +107,7 @@ _HAND_P, _HAND_Q, _HAND_TARGET = _handedness_layout()
 
 def handedness_entries(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The upper entries (n, 55) of the 10 x 10 blocks on ``[vec R_l; s]`` of the matrix ``D`` of
-    :func:`~rwhec_ros.core.local_solver.handedness_multipliers` (``D z = 0``), and of an
+    :func:`~rwhec_ros.core.certify.multipliers.handedness_multipliers` (``D z = 0``), and of an
     entrywise bound on their absolute values (the terms summed)."""
     _, _, V, Ci = _PATTERN
     n = R.shape[0]
@@ -381,9 +381,9 @@ def _handedness_matrix_y(vals: np.ndarray, n: int) -> sp.csr_matrix:
 def _strengthen(pattern: CertificatePattern, dual: _Dual, R: np.ndarray, v2: np.ndarray
                 ) -> Certificate | None:
     """A certified certificate with the multipliers ``lambda + t lambda_h`` of the handedness
-    direction (:func:`~rwhec_ros.core.local_solver.strengthen_certificate`, sparse): ``t`` moves
-    the second null direction ``v2`` up (sign from ``v2^T D v2``) in 4-fold steps from where the
-    first-order change reaches ``2 null_tol``, each ``t`` screened by the inertia of ``Z(t) -
+    direction (:func:`~rwhec_ros.core.certify.multipliers.strengthen_certificate`, sparse): ``t``
+    moves the second null direction ``v2`` up (sign from ``v2^T D v2``) in 4-fold steps from where
+    the first-order change reaches ``2 null_tol``, each ``t`` screened by the inertia of ``Z(t) -
     null_tol`` on ``y`` (one eigenvalue below ``null_tol``: the estimate's own direction); the
     rigorous bound is then computed at the middle of the passing steps (then the others, nearest
     first). ``None`` when no ``t`` certifies."""
@@ -434,7 +434,7 @@ def certify_sparse(
     (unscaled) on the large-problem path (module docstring) and whether it needed the handedness
     multipliers. ``Qs = form.Q / scale``; ``pattern`` from :class:`CertificatePattern` ``(form,
     Qs)``; ``homogeneous``, ``cost_floor`` and ``options`` as for
-    :func:`~rwhec_ros.core.certificate.certify_from_Z`. With ``strengthen``, a certificate that
+    :func:`~rwhec_ros.core.certify.dense.certify_from_Z`. With ``strengthen``, a certificate that
     proves the bound but shows a second null direction is retried with the handedness
     multipliers, as on the dense path."""
     opts = options or CertificateOptions()

@@ -12,8 +12,8 @@ system, so an interior-point iteration costs about ``sum_c (n_c (n_c + 1) / 2)^3
   ``arrow`` -- from the cliques of a chordal extension of its sparsity graph
   (:func:`estimate_form_costs`), so that ``form="auto"`` can pick the cheapest.
 
-Why the arrow form is exact (see :func:`rwhec_ros.core.relaxation.solve_dual_sdp_arrow`): with
-``H`` the hub indices (hub rotations and ``s``), ``Z`` is block-arrow, ``Z = [[D, B], [B^T,
+Why the arrow form is exact (see :func:`rwhec_ros.core.certify.relaxation.solve_dual_sdp_arrow`):
+with ``H`` the hub indices (hub rotations and ``s``), ``Z`` is block-arrow, ``Z = [[D, B], [B^T,
 Z_HH]]`` with ``D = blockdiag(D_j)`` over the leaves, and ``Z >= 0`` iff ``D_j >= 0`` and ``Z_HH
 - sum_j B_j^T D_j^+ B_j >= 0``. The rows of ``B_j`` (9 x |H|) lie in a space of dimension at most
 10 (the row space of the constant coupling ``Q'[leaf j, hub rotations]``, rank <= 9, plus the

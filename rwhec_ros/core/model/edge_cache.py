@@ -1,7 +1,7 @@
 """Edge blocks of the cost reused from one problem to the next (the live re-solve's cache).
 
 The cost matrix ``Q`` of eq. (42) is the sum, edge by edge, of 25x25 blocks that are themselves
-sums over the edge's pairs (:func:`~rwhec_ros.core.cost.edge_blocks`). While data arrive, each
+sums over the edge's pairs (:func:`~rwhec_ros.core.model.cost.edge_blocks`). While data arrive, each
 re-solve of the live solver (:mod:`rwhec_ros.session.live_solve`) sees the same edges with a few
 more pairs each; :class:`EdgeBlockCache` keeps the per-edge sums of the previous problem and, for
 an edge whose first pairs are exactly those of the previous problem, adds the sums of the new
@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..problem import Problem
 from .cost import (
     _blocks_from_sums,
     _edge_indices,
@@ -33,13 +34,12 @@ from .cost import (
     _edge_sums_few,
     _finished_blocks,
 )
-from .problem import Problem
 
 __all__ = ["EdgeBlockCache", "FEW_PAIRS"]
 
 #: New pairs up to this many (next to reused ones) are summed per pair and reduced per edge
 #: (temporaries ~2.7 kB per pair); more, or nothing reused, one matrix product per edge
-#: (:func:`~rwhec_ros.core.cost.edge_blocks`'s way: a first call gives exactly its blocks).
+#: (:func:`~rwhec_ros.core.model.cost.edge_blocks`'s way: a first call gives exactly its blocks).
 FEW_PAIRS = 2048
 
 
@@ -106,7 +106,7 @@ class EdgeBlockCache:
 
     def blocks(self, problem: Problem, lineages: dict | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(full, rot, idx)`` of ``problem`` as :func:`~rwhec_ros.core.cost.edge_blocks`
+        """``(full, rot, idx)`` of ``problem`` as :func:`~rwhec_ros.core.model.cost.edge_blocks`
         returns them (to set ``problem.precomputed_blocks``), reusing the previous call's sums
         for every edge that only gained pairs at its end.
 

@@ -14,7 +14,7 @@ recovered from the rotations by a sparse ``L D L^T`` solve, ``f = -Q_ff^{-1} Q_f
 (:class:`FullForm`), the sparse counterpart of eq. (47).
 
 **Gauge penalty without fill.** Unobservable translation directions are fixed as on the dense
-path (:mod:`rwhec_ros.core.gauge`) by the penalty ``rho |G t - b h|^2``, whose matrix is dense
+path (:mod:`rwhec_ros.core.model.gauge`) by the penalty ``rho |G t - b h|^2``, whose matrix is dense
 over the translations of every frame the direction involves. Here it is represented exactly by
 auxiliary free variables ``u`` on a 4-ary tree over the frames (:func:`penalty_tree`): a node
 ``v`` carries ``u_v`` (``k``-vector) and the spring ``rho_v |u_v - sum_{child nodes c} u_c -
@@ -36,12 +36,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+from ..numerics.verified import lanczos_start
+from ..problem import Problem
 from .cost import StateLayout, edge_blocks
+from .estimate import Estimate, rotations_from_vector
 from .gauge import GaugeFix
-from .initialization import Estimate, rotations_from_vector
-from .problem import Problem
-from .sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
-from .verified import lanczos_start
 
 __all__ = ["TREE_ARITY", "PRUNE_REL", "pruned_gauge", "penalty_tree", "translation_block",
            "FullForm", "build_full_form"]
@@ -149,7 +149,7 @@ def penalty_tree(gauge: GaugeFix, n: int, t_index: np.ndarray, h_index: int, aux
 
 def translation_block(problem: Problem, blocks: tuple | None = None) -> sp.csr_matrix:
     """``Q`` of eq. (42) (state order, unscaled) with only its translation-and-``alpha`` block
-    filled: what :func:`~rwhec_ros.core.gauge.find_unobservable_directions` reads, without
+    filled: what :func:`~rwhec_ros.core.model.gauge.find_unobservable_directions` reads, without
     assembling the rest."""
     full, _, idx = blocks if blocks is not None else edge_blocks(problem)
     layout = StateLayout(problem.M, problem.P)
@@ -205,7 +205,8 @@ class FullForm:
 
     def factor_free(self) -> SparseLDL:
         """The ``L D L^T`` factorisation of ``Q_ff`` (built once). Raises
-        :class:`~rwhec_ros.core.sparse_ldl.FactorizationError` when ``Q_ff`` is not positive
+        :class:`~rwhec_ros.core.numerics.sparse_ldl.FactorizationError` when ``Q_ff`` is not
+        positive
         definite (translations the gauge analysis did not catch)."""
         if self._ff is None:
             nf = self.n_free
@@ -233,7 +234,7 @@ class FullForm:
 
     def estimate(self, R: np.ndarray) -> Estimate:
         """Translations and scale for rotations ``R`` and the cost ``z^T Q z`` (the counterpart of
-        :func:`~rwhec_ros.core.initialization.estimate_from_rotations`)."""
+        :func:`~rwhec_ros.core.initial.closed_form.estimate_from_rotations`)."""
         n = self.n
         z = self.state(R)
         cost = float(z @ (self.Q @ z))
@@ -245,9 +246,9 @@ class FullForm:
 
     def closed_form_rotations(self) -> np.ndarray:
         """Rotations from the null vector of the rotation-only cost (cf.
-        :func:`~rwhec_ros.core.initialization.closed_form_estimate`), by shift-invert Lanczos on a
-        sparse factorisation. When the smallest eigenvalues are nearly equal (within 10 times the
-        smallest: rotations about one axis leave the rotation-only cost with a near-degenerate
+        :func:`~rwhec_ros.core.initial.closed_form.closed_form_estimate`), by shift-invert Lanczos
+        on a sparse factorisation. When the smallest eigenvalues are nearly equal (within 10 times
+        the smallest: rotations about one axis leave the rotation-only cost with a near-degenerate
         null space, whose Lanczos vector is then arbitrary), each of their eigenvectors is
         tried and the one with the lowest cost (translations at their optimum) is kept."""
         L = self.L_rot
@@ -270,8 +271,8 @@ class FullForm:
 
 
 def build_full_form(problem: Problem, gauge: GaugeFix, blocks: tuple | None = None) -> FullForm:
-    """Assemble :class:`FullForm` from the edge blocks (:func:`~rwhec_ros.core.cost.edge_blocks`)
-    and the gauge penalty (:func:`penalty_tree`).
+    """Assemble :class:`FullForm` from the edge blocks
+    (:func:`~rwhec_ros.core.model.cost.edge_blocks`) and the gauge penalty (:func:`penalty_tree`).
 
     With priors the penalty ``rho |G t - b h|^2`` has ``b != 0``; the translations are then
     shifted, ``t = t' + t0 h`` with ``G t0 = b``, an invertible change of the free variables for

@@ -10,55 +10,19 @@ Used to start the local solvers and to scale the SDP data by an upper bound on t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .cost import ReducedCost, StateLayout, build_cost_matrices
-from .lie import make_transform, project_to_so3, unvec
-from .problem import Problem
-from .verified import lanczos_start
+from ..model.cost import StateLayout, build_cost_matrices
+from ..model.estimate import Estimate, rotations_from_vector
+from ..model.reduction import ReducedCost
+from ..numerics.verified import lanczos_start
+from ..problem import Problem
 
-__all__ = ["Estimate", "rotations_from_vector", "closed_form_estimate", "estimate_from_rotations",
-           "primal_cost", "proven_cost", "initial_rotations"]
-
-
-@dataclass
-class Estimate:
-    """Rotations ``R`` (n, 3, 3) in state order, translations ``t`` (n, 3) (metric), ``alpha``,
-    and the objective value ``cost`` of eq. (33) at this estimate."""
-
-    R: np.ndarray
-    t: np.ndarray
-    alpha: float
-    cost: float
-
-    def split(self, M: int) -> tuple[np.ndarray, np.ndarray]:
-        """``(X (M,4,4), Y (P,4,4))``."""
-        T = make_transform(self.R, self.t)
-        return T[:M], T[M:]
-
-
-def rotations_from_vector(r: np.ndarray, n: int) -> tuple[np.ndarray, float]:
-    """Normalise a (null) vector ``r`` (9 n,) of stacked ``vec(R)`` to rotations (n, 3, 3).
-
-    The vector is defined up to scale ``eta`` (Corollary 2): ``eta`` is chosen so that the mean
-    cube-root determinant of the blocks is +1 (fixing sign and magnitude, Algorithm 1 step 6),
-    then each block is projected onto SO(3). Returns the rotations and the largest Frobenius
-    distance a block moved in the projection (0 for an exact rotation vector).
-    """
-    blocks = unvec(np.asarray(r, float).reshape(n, 9))
-    dets = np.linalg.det(blocks)
-    eta = np.mean(np.cbrt(dets))
-    if abs(eta) < 1e-300:
-        eta = 1.0
-    blocks = blocks / eta
-    R = project_to_so3(blocks)
-    moved = float(np.max(np.linalg.norm(R - blocks, axis=(1, 2)))) if n else 0.0
-    return R, moved
+__all__ = ["closed_form_estimate", "estimate_from_rotations", "primal_cost", "proven_cost",
+           "initial_rotations"]
 
 
 def estimate_from_rotations(
@@ -79,7 +43,7 @@ def closed_form_estimate(
     problem: Problem, reduced: ReducedCost, Q_rot: np.ndarray | sp.spmatrix | None = None
 ) -> Estimate:
     """Closed-form (uncertified) estimate; see the module docstring. ``Q_rot`` is the rotation-only
-    cost matrix of :func:`~rwhec_ros.core.cost.build_cost_matrices` (built if not given)."""
+    cost matrix of :func:`~rwhec_ros.core.model.cost.build_cost_matrices` (built if not given)."""
     n = problem.n_frames
     layout = StateLayout(problem.M, problem.P)
     if Q_rot is None:
@@ -108,16 +72,16 @@ def closed_form_estimate(
 def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
     """``p`` of a certificate: a proven upper bound on the cost of ``est`` in exact arithmetic,
     the cost evaluated directly from the residuals of eq. (33)
-    (:func:`~rwhec_ros.core.cost.direct_cost`) plus the term of the prior that fixes
-    unobservable translations (:class:`~rwhec_ros.core.gauge.GaugeFix`) when there is one, each
-    plus the bound on its rounding (:func:`~rwhec_ros.core.cost.direct_cost_error`,
-    :meth:`~rwhec_ros.core.gauge.GaugeFix.penalty_error`; about ``u L / r`` relative), the sum
+    (:func:`~rwhec_ros.core.model.cost.direct_cost`) plus the term of the prior that fixes
+    unobservable translations (:class:`~rwhec_ros.core.model.gauge.GaugeFix`) when there is one,
+    each plus the bound on its rounding (:func:`~rwhec_ros.core.model.cost.direct_cost_error`,
+    :meth:`~rwhec_ros.core.model.gauge.GaugeFix.penalty_error`; about ``u L / r`` relative), the sum
     rounded upwards. A certificate compares it with its dual bound, so the rounding of the cost
     can only make it more cautious."""
     X, Y = est.split(problem.M)
     if gauge is None or not gauge.has_penalty:
         return proven_cost(problem, X, Y, est.alpha)
-    from .cost import direct_cost_error
+    from ..model.cost import direct_cost_error
 
     p, err = direct_cost_error(problem, X, Y, est.alpha)
     h = est.alpha if problem.unknown_scale else 1.0
@@ -129,9 +93,9 @@ def primal_cost(problem: Problem, est: Estimate, gauge=None) -> float:
 def proven_cost(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1.0) -> float:
     """A proven upper bound on the cost (eq. (33), no prior term) of ``X`` (M, 4, 4), ``Y``
     (P, 4, 4) and ``alpha`` (used for unknown scale only) on ``problem``'s data: the direct cost
-    plus the bound on its rounding (:func:`~rwhec_ros.core.cost.direct_cost_error`), rounded
+    plus the bound on its rounding (:func:`~rwhec_ros.core.model.cost.direct_cost_error`), rounded
     upwards; :func:`primal_cost` without a prior."""
-    from .cost import direct_cost_error
+    from ..model.cost import direct_cost_error
 
     p, err = direct_cost_error(problem, X, Y, alpha if problem.unknown_scale else 1.0)
     return float(np.nextafter(p + err, np.inf))

@@ -1,6 +1,6 @@
 """Riemannian Newton on the unreduced sparse cost: the local solver of the large-problem path.
 
-Minimises the same function as :func:`rwhec_ros.core.local_solver.refine_rotations` -- the MLE
+Minimises the same function as :func:`rwhec_ros.core.local.dense.refine_rotations` -- the MLE
 cost with the translations (and ``alpha``) at their optimum, ``f(R) = min_f z^T Q z`` over
 SO(3)^n -- without forming ``Q'``. With ``z = [f; vec R; s]`` (:mod:`rwhec_ros.core.
 sparse_problem`) and right perturbations ``R_l <- R_l exp(omega_l^)``:
@@ -15,7 +15,7 @@ sparse_problem`) and right perturbations ``R_l <- R_l exp(omega_l^)``:
   ``S_l = sym(R_l^T G_l)``, ``J`` block-diagonal (``omega_l -> vec(R_l omega_l^)``), so solving
   ``(H + Diag(0, lambda I)) [df; omega] = [0; -g]`` gives exactly the damped Newton step
   ``(H_red + lambda I) omega = -g`` of the dense solver, with one sparse ``L D L^T``
-  factorisation (:class:`~rwhec_ros.core.sparse_ldl.SparseLDL`) on a pattern fixed once.
+  factorisation (:class:`~rwhec_ros.core.numerics.sparse_ldl.SparseLDL`) on a pattern fixed once.
 
 The damping, the acceptance test and the stopping rules are those of the dense solver (the damping
 scale uses the diagonal of ``J^T Q_rr J + D``, an upper bound on that of ``H_red``), so both reach
@@ -27,10 +27,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .lie import vee
-from .local_solver import LocalSolution, LocalSolverOptions, _basis_jacobian, damped_newton
-from .sparse_ldl import SparseLDL
-from .sparse_problem import FullForm
+from ..lie import vee
+from ..model.sparse_cost import FullForm
+from ..numerics.sparse_ldl import SparseLDL
+from .dense import LocalSolution, LocalSolverOptions, _basis_jacobian, damped_newton
 
 __all__ = ["NewtonSystem", "refine_rotations_sparse", "rotation_blocks"]
 
@@ -67,7 +67,7 @@ class NewtonSystem:
     Parameters
     ----------
     Qs : scipy.sparse.csr_matrix
-        The (scaled) symmetric cost on ``z`` (:class:`~rwhec_ros.core.sparse_problem.FullForm`).
+        The (scaled) symmetric cost on ``z`` (:class:`~rwhec_ros.core.model.sparse_cost.FullForm`).
     n_free, n : int
         Free variables and rotations.
     """
@@ -128,7 +128,7 @@ class NewtonSystem:
 
     def factor(self, damping: float) -> SparseLDL:
         """Factorise the assembled matrix plus ``damping`` on the rotation diagonal. Raises
-        :class:`~rwhec_ros.core.sparse_ldl.FactorizationError` on a zero pivot."""
+        :class:`~rwhec_ros.core.numerics.sparse_ldl.FactorizationError` on a zero pivot."""
         data = self._data.copy()
         data[self._pos_om] += damping
         if self._factor is None:
@@ -146,7 +146,7 @@ class NewtonSystem:
 
 class _SparseModel:
     """Cost, gradient and (lazily) the Newton system of ``min_f z^T Qs z`` at ``R`` for
-    :func:`~rwhec_ros.core.local_solver.damped_newton`; the models share one
+    :func:`~rwhec_ros.core.local.dense.damped_newton`; the models share one
     :class:`NewtonSystem`, assembled for whichever model asks for a step."""
 
     def __init__(self, form: FullForm, Qs: sp.csr_matrix, system: NewtonSystem,
@@ -183,9 +183,9 @@ def refine_rotations_sparse(
     f_floor: float = 1.0,
 ) -> LocalSolution:
     """Minimise ``min_f z^T Qs z`` over SO(3)^n from ``R0`` (n, 3, 3) by damped Riemannian Newton
-    (:func:`~rwhec_ros.core.local_solver.damped_newton`) on the sparse system of the module
+    (:func:`~rwhec_ros.core.local.dense.damped_newton`) on the sparse system of the module
     docstring; ``Qs`` is ``form.Q`` divided by the data scale. The counterpart of
-    :func:`~rwhec_ros.core.local_solver.refine_rotations`, except that the gradient tolerance is
+    :func:`~rwhec_ros.core.local.dense.refine_rotations`, except that the gradient tolerance is
     relative to ``max(f, f_floor)`` (the dense solver: ``max(f, 1)``): a start far above the
     optimum makes the scaled optimum ``f << 1``, and the certificate needs the stationarity
     relative to the optimum (``f_floor``: the cost regarded as zero, scaled)."""

@@ -18,7 +18,7 @@ Tangent coordinates ``xi`` (:class:`TangentLayout`), size ``6 F`` (+1 for unknow
     xi = [dt_1 .. dt_F, (d alpha), w_1 .. w_F]
 
 with metric translations ``t_f <- t_f + dt_f`` (in the frame's parent) and *right* rotation
-perturbations ``R_f <- R_f exp(w_f^)`` (as the local solver, :mod:`rwhec_ros.core.local_solver`).
+perturbations ``R_f <- R_f exp(w_f^)`` (as the local solver, :mod:`rwhec_ros.core.local.dense`).
 The Hessian is exact: the Gauss-Newton term plus the second-order terms of the residuals (the
 curvature of ``exp`` contracted with the residuals, and the ``alpha``-translation cross terms), so
 that at a minimiser the flat directions of exact symmetries have zero eigenvalues.
@@ -36,8 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lie import hat
-from .problem import Problem, check_transforms
+from ..lie import hat
+from ..problem import Problem, check_transforms
 
 __all__ = [
     "TangentLayout",
@@ -120,7 +120,7 @@ class PairTerms:
         (module docstring).
     translation_block : ndarray, shape (G, 7, 7)
         Per group, the part of the translation block ``Q_ee`` of ``Q`` on ``[alpha t_X,
-        alpha t_Y, alpha]`` (what :mod:`rwhec_ros.core.gauge` analyses).
+        alpha t_Y, alpha]`` (what :mod:`rwhec_ros.core.model.gauge` analyses).
     """
 
     residual_t: np.ndarray
@@ -402,7 +402,7 @@ def information_from_edge_blocks(
     problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1.0
 ) -> Information:
     """The same :class:`Information` from the cost's 25x25 edge blocks
-    (:func:`~rwhec_ros.core.cost.edge_blocks`, ``problem.precomputed_blocks`` when set: the
+    (:func:`~rwhec_ros.core.model.cost.edge_blocks`, ``problem.precomputed_blocks`` when set: the
     live re-solve's, so nothing is summed over the pairs here): per edge ``2 J_e^T Q_e J_e`` on
     ``[dt_X, dt_Y, d alpha, w_X, w_Y]`` plus, per frame, the curvature terms of the gradient
     ``2 Q x`` (as :func:`information_from_cost_matrix`, ``J = dx / d xi``).
@@ -411,7 +411,7 @@ def information_from_edge_blocks(
     |Q_e| |x_e|``, where :func:`information_matrix` sums the residuals directly); ``H`` and
     ``Q_ee`` agree with :func:`information_matrix` to rounding.
     """
-    from .cost import StateLayout, edge_blocks, pack_state
+    from ..model.cost import StateLayout, edge_blocks, pack_state
 
     T, a = _check_estimate(problem, X, Y, alpha)
     F = T.shape[0]
@@ -468,7 +468,7 @@ def information_from_cost_matrix(
     """
     import scipy.sparse as sp
 
-    from .cost import StateLayout, pack_state
+    from ..model.cost import StateLayout, pack_state
 
     T, a = _check_estimate(problem, X, Y, alpha)
     F = T.shape[0]

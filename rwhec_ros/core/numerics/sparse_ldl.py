@@ -3,9 +3,9 @@
 A thin layer over QDLDL (``qdldl``, the factorisation of OSQP; an AMD fill-reducing ordering and
 an up-looking ``L D L^T`` without pivoting): ``P^T A P = (I + L) D (I + L)^T`` for a symmetric
 ``A`` given by its upper triangle (the matrix factored is the symmetric matrix that triangle
-defines). Used by the large-problem path of ``fast`` (:mod:`rwhec_ros.core.sparse_solver`,
-:mod:`rwhec_ros.core.sparse_certificate`) and by the sparse analysis of unobservable translations
-(:mod:`rwhec_ros.core.gauge`).
+defines). Used by the large-problem path of ``fast`` (:mod:`rwhec_ros.core.local.sparse`,
+:mod:`rwhec_ros.core.certify.sparse`) and by the sparse analysis of unobservable translations
+(:mod:`rwhec_ros.core.model.gauge`).
 
 **Backward error.** QDLDL computes row ``k`` of ``L`` by a sparse triangular solve
 ``y_c = a_kc - sum_j l_cj y_j`` (over the ``j`` with ``l_cj != 0`` and ``l_kj != 0``), then
@@ -20,9 +20,9 @@ nonzero pivots, ``(I + L) D (I + L)^T = P^T (A + dA) P`` with::
 whatever the order of the sums (and with or without fused multiply-adds). Per-coordinate weights
 of this bound -- :meth:`SparseLDL.backward_error_rows` -- are evaluated with sparse products of
 nonnegative numbers and rounded up; one more unit is added to the ``gamma`` index for safety.
-``gamma_k = k u / (1 - k u)``, ``u = 2^-53`` (:mod:`rwhec_ros.core.verified`). For a symmetric
-nonnegative ``W`` and any ``x``, ``|x|^T W |x| <= sum_i x_i^2 (W 1)_i``: row sums bound the
-quadratic form coordinate by coordinate, which is what the certificate needs.
+``gamma_k = k u / (1 - k u)``, ``u = 2^-53`` (:mod:`rwhec_ros.core.numerics.verified`). For a
+symmetric nonnegative ``W`` and any ``x``, ``|x|^T W |x| <= sum_i x_i^2 (W 1)_i``: row sums bound
+the quadratic form coordinate by coordinate, which is what the certificate needs.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ class FactorizationError(np.linalg.LinAlgError):
 
 
 def gamma_array(k: np.ndarray) -> np.ndarray:
-    """:func:`~rwhec_ros.core.verified.gamma` of an integer array (``inf`` where ``k u >= 1``)."""
+    """:func:`.verified.gamma` of an integer array (``inf`` where ``k u >= 1``)."""
     ku = np.asarray(k, dtype=float) * UNIT_ROUNDOFF
     with np.errstate(divide="ignore"):
         return np.where(ku < 1.0, ku / (1.0 - ku), np.inf)

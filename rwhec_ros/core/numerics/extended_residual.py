@@ -1,10 +1,10 @@
 """A proven entrywise bound on the residual of a linear solve, evaluated in extended precision.
 
-The Schur reduction of :func:`~rwhec_ros.core.cost.reduce_cost` (eqs. (47)-(48)) recovers the
-translations with ``G = -Q_ee^{-1} Q_ey`` from a Cholesky solve, and the certificate needs a bound
-on the residual ``F = Q_ee G + Q_ey`` of that ``G``: the reduced matrix differs from the exact
-one for this ``G`` by ``G^T F`` (:class:`~rwhec_ros.core.cost.ReducedCost`). The a-priori bound,
-the backward error of the solve ``|F| <= gamma_{3m+1} |R^T| |R| |G|`` (Higham, *Accuracy and
+The Schur reduction of :func:`~rwhec_ros.core.model.reduction.reduce_cost` (eqs. (47)-(48)) recovers
+the translations with ``G = -Q_ee^{-1} Q_ey`` from a Cholesky solve, and the certificate needs a
+bound on the residual ``F = Q_ee G + Q_ey`` of that ``G``: the reduced matrix differs from the exact
+one for this ``G`` by ``G^T F`` (:class:`~rwhec_ros.core.model.reduction.ReducedCost`). The a-priori
+bound, the backward error of the solve ``|F| <= gamma_{3m+1} |R^T| |R| |G|`` (Higham, *Accuracy and
 Stability of Numerical Algorithms*, Thm. 10.4), is a worst case: the actual residual is usually
 hundreds of times smaller. Where the cost matrix has entries far larger than the optimal cost
 (precise measurements, many pairs), that worst case alone can exceed the certificate's

@@ -1,16 +1,16 @@
 """Mode ``fast`` (and ``local``) for large rigs: the unreduced sparse path and when to take it.
 
-The dense path (:mod:`rwhec_ros.core.solve`) forms the reduced cost ``Q'`` of eq. (48): ``9 n + 1``
-square and dense as soon as many cameras share a target, so its local solve and certificate cost
-``O(n^3)`` time and ``O(n^2)`` memory (1,000 cameras with one target: ~40 s, 650 MB per copy).
-This path never forms ``Q'``:
+The dense path (:mod:`rwhec_ros.core.pipeline.dense`) forms the reduced cost ``Q'`` of eq. (48):
+``9 n + 1`` square and dense as soon as many cameras share a target, so its local solve and
+certificate cost ``O(n^3)`` time and ``O(n^2)`` memory (1,000 cameras with one target: ~40 s, 650 MB
+per copy). This path never forms ``Q'``:
 
 1. the cost on the unreduced variables with the gauge penalty as sparse springs
-   (:mod:`rwhec_ros.core.sparse_problem`); unobservable translations found by a sparse ``L D L^T``
-   and Lanczos (:mod:`rwhec_ros.core.gauge`);
+   (:mod:`rwhec_ros.core.model.sparse_cost`); unobservable translations found by a sparse ``L D
+   L^T`` and Lanczos (:mod:`rwhec_ros.core.model.gauge`);
 2. the closed-form start by shift-invert Lanczos on the sparse rotation-only cost;
-3. Riemannian Newton with variable projection (:mod:`rwhec_ros.core.sparse_solver`);
-4. the certificate proven on the sparse ``Z(lambda)`` (:mod:`rwhec_ros.core.sparse_certificate`),
+3. Riemannian Newton with variable projection (:mod:`rwhec_ros.core.local.sparse`);
+4. the certificate proven on the sparse ``Z(lambda)`` (:mod:`rwhec_ros.core.certify.sparse`),
    with ``p`` the direct cost of the returned estimate, as on the dense path.
 
 When that certificate is inconclusive and the problem has at most ``sdp_fallback_max_frames``
@@ -20,8 +20,8 @@ larger problems return the uncertified result with a note.
 **Automatic choice** (``SolveOptions.fast_form = "auto"``): the sparse path when the problem has
 at least :data:`SPARSE_MIN_FRAMES` frames and a sparse factorisation stays sparse: the work of a
 minimum-degree elimination of the camera-tag graph at the level of frames
-(:func:`~rwhec_ros.core.sparsity.elimination_front`) is at most :data:`SPARSE_MAX_WORK` ``n^3``,
-or the problem has :data:`SPARSE_ALWAYS_FRAMES` frames or more.
+(:func:`~rwhec_ros.core.certify.sparsity.elimination_front`) is at most :data:`SPARSE_MAX_WORK`
+``n^3``, or the problem has :data:`SPARSE_ALWAYS_FRAMES` frames or more.
 One target seen by every camera: fronts of one frame; 16 targets each seen by 3 of 1,000 cameras:
 fronts of at most 15 frames; a random graph of 100 cameras and 100 tags, 5 tags per camera:
 fronts of 64 frames (0.017 n^3); 50 x 50 of the same kind (0.022 n^3) is where LAPACK on the dense
@@ -37,20 +37,24 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .cost import StateLayout, edge_blocks
-from .gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
-from .initialization import Estimate, initial_rotations, primal_cost
-from .problem import Problem
-from .result import CalibrationResult, Certificate
-from .sparse_certificate import CertificatePattern, certify_sparse
-from .sparse_problem import FullForm, build_full_form, pruned_gauge, translation_block
-from .sparse_solver import NewtonSystem, refine_rotations_sparse, rotation_blocks
-from .sparsity import elimination_front
-from .verified import lanczos_start
+from ..certify.sparse import CertificatePattern, certify_sparse
+from ..certify.sparsity import elimination_front
+from ..initial.closed_form import initial_rotations, primal_cost
+from ..local.sparse import NewtonSystem, refine_rotations_sparse, rotation_blocks
+from ..model.cost import StateLayout, edge_blocks
+from ..model.estimate import Estimate
+from ..model.gauge import GaugeFix, build_gauge_fix, find_unobservable_directions
+from ..model.sparse_cost import FullForm, build_full_form, pruned_gauge, translation_block
+from ..numerics.verified import lanczos_start
+from ..problem import Problem
+from ..result import CalibrationResult, Certificate
+from .common import COST_FLOOR_REL, NUMERICAL_ERRORS, calibration_result, failed_certificate
+from .dense import prepare_dense, solve_fast_dense
+from .options import SolveOptions
 
 __all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "SPARSE_ALWAYS_FRAMES", "use_sparse",
            "SparsePrepared", "prepare_sparse", "estimate_sparse", "solve_fast_sparse",
-           "failed_result"]
+           "failed_result", "solve_sparse"]
 
 #: Fewest frames for which ``auto`` takes the sparse path (measured, one target seen by every
 #: camera, best of 5 on 2 busy cores: 21 frames dense 17 ms / sparse 19 ms, 41 frames 53 / 26 ms,
@@ -58,7 +62,7 @@ __all__ = ["SPARSE_MIN_FRAMES", "SPARSE_MAX_WORK", "SPARSE_ALWAYS_FRAMES", "use_
 SPARSE_MIN_FRAMES = 40
 #: ``auto`` takes the sparse path while the work of a sparse factorisation, ``sum (front + 1)^2``
 #: over a minimum-degree elimination of the frame graph
-#: (:func:`~rwhec_ros.core.sparsity.elimination_front`), is at most this times ``n^3`` (the
+#: (:func:`~rwhec_ros.core.certify.sparsity.elimination_front`), is at most this times ``n^3`` (the
 #: dense path's ``O(n^3)``). Measured on random camera-tag graphs, 5 tags per camera: 50 x 50
 #: (0.022 n^3) 265 ms dense / 264 ms sparse, 100 x 100 (0.017 n^3) 1.77 s / 1.2 s (best of 3,
 #: three alternations); 30 x 30 with 3 tags per camera (0.007 n^3) 75 / 47 ms. One target and
@@ -138,8 +142,8 @@ class SparsePrepared:
 
 def prepare_sparse(problem: Problem, options) -> SparsePrepared:
     """Cost on the unreduced variables, the gauge fix, the closed-form (or given) start and the
-    data scale (cf. the dense ``_prepare``). Raises a ``numpy.linalg.LinAlgError`` subclass when
-    the translation block cannot be factorised."""
+    data scale (cf. :func:`~rwhec_ros.core.pipeline.dense.prepare_dense`). Raises a
+    ``numpy.linalg.LinAlgError`` subclass when the translation block cannot be factorised."""
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
     layout = StateLayout(problem.M, problem.P)
@@ -162,8 +166,6 @@ def prepare_sparse(problem: Problem, options) -> SparsePrepared:
     # as on the dense path, scale by the cost at the start, floored relative to the data: here
     # 1e-4 of the largest rotation entry of the diagonal of Q (an upper bound on that of Q')
     nf = form.n_free
-    from .solve import COST_FLOOR_REL
-
     diag = form.Q.diagonal()[nf: nf + 9 * problem.n_frames]
     floor = COST_FLOOR_REL * max(float(np.abs(diag).max(initial=0.0)), 1e-300)
     scale = max(float(init.cost), floor)
@@ -173,7 +175,7 @@ def prepare_sparse(problem: Problem, options) -> SparsePrepared:
 
 def estimate_sparse(prep: SparsePrepared, R: np.ndarray) -> tuple[Estimate, float]:
     """Translations and scale for rotations ``R`` and the direct cost ``p`` (eq. (33) plus the
-    prior's term), as the dense ``_estimate``."""
+    prior's term), as the dense path's ``_estimate``."""
     est = prep.form.estimate(R)
     return est, primal_cost(prep.problem, est, prep.gauge)
 
@@ -182,8 +184,6 @@ def solve_fast_sparse(prep: SparsePrepared, options, notes: list[str]
                       ) -> tuple[object, CalibrationResult]:
     """Local solve and certificate on the sparse path; returns the prepared data the result
     belongs to (the dense one when the dense path was run as the fallback) and the result."""
-    from .solve import NUMERICAL_ERRORS, _failed_certificate, _prepare, _result, _solve_fast
-
     n = prep.problem.n_frames
     notes.append(f"sparse unreduced path ({n} frames, {prep.form.size} variables)")
     t0 = time.perf_counter()
@@ -193,8 +193,8 @@ def solve_fast_sparse(prep: SparsePrepared, options, notes: list[str]
     except NUMERICAL_ERRORS as exc:
         notes.append(f"local solver failed ({type(exc).__name__}: {exc})")
         est, p = estimate_sparse(prep, prep.init_R)
-        cert = _failed_certificate(options, p, f"the local solver failed: {exc}")
-        return prep, _result(prep, est, cert, options.mode, "failed", 0.0, notes)
+        cert = failed_certificate(options, p, f"the local solver failed: {exc}")
+        return prep, calibration_result(prep, est, cert, options.mode, "failed", 0.0, notes)
     prep.timing["local"] = time.perf_counter() - t0
     status = "converged" if loc.converged else "not converged"
     if not loc.converged:
@@ -202,7 +202,8 @@ def solve_fast_sparse(prep: SparsePrepared, options, notes: list[str]
                      f"converging (gradient norm {loc.gradient_norm:.3g})")
     est, p = estimate_sparse(prep, loc.R)
     if options.mode == "local":
-        return prep, _result(prep, est, Certificate.local_only(p), "local", status, 0.0, notes)
+        return prep, calibration_result(prep, est, Certificate.local_only(p), "local", status, 0.0,
+                                        notes)
     t1 = time.perf_counter()
     try:
         cert, strengthened = certify_sparse(
@@ -212,31 +213,46 @@ def solve_fast_sparse(prep: SparsePrepared, options, notes: list[str]
         if strengthened:
             notes.append("fast certificate strengthened with handedness multipliers")
     except NUMERICAL_ERRORS as exc:
-        cert = _failed_certificate(options, p, f"the certificate's eigen-analysis failed "
+        cert = failed_certificate(options, p, f"the certificate's eigen-analysis failed "
                                    f"({type(exc).__name__}: {exc})")
     prep.timing["certify"] = time.perf_counter() - t1
     if cert.certified or not options.fallback_to_sdp:
-        return prep, _result(prep, est, cert, "fast", status, 0.0, notes)
+        return prep, calibration_result(prep, est, cert, "fast", status, 0.0, notes)
     if n > options.sdp_fallback_max_frames:
         notes.append(f"sparse certificate inconclusive; the dense path and the SDP are skipped "
                      f"above sdp_fallback_max_frames={options.sdp_fallback_max_frames} frames")
-        return prep, _result(prep, est, cert, "fast", status, 0.0, notes)
+        return prep, calibration_result(prep, est, cert, "fast", status, 0.0, notes)
     notes.append(f"sparse certificate inconclusive ({cert.message}); solved again by the dense "
                  "path")
-    dense = _prepare(prep.problem, options)
-    return dense, _solve_fast(dense, options, notes)
+    dense = prepare_dense(prep.problem, options)
+    return dense, solve_fast_dense(dense, options, notes)
 
 
 def failed_result(problem: Problem, options, message: str, notes: list[str]) -> CalibrationResult:
     """A ``solver_failed`` result when the sparse path cannot even start (the translation block
     could not be factorised) and the problem is too large for the dense path: identity
     transforms, the message says why."""
-    from .solve import _failed_certificate
-
     n = problem.n_frames
     eye = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    cert = _failed_certificate(options, float("nan"), message)
+    cert = failed_certificate(options, float("nan"), message)
     return CalibrationResult(x_names=problem.x_names, y_names=problem.y_names, X=eye[:problem.M],
                              Y=eye[problem.M:], scale=1.0, certificate=cert, mode=options.mode,
                              timing_s={}, solver_status="failed", rounding_displacement=0.0,
                              notes=notes)
+
+
+def solve_sparse(problem: Problem, options: SolveOptions, notes: list[str]):
+    """The sparse path as a whole: :func:`prepare_sparse` and :func:`solve_fast_sparse`; when its
+    translation block cannot be factorised, the dense path (which reports why) up to
+    ``sdp_fallback_max_frames`` frames,
+    else a ``solver_failed`` result."""
+    try:
+        prep = prepare_sparse(problem, options)
+    except NUMERICAL_ERRORS as exc:
+        msg = f"the sparse path could not start ({type(exc).__name__}: {exc})"
+        notes.append(msg)
+        if problem.n_frames > options.sdp_fallback_max_frames:
+            return None, failed_result(problem, options, msg, notes)
+        prep = prepare_dense(problem, options)
+        return prep, solve_fast_dense(prep, options, notes)
+    return solve_fast_sparse(prep, options, notes)

@@ -46,8 +46,8 @@ The certificate stays one of the *given* problem:
 * The estimate is mapped back (``+ c``, rounded once) and its cost ``p`` is a proven upper bound
   on the cost of the *returned* estimate on the given data: when subtracting ``c`` again is
   exact (as it is near the data), it is the cost on ``D'`` at that point with its rounding bound
-  (:func:`~rwhec_ros.core.cost.direct_cost_error`), plus ``2 |alpha| E p'^(1/2) + alpha^2 E^2``
-  on the tag carrier's side; otherwise the cost on the given data with the (larger) rounding
+  (:func:`~rwhec_ros.core.model.cost.direct_cost_error`), plus ``2 |alpha| E p'^(1/2) + alpha^2
+  E^2`` on the tag carrier's side; otherwise the cost on the given data with the (larger) rounding
   bound there.
 
 Solved as given: data within a few of their spreads (or a metre) of the origin (nothing to
@@ -63,8 +63,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .problem import Edge, Problem
-from .verified import UNIT_ROUNDOFF, gamma
+from ..numerics.verified import UNIT_ROUNDOFF, gamma
+from ..problem import Edge, Problem
 
 __all__ = ["CAMERA", "TAG", "Recentring", "recentring_for", "recentred_problem",
            "recentred_frames", "recentred_options", "restore_estimate", "scale_bound",
@@ -299,7 +299,7 @@ def pose_misfit_lower_bound(problem: Problem) -> float:
     Hessian ``2 H`` (strong convexity); ``q(z)`` from below and ``|grad q(z)|`` from above with
     the rounding of the residuals (``gamma_5`` of each of their 5-term sums) and of the sums,
     ``lambda_min(H)`` by a verified Cholesky bound less the rounding in forming ``H``."""
-    from .verified import verified_min_eigenvalue
+    from ..numerics.verified import verified_min_eigenvalue
 
     M, n = problem.M, problem.n_frames
     N = problem.n_measurements
@@ -365,7 +365,7 @@ def pose_misfit_lower_bound(problem: Problem) -> float:
 def recentred_analysis(problem: Problem, result, priors: bool = False):
     """``(problem, result)`` about :func:`recentring_for`'s point, for the analyses of an
     estimate that the shift leaves unchanged in exact arithmetic -- the information matrix
-    (:mod:`rwhec_ros.core.information`: every residual and its derivatives with respect to
+    (:mod:`rwhec_ros.core.analysis.information`: every residual and its derivatives with respect to
     ``t_X, t_Y, alpha`` and the rotations are the same), hence the covariances and the
     next-motion guidance -- and that far from the origin suffer the same rounding as the solve
     (with unknown scale an observable direction taken for an unobservable one). ``result`` is a
