@@ -1,6 +1,7 @@
 """The one entry point of the solvers: :func:`solve` with modes ``sdp``, ``fast`` and ``local``.
 
-* ``sdp`` — Algorithm 1: form ``Q'`` (eq. (48)), solve the dual SDP (Problem 7) with Clarabel,
+* ``sdp`` — Algorithm 1: form ``Q'`` (eq. (48)), solve the dual SDP (Problem 7) with the
+  structured interior-point method of :mod:`sdp_ipm` or cvxpy + Clarabel (``SdpOptions.backend``),
   take the null vector of ``Z(lambda*)``, normalise it (``s = 1``, ``det R = +1``), project onto
   SO(3), recover translations and scale by eq. (47), and certify (eq. (73)).
 * ``fast`` — closed-form initialisation, local Riemannian Newton refinement on the same MLE
@@ -76,6 +77,7 @@ from .relaxation import (
     solve_dual_sdp_arrow,
 )
 from .result import CalibrationResult, Certificate, Status
+from .sdp_ipm import IpmOptions, solve_dual_sdp_structured, structured_is_cheaper
 from .sparse_fast import failed_result, prepare_sparse, solve_fast_sparse, use_sparse
 from .sparsity import ArrowSplit, arrow_split, estimate_form_costs
 
@@ -105,7 +107,7 @@ class SolveOptions:
     mode : str
         ``"fast"`` (default), ``"sdp"`` or ``"local"``.
     sdp : SdpOptions
-        Clarabel settings for the SDP.
+        Backend, form and solver settings of the SDP.
     certificate : CertificateOptions
         Tolerances of the certificate.
     local : LocalSolverOptions
@@ -356,13 +358,35 @@ def _form_costs(prep: _Prepared) -> tuple[str, dict[str, float], ArrowSplit | No
     return min(costs, key=costs.get), costs, split
 
 
+#: The solver of each SDP backend, in notes and messages.
+_SOLVER_NAMES = {"structured": "structured IPM", "cvxpy": "Clarabel"}
+
+
+def _sdp_backend(prep: _Prepared, options: SolveOptions) -> tuple[str, str, ArrowSplit | None]:
+    """``(backend, form, split)``: the ``auto`` backend is the structured method unless a form
+    is asked for (a cvxpy setting) or Clarabel's cheapest form is estimated cheaper
+    (:func:`~rwhec_ros.core.sdp_ipm.structured_is_cheaper`)."""
+    backend, form, split = options.sdp.backend, options.sdp.form, None
+    if backend == "auto":
+        if form != "auto":
+            return "cvxpy", form, None
+        if prep.problem.n_frames <= 3:
+            return "structured", "reduced", None
+        form, costs, split = _form_costs(prep)
+        backend = ("structured" if structured_is_cheaper(prep.problem.n_frames, costs[form])
+                   else "cvxpy")
+    if backend == "structured":
+        return backend, "reduced", None
+    if form == "auto":
+        form, _, split = _form_costs(prep)
+    return backend, form, split
+
+
 def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> CalibrationResult:
     n = prep.problem.n_frames
     t0 = time.perf_counter()
     cons = prep.cons()
-    form, split = options.sdp.form, None
-    if form == "auto":
-        form, _, split = _form_costs(prep)
+    backend, form, split = _sdp_backend(prep, options)
     if form == "arrow" and split is None:
         split = arrow_split(prep.Qs, n)
         if split is None:
@@ -372,7 +396,9 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
         cons_f = so3_constraint_matrices(offsets, df, df - 1)
     prep.timing["constraints"] = time.perf_counter() - t0
     try:
-        if form == "full":
+        if backend == "structured":
+            sol = solve_dual_sdp_structured(prep.Qs, n, IpmOptions(**options.sdp.ipm))
+        elif form == "full":
             sol = solve_dual_sdp(Qf, cons_f, options.sdp)
         elif form == "arrow":
             sol = solve_dual_sdp_arrow(prep.Qs, cons, split, options.sdp)
@@ -384,11 +410,13 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
                      "closed-form estimate")
         est, p = _estimate(prep, prep.init_R)
         cert = _failed_certificate(
-            options, p, f"the SDP solver (Clarabel) failed: {exc}. Try mode 'fast', or check the "
-            "data for degenerate edges and outliers")
+            options, p, f"the SDP solver ({_SOLVER_NAMES[backend]}) failed: {exc}. Try mode "
+            "'fast', or check the data for degenerate edges and outliers")
         return _result(prep, est, cert, "sdp", "failed", 0.0, notes)
     notes.append(f"SDP form: {form}")
-    notes.append(f"Clarabel: {sol.iterations} iterations, status '{sol.status}'")
+    notes.append(f"SDP backend: {backend}")
+    notes.append(f"{_SOLVER_NAMES[backend]}: {sol.iterations} iterations, status "
+                 f"'{sol.status}'")
     notes.extend(sol.warnings)
     prep.timing["compile"] = sol.compile_s
     prep.timing["solve"] = sol.solve_s
