@@ -28,7 +28,14 @@ from .sections import (
     TagsConfig,
     TargetsConfig,
 )
-from .specs import GLOBAL_SPECS, IMAGE_QOS, IMAGE_TRANSPORTS, POSE_SOURCE_TYPES, SOLVER_MODES
+from .specs import (
+    GLOBAL_SPECS,
+    IMAGE_QOS,
+    IMAGE_TRANSPORTS,
+    POSE_SOURCE_TYPES,
+    SDP_BACKENDS,
+    SOLVER_MODES,
+)
 from .targets import build_targets
 from .validation import (
     check_choice,
@@ -285,6 +292,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
         min_scale=check_positive(v, "solver.min_scale"),
         live_period_s=check_positive(v, "solver.live_period_s", allow_zero=True),
+        sdp_backend=check_choice(v, "solver.sdp_backend", SDP_BACKENDS),
     )
     convergence = ConvergenceConfig(
         max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),

@@ -140,11 +140,12 @@ def initial_point(C: np.ndarray, fb: FrameBlocks, tau: float = 1.0
 
 
 def _chol(A: np.ndarray) -> np.ndarray | None:
-    """Lower Cholesky factor of ``A``, or None when it is not (numerically) positive definite."""
-    try:
-        return scipy.linalg.cholesky(A, lower=True, check_finite=False)
-    except np.linalg.LinAlgError:
+    """Lower Cholesky factor of ``A`` (LAPACK ``potrf``; entries above the diagonal are zero),
+    or None when it is not (numerically) positive definite."""
+    L, info = scipy.linalg.lapack.dpotrf(A, lower=1, clean=1)
+    if info != 0 or not np.all(np.isfinite(np.diagonal(L))):
         return None
+    return L
 
 
 def _sym(A: np.ndarray) -> np.ndarray:
@@ -153,33 +154,49 @@ def _sym(A: np.ndarray) -> np.ndarray:
 
 class _Schur:
     """The Schur complement, diagonally scaled, factorised by Cholesky; when that fails (the
-    degenerate end game), with a regularisation of ``1e-12`` of the scaled diagonal."""
+    degenerate end game), with a regularisation of ``1e-12``, ``1e-10`` then ``1e-8`` of the
+    scaled diagonal, and as a last resort by LU."""
 
     def __init__(self, M: np.ndarray) -> None:
         self.dinv = 1.0 / np.sqrt(np.maximum(np.diag(M), 1e-300))
         Ms = M * self.dinv[:, None] * self.dinv[None, :]
-        try:
-            self.chol = scipy.linalg.cho_factor(Ms, lower=True, check_finite=False)
-        except np.linalg.LinAlgError:
-            Ms[np.diag_indices_from(Ms)] += 1e-12
-            self.chol = scipy.linalg.cho_factor(Ms, lower=True, check_finite=False)
+        self.chol = self.lu = None
+        for reg in (0.0, 1e-12, 1e-10, 1e-8):
+            try:
+                self.chol = scipy.linalg.cho_factor(Ms + reg * np.eye(Ms.shape[0]) if reg else Ms,
+                                                    lower=True, check_finite=False)
+                return
+            except np.linalg.LinAlgError:
+                continue
+        self.lu = scipy.linalg.lu_factor(Ms, check_finite=False)
 
     def solve(self, r: np.ndarray) -> np.ndarray:
-        return self.dinv * scipy.linalg.cho_solve(self.chol, r * self.dinv, check_finite=False)
+        if self.chol is not None:
+            x = scipy.linalg.cho_solve(self.chol, r * self.dinv, check_finite=False)
+        else:
+            x = scipy.linalg.lu_solve(self.lu, r * self.dinv, check_finite=False)
+        return self.dinv * x
 
 
 #: Step lengths are resolved up to this one (a full step is taken at a fraction >= 0.9 of it).
 _STEP_CAP = 1.2
+#: Up to this size the step length comes from all eigenvalues (LAPACK ``syevd``); above it from
+#: Cholesky factorisations (level-3 BLAS, cheaper than a tridiagonal reduction from ``d`` of
+#: about 200 on).
+_EIG_STEP_MAX_D = 250
 
 
 def _scaled_step(D: np.ndarray, dV: np.ndarray) -> float:
-    """A lower bound, within 5 %, on the largest ``alpha <= 1.2`` with ``diag(D) + alpha dV >=
-    0`` (``D > 0``): Cholesky factorisations of ``I + alpha D^{-1/2} dV D^{-1/2}``, halving
-    ``alpha`` from 1.2 until one succeeds, then four geometric bisections (a few ``d^3 / 3``
-    factorisations, level-3 BLAS, cheaper than the tridiagonal reduction of an eigensolver
-    from ``d`` of about 200 on). 0 when not even ``1e-12`` is feasible."""
+    """A lower bound on the largest ``alpha <= 1.2`` with ``diag(D) + alpha dV >= 0`` (``D >
+    0``): ``-1 / lambda_min(B)`` with ``B = D^{-1/2} dV D^{-1/2}`` up to ``d = 250``; above,
+    Cholesky factorisations of ``I + alpha B``, halving ``alpha`` from 1.2 until one succeeds,
+    then four geometric bisections (within 5 %). 0 when not even ``1e-12`` is feasible."""
     r = 1.0 / np.sqrt(D)
     B = _sym(dV * r[:, None] * r[None, :])
+    if D.size <= _EIG_STEP_MAX_D:
+        lam = float(np.linalg.eigvalsh(B)[0] if D.size <= 64 else scipy.linalg.eigh(
+            B, eigvals_only=True, subset_by_index=[0, 0], check_finite=False, driver="evr")[0])
+        return _STEP_CAP if lam >= -1.0 / _STEP_CAP else -1.0 / lam
     eye = np.eye(D.size)
 
     def feasible(alpha: float) -> bool:
@@ -299,9 +316,10 @@ def solve_dual_sdp_structured(Q: np.ndarray, n_frames: int, options: IpmOptions 
     C = np.asarray(Q.toarray() if hasattr(Q, "toarray") else Q, dtype=float)
     if C.shape != (d, d):
         raise ValueError(f"Q: expected shape ({d}, {d}) for {n_frames} frames, got {C.shape}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        C = _sym(C)
     if not np.all(np.isfinite(C)):
-        return _failed(m_full, t0, "the SDP data are not finite")
-    C = _sym(C)
+        return _failed(m_full, t0, "the SDP data are not finite (or overflow)")
     b = fb.b()
     X, y, S = initial_point(C, fb)
     Ls = _chol(S)
