@@ -73,6 +73,8 @@ def exit_code(verdict) -> int:
 
 PROG = "rwhec-calibrate"
 MODES = ("fast", "sdp", "local")
+#: ``--sdp-backend`` values (``solver.sdp_backend``).
+SDP_BACKENDS = ("auto", "structured", "cvxpy")
 #: Output root when no configuration names one (its ``output.directory``): ``./rwhec_output``,
 #: :data:`rwhec_ros.session.paths.DEFAULT_OUTPUT` (a literal here: the session package is slow
 #: to import and ``--help`` should not wait for it).
@@ -166,13 +168,15 @@ def check_positive(name: str, value: float) -> None:
 
 
 def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
-    """The flat parameters that ``--mode``, ``--min-pairs``, ``--robust``, ``--folds`` and
-    ``--no-guidance`` set (those given)."""
+    """The flat parameters that ``--mode``, ``--sdp-backend``, ``--min-pairs``, ``--robust``,
+    ``--folds`` and ``--no-guidance`` set (those given)."""
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
     out: dict[str, Any] = {}
     if args.mode is not None:
         out["solver.mode"] = args.mode
+    if getattr(args, "sdp_backend", None) is not None:
+        out["solver.sdp_backend"] = args.sdp_backend
     if args.min_pairs is not None:
         out["solver.min_pairs"] = int(args.min_pairs)
     if args.robust:
@@ -226,6 +230,7 @@ class SolveSettings:
     min_scale: float = 0.01
     folds: int = 5
     guidance: bool = True
+    sdp_backend: str = "auto"
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
@@ -243,7 +248,8 @@ class SolveSettings:
                              unobservable_std_m=float(p.get("solver.unobservable_std_m", 1.0)),
                              min_scale=float(p.get("solver.min_scale", 0.01)),
                              folds=int(p.get("accuracy.cross_validation_folds", 5)),
-                             guidance=bool(p.get("accuracy.guidance", True)))
+                             guidance=bool(p.get("accuracy.guidance", True)),
+                             sdp_backend=str(p.get("solver.sdp_backend", "auto")))
 
     def parameters(self) -> dict[str, Any]:
         """The ``solver.*``, ``priors.*`` and ``accuracy.*`` parameters of these settings."""
@@ -251,6 +257,7 @@ class SolveSettings:
                 "solver.reject_outliers": self.robust,
                 "solver.unobservable_std_m": self.unobservable_std_m,
                 "solver.min_scale": self.min_scale,
+                "solver.sdp_backend": self.sdp_backend,
                 "priors.frames": [f for f, _, _ in self.priors],
                 "priors.axes": [a for _, a, _ in self.priors],
                 "priors.values_m": [x for _, _, x in self.priors],
@@ -394,7 +401,8 @@ def solve_and_write(
         solved = solve_and_assess(
             problem, mode=settings.mode, reject_outliers=settings.robust,
             priors=settings.priors, unobservable_std_m=settings.unobservable_std_m,
-            min_scale=settings.min_scale, thresholds=verdict_options(verdict_config),
+            min_scale=settings.min_scale, sdp_backend=settings.sdp_backend,
+            thresholds=verdict_options(verdict_config),
             expected_x=naming.x_names, expected_y=naming.y_names, excluded=excluded,
             carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
             accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,

@@ -14,7 +14,7 @@ import argparse
 from pathlib import Path
 
 from .. import __version__
-from .common import DEFAULT_OUTPUT, MODES, PROG
+from .common import DEFAULT_OUTPUT, MODES, PROG, SDP_BACKENDS
 
 __all__ = ["build_parser"]
 
@@ -46,6 +46,10 @@ def _add_config(p: argparse.ArgumentParser, help_text: str, *, required: bool = 
 def _add_solver(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=MODES, default=None,
                    help="solver mode (default: the configuration's solver.mode, else fast)")
+    p.add_argument("--sdp-backend", choices=SDP_BACKENDS, default=None,
+                   help="the SDP's solver (mode sdp, and fast when its certificate is "
+                        "inconclusive): structured, cvxpy (cvxpy + Clarabel) or auto (default: "
+                        "the configuration's solver.sdp_backend, else auto)")
     p.add_argument("--min-pairs", type=int, default=None, metavar="N",
                    help="leave out edges with fewer pairs (default: the configuration's "
                         "solver.min_pairs, else 3)")

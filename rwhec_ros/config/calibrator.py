@@ -35,6 +35,7 @@ from .specs import (
     IMAGE_QOS,
     IMAGE_TRANSPORTS,
     POSE_SOURCE_TYPES,
+    SDP_BACKENDS,
     SOLVER_MODES,
 )
 from .targets import build_targets
@@ -302,6 +303,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
         min_scale=check_positive(v, "solver.min_scale"),
         live_period_s=check_positive(v, "solver.live_period_s", allow_zero=True),
+        sdp_backend=check_choice(v, "solver.sdp_backend", SDP_BACKENDS),
     )
     convergence = ConvergenceConfig(
         max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),

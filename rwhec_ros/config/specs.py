@@ -24,6 +24,7 @@ __all__ = [
     "ROS_MANAGED_PREFIXES",
     "KINDS",
     "SOLVER_MODES",
+    "SDP_BACKENDS",
     "POSE_SOURCE_TYPES",
     "IMAGE_QOS",
     "IMAGE_TRANSPORTS",
@@ -46,6 +47,8 @@ KINDS = ("bool", "int", "double", "string", "int_array", "double_array", "string
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 SOLVER_MODES = ("fast", "sdp", "local")
+#: ``solver.sdp_backend`` values (:attr:`rwhec_ros.core.relaxation.SdpOptions.backend`).
+SDP_BACKENDS = ("auto", "structured", "cvxpy")
 POSE_SOURCE_TYPES = ("topic", "tf")
 IMAGE_QOS = ("sensor_data", "reliable")
 IMAGE_TRANSPORTS = ("raw", "compressed")
@@ -189,6 +192,11 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "skipped)"),
     ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),
     ParamSpec("solver.min_pairs", "int", 3, doc="edges with fewer pairs are left out"),
+    ParamSpec("solver.sdp_backend", "string", "auto",
+              doc="the SDP's solver (mode sdp and the fallback of fast): 'structured' (the "
+                  "interior-point method on the frame blocks, docs/sdp.md), 'cvxpy' (cvxpy + "
+                  "Clarabel) or 'auto' (structured unless Clarabel's chordal decomposition is "
+                  "estimated cheaper)"),
     ParamSpec("solver.reject_outliers", "bool", False,
               doc="outlier rejection: per-edge RANSAC on eq. (70) (paper Sec. 9.1), then a "
                   "GNC-TLS robust solve, re-certified on the inlier set"),

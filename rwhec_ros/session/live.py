@@ -388,7 +388,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
             solved = solve_and_assess(
                 problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
                 priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
-                min_scale=c.solver.min_scale, thresholds=verdict_options(c.verdict),
+                min_scale=c.solver.min_scale, sdp_backend=c.solver.sdp_backend,
+                thresholds=verdict_options(c.verdict),
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
                 accuracy=self._accuracy_options(), corners=corner_data(dataset))
