@@ -434,10 +434,21 @@ class QueueWorker:
 
     def stop(self, timeout: float | None = 2.0) -> None:
         """Stop after the current item and join the thread."""
-        self._stop.set()
+        self.request_stop()
         self.queue.close()
+        self.join(timeout)
+
+    def request_stop(self) -> None:
+        """Take no further item (the current one is finished); returns at once. Several
+        workers of one queue: ask them all first, then :meth:`join` them, so that none takes
+        the items the others leave."""
+        self._stop.set()
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Wait up to ``timeout`` s for the thread to end; True when it has."""
         if self._thread.is_alive():
             self._thread.join(timeout)
+        return not self._thread.is_alive()
 
     @property
     def alive(self) -> bool:
