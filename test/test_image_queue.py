@@ -184,7 +184,8 @@ def test_a_slow_expendable_predicate_does_not_hold_up_the_consumers():
 
 def test_waiting_items_do_not_fill_a_keys_backlog_memory_bounds_them():
     """Issue 39: images waiting for a late pose stream filled the 8 slots of their camera and
-    were dropped. Waiting items are bounded by their bytes over all keys, the oldest first."""
+    were dropped. Items that waited do not count as the backlog, even once ready (a late pose
+    stream catching up makes many ready at once); memory bounds every item, the oldest first."""
     newest = {"t": 0}
     drops = []
     q = FairImageQueue(["a", "b"], 2, ready=lambda item: item[0] <= newest["t"],
@@ -193,16 +194,19 @@ def test_waiting_items_do_not_fill_a_keys_backlog_memory_bounds_them():
     for stamp in range(1, 9):  # 8 waiting items of 10 bytes on "a": 4x the backlog
         assert q.put("a", (stamp, 10))
     assert q.stats()["a"]["dropped"] == 0 and len(q) == 8 and q.nbytes == 80
-    newest["t"] = 3  # 3 ready now: the backlog is full (2), the next put drops a ready one
-    assert not q.put("a", (9, 10))
+    newest["t"] = 20  # all ready now: still no backlog (they waited)
+    assert q.put("a", (9, 10)) and q.put("a", (10, 10))  # ready when put: a backlog of 2
+    assert q.stats()["a"]["dropped"] == 0
+    assert not q.put("a", (11, 10))  # the backlog is full: the key's oldest item goes
     assert q.stats()["a"]["dropped"] == 1 and q.get(0) == ("a", (2, 10))
+    newest["t"] = 5  # items 6.. wait again (for this test's sake)
     # memory: 40 bytes on "b" push the total past 100: the oldest items held go, any key
     assert q.put("b", (1, 40))
-    assert drops == [("a", 3, False)]  # the oldest held was ready (a backlog item)
+    assert drops == [("a", k, False) for k in (3, 4, 5)]  # the oldest held, ready ones
     assert q.put("b", (2, 40))
-    assert drops[1:] == [("a", k, True) for k in (4, 5, 6, 7)]  # waiting ones
+    assert drops[3:] == [("a", k, True) for k in (6, 7, 8, 9)]  # then waiting ones
     s = q.stats()
-    assert (s["a"]["dropped_memory"], s["a"]["dropped"], s["b"]["dropped"]) == (5, 6, 0)
+    assert (s["a"]["dropped_memory"], s["a"]["dropped"], s["b"]["dropped"]) == (7, 8, 0)
     assert q.nbytes == 40 + 40 + 2 * 10
     assert q.discard() == 4 and len(q) == 0 and q.nbytes == 0
 

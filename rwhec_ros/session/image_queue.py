@@ -99,11 +99,14 @@ class FairImageQueue(_Closable):
 
     Two kinds of items are held: *ready* ones (the backlog of the consumers) and, with a
     ``ready`` predicate, *waiting* ones (e.g. images whose pose has not arrived yet). ``maxsize``
-    bounds the ready items of a key (a key's items are handed out in order, so its ready items
-    are the ones before its first waiting item); the waiting ones are bounded by ``max_bytes``
-    over all keys (with ``weight``): when the items held weigh more, the oldest item held is
-    dropped (``"dropped_memory"``, reported to ``on_drop``). Without ``ready``, ``maxsize``
-    bounds every item of a key, as a plain bounded queue.
+    bounds a key's backlog: its ready items (a key's items are handed out in order, so they are
+    the ones before its first waiting item) that were ready when they were put. Items that had
+    to wait are not counted (when a late pose stream catches up, a quarter of a second of images
+    of every camera becomes ready at once: that is not the consumers falling behind); they, and
+    all items, are bounded by ``max_bytes`` over all keys (with ``weight``): when the items held
+    weigh more, the oldest item held is dropped (``"dropped_memory"``, reported to
+    ``on_drop``). Without ``ready``, ``maxsize`` bounds every item of a key, as a plain bounded
+    queue.
 
     Parameters
     ----------
@@ -165,7 +168,7 @@ class FairImageQueue(_Closable):
         self._weight = weight
         self._on_drop = on_drop
         self._recheck_s = float(recheck_s)
-        # per key: entries [seq, bytes, item] in arrival order
+        # per key: entries [seq, bytes, item, ready when put] in arrival order
         self._queues = {k: collections.deque() for k in self.keys}
         self._seq = 0
         self._bytes = 0
@@ -204,39 +207,42 @@ class FairImageQueue(_Closable):
                 if self._closed:
                     return False
                 return self._append(key, q, item, size)
-            n_ready = self._ready_count(q)
-            if n_ready < self.maxsize:
-                return self._append(key, q, item, size)
+            counted = self._ready is None or self._ready(item)
+            ready, backlog = self._backlog(q)
+            if backlog < self.maxsize:
+                return self._append(key, q, item, size, counted)
             if self._expendable is None:
                 self._drop_one(key, q, None)
-                self._append(key, q, item, size)
+                self._append(key, q, item, size, counted)
                 return False
-            candidates = [e[2] for e in list(q)[:n_ready]]
+            candidates = [e[2] for e in ready]
         victim = next((c for c in candidates if self._expendable(key, c)), None)
         with self._cond:
-            dropped = self._ready_count(q) >= self.maxsize  # a consumer may have made room
+            dropped = self._backlog(q)[1] >= self.maxsize  # a consumer may have made room
             if dropped:
                 self._drop_one(key, q, victim)
-            self._append(key, q, item, size)
+            self._append(key, q, item, size, counted)
             return not dropped
 
-    def _ready_count(self, q: collections.deque) -> int:
-        """Ready items of a key, the ones before its first waiting item (lock held); every item
-        without a ``ready`` predicate."""
+    def _backlog(self, q: collections.deque) -> tuple[list, int]:
+        """A key's ready entries (before its first waiting one; all without a ``ready``
+        predicate) and how many of them count as its backlog, those ready when put (lock
+        held)."""
         if self._ready is None:
-            return len(q)
-        n = 0
+            return list(q), len(q)
+        ready = []
         for entry in q:
             if not self._ready(entry[2]):
                 break
-            n += 1
-        return n
+            ready.append(entry)
+        return ready, sum(1 for e in ready if e[3])
 
-    def _append(self, key: Hashable, q: collections.deque, item: Any, size: int) -> bool:
+    def _append(self, key: Hashable, q: collections.deque, item: Any, size: int,
+                counted: bool = True) -> bool:
         """Append an entry (lock held), then drop the oldest items while the queue holds more
         than ``max_bytes`` (reported to ``on_drop`` after the lock is released); True."""
         self._seq += 1
-        q.append([self._seq, size, item])
+        q.append([self._seq, size, item, counted])
         self._bytes += size
         self._cond.notify_all()
         if self.max_bytes is None or self._bytes <= self.max_bytes:
