@@ -162,7 +162,7 @@ def run_transport(scene, seconds: float, flat: dict, speed: float, seed: int) ->
         return -dt
 
     lag_max = {"pose": 0.0, "image": 0.0}
-    peak = {"bytes": 0, "queued": 0}
+    peak = {"bytes": 0, "queued": 0, "waited": 0}
 
     def pose_thread():
         for t, stamp, i in pose_plan:
@@ -174,7 +174,9 @@ def run_transport(scene, seconds: float, flat: dict, speed: float, seed: int) ->
         for t, stamp, cam, i in image_plan:
             lag_max["image"] = max(lag_max["image"], wait_until(t))
             diag.record(cam, stamp)
-            queue.put(cam, (stamp, i, session.image_arrival(stamp)))
+            arrived = session.image_arrival(stamp)
+            peak["waited"] += not session.pose_ready(stamp, arrived)
+            queue.put(cam, (stamp, i, arrived))
             peak["bytes"] = max(peak["bytes"], queue.nbytes)
             peak["queued"] = max(peak["queued"], len(queue))
 
@@ -248,9 +250,9 @@ def section(args) -> list[str]:
         "- reference: the in-process run (camera_rate_load.py's (d): poses and images in stamp "
         f"order, one thread, the node's defaults): {len(ref_pairs)} pairs",
         "",
-        "| run | images | waited | no pose (by cause) | queue drops (backlog / memory) "
-        "| peak held | buffer out of order | pairs | vs in-process | same pairs | wall [s] "
-        "| CPU [s] |",
+        "| run | images | waited for their pose | no pose (by cause) "
+        "| queue drops (backlog / memory) | peak held | buffer out of order | pairs "
+        "| vs in-process | same pairs | wall [s] | CPU [s] |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     labels = {"defaults": "transport, node defaults",
@@ -265,7 +267,7 @@ def section(args) -> list[str]:
         drops = sum(q["dropped"] for q in r["queue"].values())
         memory = sum(q["dropped_memory"] for q in r["queue"].values())
         lines.append(
-            f"| {label} | {r['images']} | {c.get('images_pending', 0)} (session) "
+            f"| {label} | {r['images']} | {r['peak']['waited']} "
             f"| {sum(causes.values())} {causes if causes else ''} "
             f"| {drops - memory} / {memory} | {r['peak']['queued']} images, "
             f"{r['peak']['bytes'] / 1e6:.0f} MB | {c.get('buffer:out_of_order', 0)} "
@@ -276,16 +278,19 @@ def section(args) -> list[str]:
         r = runs[key]
         lines.append(
             f"- {label}: {r['threads']} detection threads; feeders behind their clock at most "
-            f"{1e3 * r['lag_max']['pose']:.0f} ms (poses) / {1e3 * r['lag_max']['image']:.0f} "
-            f"ms (images); hypervisor steal {100 * r['steal']:.1f} %; session row: "
+            f"{1e3 * r['lag_max']['pose'] * args.speed:.0f} ms (poses) / "
+            f"{1e3 * r['lag_max']['image'] * args.speed:.0f} ms (images) of stream time; "
+            f"hypervisor steal {100 * r['steal']:.1f} %; session row: "
             + (f"WARN `{r['session_warn']}`" if r["session_warn"] else "OK (no WARN)")
             + (f"; last camera WARN: `{r['warn']}`" if r["warn"] else ""))
     lines += [
         "",
-        "- waited = images that waited in the session; in the node's arrangement they wait in "
-        "the queue (held until `pose_ready`), which this table shows as `peak held`; no pose = "
-        "images that finally had no pose at their stamp; same pairs = pairs (edge, image stamp) "
-        "also kept by the in-process run",
+        "- waited for their pose = images no pose bracketed when they arrived (held in the "
+        "queue until `pose_ready`; `peak held` = the most images the queue held at once, "
+        "waiting or ready); no pose = images that finally had no pose at their stamp; queue "
+        "drops backlog = a camera's backlog of images ready on arrival full (detection behind: "
+        "CPU), memory = `sync.max_waiting_mb`; same pairs = pairs (edge, image stamp) also kept "
+        "by the in-process run",
         "",
     ]
     return lines

@@ -246,6 +246,7 @@ class CameraDiagnostics:
                        + (f"{s.get('no_pose', 0)} without a pose, " if "no_pose" in s else "")
                        + f"{s.get('pairs_kept', 0)} pairs")
             values = [("received", q.get("received", 0)), ("dropped", dropped),
+                      ("dropped_memory", q.get("dropped_memory", 0)),
                       ("queued", q.get("queued", 0))]
             values += [(k, v) for k, v in s.items() if k != "images"]
             if rate is not None:

@@ -264,6 +264,7 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                     and all(p.get_subscription_count() > 0 for p in image_pubs.values()))
 
     t0 = 1000 * NS
+    started = time.monotonic()
     for t in np.arange(0.0, 24.0, 0.2):  # one yaw turn: images at 5 Hz, poses at 100 Hz
         for k in range(20):
             tp = t + 0.01 * (k - 10)
@@ -279,9 +280,10 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                 gray, stamp, f"{cam}_optical")))
         time.sleep(0.03)  # let the detection worker keep up with the bounded queue
     assert wait_for(lambda: node.session.counters().get("pairs_kept", 0) > 60, timeout=30.0)
-    # about 25 s of images at 2 Hz at most; some searched images were annotated and published
+    # at 2 Hz at most over the time the images came in (about 25 s; longer on a busy machine);
+    # some searched images were annotated and published
     assert wait_for(lambda: received["detections"], timeout=10.0)
-    assert len(received["detections"]) <= 2.0 * 30 + 1
+    assert len(received["detections"]) <= 2.0 * (time.monotonic() - started) + 1
     det = received["detections"][-1]
     assert (det.encoding, det.height, det.width, det.step) == ("bgr8", 480, 640, 3 * 640)
     assert det.header.frame_id in {f"{c}_optical" for c in rig.cameras}
