@@ -444,6 +444,8 @@ class CalibratorNode(Node):
         """Start a due live re-solve (returns at once) and publish a new estimate once, while
         ``~/estimate`` has a subscriber (without one the YAML is never built; the latest
         estimate is published when one appears)."""
+        if self._stopping:
+            return
         live = self.session.live
         live.tick()
         if self._estimate_pub.get_subscription_count() == 0:
@@ -464,6 +466,8 @@ class CalibratorNode(Node):
 
     # --- diagnostics --------------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
+        if self._stopping:
+            return
         counters = self.session.counters()
         counters["image_queue_length"] = len(self._queue)
         counters["image_queue_dropped_total"] = self._queue.dropped
@@ -503,15 +507,15 @@ class CalibratorNode(Node):
         self._diag_pub.publish(msg)
 
     def stop_activity(self) -> None:
-        """Stop the timers, the detection workers and the live re-solve (before the executor
-        and the node go away, while the context is valid): the images still queued are dropped,
-        not examined, and the workers finish the image they are on within
-        :data:`WORKER_STOP_TIMEOUT_S` (all together); meanwhile they neither log nor publish."""
+        """Stop the timer callbacks, the detection workers and the live re-solve (before the
+        executor and the node go away, while the context is valid): the images still queued are
+        dropped, not examined, and the workers finish the image they are on within
+        :data:`WORKER_STOP_TIMEOUT_S` (all together); meanwhile they neither log nor publish.
+        The timers are not cancelled (a timer cancelled while the executor holds a task of it
+        makes that task fail: ``failed to call timer: timer is canceled`` on stderr at exit):
+        their callbacks return at once, ``executor.shutdown`` waits for them, ``destroy_node``
+        destroys them."""
         self._stopping = True
-        for name in ("_diag_timer", "_live_timer"):
-            timer = getattr(self, name, None)
-            if timer is not None:
-                timer.cancel()
         workers = getattr(self, "_workers", ())
         for worker in workers:
             worker.request_stop()

@@ -137,7 +137,7 @@ class ImageWait:
     def _note_pose(self, stamp: int, stored: bool, resets_before: int) -> None:
         """After a pose was offered to the buffer: its age (when stored), the clock without a
         clock, and a fresh start of both after a reset of the buffer (another time line)."""
-        if self._buffer.counters()["reset_backwards_jump"] != resets_before:
+        if self._buffer.resets != resets_before:
             self._latency.clear()
             if self._clock is None:
                 self._proxy_now = stamp

@@ -270,14 +270,14 @@ class CalibrationSession(ImageInput):
             if A is None:
                 self._count("pose_rejected_invalid")
                 return False
-            resets = self._buffer.counters()["reset_backwards_jump"]
+            resets = self._buffer.resets
             try:
                 ok = self._buffer.add(stamp_ns, A)
             except (TypeError, ValueError):
                 ok = False
             if not ok:
                 self._count("pose_rejected_buffer")
-            if ok or resets != self._buffer.counters()["reset_backwards_jump"]:
+            if ok or resets != self._buffer.resets:
                 self._note_pose(int(stamp_ns), bool(ok), resets)
             return bool(ok)
 

@@ -179,6 +179,11 @@ class PoseBuffer:
         self._poses.clear()
         self._stale.clear()
 
+    @property
+    def resets(self) -> int:
+        """Resets by a persistent backwards jump so far (``"reset_backwards_jump"``)."""
+        return self._counters["reset_backwards_jump"]
+
     def counters(self) -> dict[str, int]:
         """A copy of the event counters (fixed keys, all present from the start)."""
         return dict(self._counters)

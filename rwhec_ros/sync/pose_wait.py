@@ -72,11 +72,13 @@ class PoseLatency:
         self.min_samples = min_samples
         self._buckets: collections.deque = collections.deque()  # [start, lo, hi, count]
         self._last_now: int | None = None
+        self._summary: tuple[int, int, int] | None = None  # (count, lo, hi); None: stale
 
     def clear(self) -> None:
         """Forget every age (e.g. after the pose stream jumped to another time line)."""
         self._buckets.clear()
         self._last_now = None
+        self._summary = None
 
     def record(self, stamp_ns: int, now_ns: int) -> None:
         """One pose stamped ``stamp_ns`` arrived at ``now_ns`` (both [ns], same clock). A clock
@@ -91,24 +93,35 @@ class PoseLatency:
             b[1], b[2], b[3] = min(b[1], age), max(b[2], age), b[3] + 1
         else:
             self._buckets.append([start, age, age, 1])
+        if self._summary is not None:  # kept up to date without a pass over the buckets
+            n, lo, hi = self._summary
+            self._summary = (n + 1, min(lo, age), max(hi, age)) if n else (1, age, age)
         self._evict(now_ns)
 
     def _evict(self, now_ns: int) -> None:
         while self._buckets and self._buckets[0][0] + _BUCKET_NS <= now_ns - self.window_ns:
             self._buckets.popleft()
+            self._summary = None
 
     def ages(self, now_ns: int | None = None) -> tuple[int, int] | None:
         """``(lo, hi)``, the smallest and largest age [ns] over the window (ending at ``now_ns``,
         default the latest arrival), or None with fewer than ``min_samples`` poses in it."""
         if now_ns is not None:
             self._evict(now_ns)
-        if sum(b[3] for b in self._buckets) < self.min_samples:
-            return None
-        return min(b[1] for b in self._buckets), max(b[2] for b in self._buckets)
+        n, lo, hi = self._summarise()
+        return None if n < self.min_samples else (lo, hi)
+
+    def _summarise(self) -> tuple[int, int, int]:
+        """``(count, lo, hi)`` over the buckets, recomputed only after a bucket left."""
+        if self._summary is None:
+            b = self._buckets
+            self._summary = ((sum(x[3] for x in b), min(x[1] for x in b), max(x[2] for x in b))
+                             if b else (0, 0, 0))
+        return self._summary
 
     def count(self) -> int:
         """Poses in the window."""
-        return sum(b[3] for b in self._buckets)
+        return self._summarise()[0]
 
 
 @dataclass(frozen=True)
