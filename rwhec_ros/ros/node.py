@@ -541,8 +541,8 @@ EXECUTOR_SHUTDOWN_TIMEOUT_S = 3.0
 
 
 def main(args=None) -> int:
-    """Console script ``calibrator``: init, spin a MultiThreadedExecutor, stop cleanly
-    (:func:`rwhec_ros.ros.process.rclpy_main`)."""
+    """Console script ``calibrator`` (through :mod:`rwhec_ros.ros.entry`): init, spin a
+    MultiThreadedExecutor, stop cleanly (:func:`rwhec_ros.ros.process.rclpy_main`)."""
     return rclpy_main(DEFAULT_NODE_NAME, CalibratorNode, args,
                       shutdown_timeout_s=EXECUTOR_SHUTDOWN_TIMEOUT_S)
 

@@ -38,6 +38,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -53,6 +54,7 @@ __all__ = [
     "params_file_arguments",
     "start_failure_message",
     "install_stop_handlers",
+    "wait_for_tasks",
     "signals_ignored",
     "STOP_SIGNALS",
 ]
@@ -122,6 +124,8 @@ def install_stop_handlers(stop: threading.Event, *, interrupt: bool = True) -> d
     handlers)."""
     if threading.current_thread() is not threading.main_thread():
         return {}
+    if stop.is_set():  # a signal came already (handlers installed earlier): ignore the rest
+        return {s: signal.signal(s, signal.SIG_IGN) for s in STOP_SIGNALS}
 
     def first(signum, frame) -> None:
         for s in STOP_SIGNALS:
@@ -219,6 +223,8 @@ def run_node_program(program: NodeProgram, *, restore_signals: bool = False) -> 
     code = EXIT_OK
     built = None
     try:
+        if program.stop.is_set():  # stopped while starting: nothing to start, nothing to stop
+            return EXIT_OK
         try:
             program.init()
         except KeyboardInterrupt:
@@ -255,12 +261,32 @@ def run_node_program(program: NodeProgram, *, restore_signals: bool = False) -> 
     return code
 
 
+def wait_for_tasks(executor: Any, timeout_s: float) -> bool:
+    """Wait up to ``timeout_s`` for the callbacks a ``MultiThreadedExecutor`` handed to its
+    threads; True when none is left.
+
+    Call it after the spin stopped and before ``executor.shutdown``: rclpy 7.1 (Jazzy)
+    ``Executor.shutdown(timeout_sec)`` does not wait for them (it tests ``_is_shutdown`` right
+    after setting it) and destroys its guard condition, which a task still queued then triggers:
+    ``The following exception was never retrieved: cannot use Destroyable because destruction
+    was requested`` on stderr at exit (seen under ``ros2 launch``). The executor keeps them in
+    ``_futures`` (private; without it nothing is waited for)."""
+    deadline = time.monotonic() + timeout_s
+    for task in list(getattr(executor, "_futures", ())):
+        while not task.done():
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.01)
+    return True
+
+
 def rclpy_main(name: str, make_node: Callable[[], Any], args: Sequence[str] | None = None, *,
                shutdown_timeout_s: float = 3.0) -> int:
     """Body of a node's console script: ``rclpy.init(args=args)`` without rclpy's signal
     handlers, ``make_node()`` spun by a ``MultiThreadedExecutor`` (``spin_once`` until the first
-    SIGINT or SIGTERM, seen within :data:`SPIN_POLL_S`), then ``node.stop_activity()``,
-    ``executor.shutdown(shutdown_timeout_s)`` (waits for running callbacks), ``destroy_node()``
+    SIGINT or SIGTERM, seen within :data:`SPIN_POLL_S`), then ``node.stop_activity()``, the
+    callbacks handed to the executor's threads finished (:func:`wait_for_tasks`, up to
+    ``shutdown_timeout_s``), ``executor.shutdown(shutdown_timeout_s)``, ``destroy_node()``
     and ``rclpy.try_shutdown()``, as :func:`run_node_program` runs them; returns the exit code.
     """
     import rclpy
@@ -281,6 +307,7 @@ def rclpy_main(name: str, make_node: Callable[[], Any], args: Sequence[str] | No
     def stop_steps(built):
         node, executor = built
         return [node.stop_activity,
+                lambda: wait_for_tasks(executor, shutdown_timeout_s),
                 lambda: executor.shutdown(timeout_sec=shutdown_timeout_s),
                 node.destroy_node]
 

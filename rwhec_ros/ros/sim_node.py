@@ -157,8 +157,8 @@ class DemoSimulatorNode(Node):
 
 
 def main(args=None) -> int:
-    """Console script ``rwhec_demo_sim`` (stops cleanly: see
-    :func:`rwhec_ros.ros.process.rclpy_main`)."""
+    """Console script ``rwhec_demo_sim`` (through :mod:`rwhec_ros.ros.entry`; stops cleanly:
+    see :func:`rwhec_ros.ros.process.rclpy_main`)."""
     return rclpy_main("rwhec_demo_sim", DemoSimulatorNode, args,
                       shutdown_timeout_s=EXECUTOR_SHUTDOWN_TIMEOUT_S)
 

@@ -254,3 +254,72 @@ def test_sigterm_and_mixed_signals_exit_0_without_traceback(signals):
     assert code == 0, err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
     assert out.split() == ["stopped", "destroyed", "shutdown"]
+
+
+def test_a_program_stopped_before_it_started_starts_nothing():
+    rec = Recorder()
+    stop = threading.Event()
+    stop.set()
+    assert run_node_program(rec.program(stop=stop, interrupt=False),
+                            restore_signals=True) == EXIT_OK
+    assert rec.calls == []
+
+
+def test_the_entry_module_takes_the_signals_before_the_heavy_imports():
+    """The console scripts start in rwhec_ros.ros.entry, which imports neither rclpy nor the
+    node (seconds of imports on a loaded machine: a Ctrl-C then must be quiet too)."""
+    code = ("import sys; import rwhec_ros.ros.entry as e; "
+            "print(sorted(m for m in ('rclpy', 'cv2', 'numpy', 'rwhec_ros.ros.node') "
+            "if m in sys.modules))")
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
+
+
+STARTING = textwrap.dedent("""
+    import sys, time
+    from rwhec_ros.ros import entry
+
+    entry._take_signals()  # what the console scripts do first
+    print("importing", flush=True)
+    time.sleep(5.0)  # the imports of rclpy, OpenCV, ...: the signals land here
+    print("started", flush=True)
+""")
+
+
+@pytest.mark.parametrize("signals", [[signal.SIGINT, signal.SIGINT], [signal.SIGTERM]])
+def test_signals_while_starting_exit_0_at_once_without_traceback(signals):
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.Popen([sys.executable, "-c", STARTING], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout.readline().strip() == "importing"
+        t0 = time.monotonic()
+        for sig in signals:
+            proc.send_signal(sig)
+            time.sleep(0.1)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert time.monotonic() - t0 < 3.0  # at once, not after the rest of the start-up
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert out.split() == []
+
+
+def test_wait_for_tasks_waits_for_the_executors_queued_callbacks():
+    from types import SimpleNamespace
+
+    from rwhec_ros.ros.process import wait_for_tasks
+
+    done = threading.Event()
+    task = SimpleNamespace(done=done.is_set)
+    threading.Timer(0.2, done.set).start()
+    t0 = time.monotonic()
+    assert wait_for_tasks(SimpleNamespace(_futures=[task]), 5.0)
+    assert 0.15 < time.monotonic() - t0 < 4.0
+    stuck = SimpleNamespace(done=lambda: False)
+    assert not wait_for_tasks(SimpleNamespace(_futures=[stuck]), 0.1)
+    assert wait_for_tasks(object(), 0.1)  # no such attribute: nothing to wait for
