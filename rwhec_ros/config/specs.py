@@ -137,8 +137,13 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("sync.detection_threads", "int_or_auto", "auto",
               doc="threads running tag detection (node and bag replay): 'auto' = the cores "
                   "available to the process, at most one per camera; or an integer >= 1"),
-    ParamSpec("sync.max_pending_images", "int", 32,
-              doc="images waiting for a later pose to bracket their stamp"),
+    ParamSpec("sync.max_pose_wait_s", "double", 1.0,
+              doc="longest wait [s] of an image for the pose at its stamp (it waits as long as "
+                  "the pose stream's measured lateness needs, at most this; see "
+                  "docs/ros-transport.md)"),
+    ParamSpec("sync.max_waiting_mb", "double", 256.0,
+              doc="memory [MB] of the images held while they wait for their pose (the node's "
+                  "queue; the session's own); beyond it the oldest is given up and counted"),
     ParamSpec("sync.tf_timeout_s", "double", 0.2,
               doc="wait [s] for tf at an image stamp (pose_source.type 'tf')"),
     ParamSpec("sync.at_rest_max_gap_s", "double", 2.0,

@@ -31,6 +31,7 @@ from ..data.results import (
 from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
 from ..sync.buffer import PoseBuffer
+from ..sync.pose_wait import PoseLatency
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .accuracy import AccuracyOptions
@@ -69,6 +70,10 @@ class CalibrationSession(ImageInput, CaptureMixin):
     live_solve : callable, optional
         The live re-solve of :attr:`live` (default
         :func:`~rwhec_ros.session.live_solve.solve_with_uncertainty`); injectable for tests.
+    clock : callable returning int, optional
+        The time [ns] on the clock of the stamps (the node: its ROS clock), for the images
+        waiting for their pose (:mod:`rwhec_ros.session.image_wait`); default: the newest stamp
+        received.
 
     Attributes
     ----------
@@ -91,8 +96,10 @@ class CalibrationSession(ImageInput, CaptureMixin):
         now: Callable[[], _dt.datetime] | None = None,
         output_root: str | Path | None = None,
         live_solve: Callable | None = None,
+        clock: Callable[[], int] | None = None,
     ) -> None:
         self.config = config
+        self._clock = clock
         self.output_root = (Path(output_root) if output_root is not None
                             else plain_output_root(config.output.directory))
         self._now = now if now is not None else (lambda: _dt.datetime.now(_dt.timezone.utc))
@@ -142,6 +149,10 @@ class CalibrationSession(ImageInput, CaptureMixin):
         )
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()
+        self._pending_bytes = 0
+        self._latency = PoseLatency()  # the pose stream's ages (image_wait)
+        self._proxy_now = 0  # the clock without one: the newest stamp received
+        self._no_pose: dict[str, collections.Counter] = {}  # camera -> cause -> images
         self._views: dict = {}  # camera -> (A, targets found) of its last searched image
         # the motion gate's remembered verdicts (image_input.gate_would_skip), valid while the
         # camera's epoch is unchanged: (camera, stamp) -> (epoch, skip, A at the stamp)
@@ -244,11 +255,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         sample was stored. Never raises for bad data.
         """
         ok = self._store_pose(stamp_ns, T_parent_child, source)
-        if self._pending:
-            with self._lock:
-                ready = self._take_ready_pending()
-            for item in ready:
-                self._finish_pending(item)
+        self._serve_pending()
         return ok
 
     def _store_pose(self, stamp_ns: int, T_parent_child: Any, source: str | None) -> bool:
@@ -266,12 +273,15 @@ class CalibrationSession(ImageInput, CaptureMixin):
             if A is None:
                 self._count("pose_rejected_invalid")
                 return False
+            resets = self._buffer.resets
             try:
                 ok = self._buffer.add(stamp_ns, A)
             except (TypeError, ValueError):
                 ok = False
             if not ok:
                 self._count("pose_rejected_buffer")
+            if ok or resets != self._buffer.resets:
+                self._note_pose(int(stamp_ns), bool(ok), resets)
             return bool(ok)
 
     def rejections(self) -> list[str]:
