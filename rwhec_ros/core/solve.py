@@ -379,13 +379,15 @@ def _solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Cali
         else:
             sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
     except Exception as exc:  # noqa: BLE001 - cvxpy/Clarabel raise SolverError and others
+        # the error's first sentence only: the rest is cvxpy's advice for its own users
+        brief = f"{type(exc).__name__}: {str(exc).split('. ')[0].rstrip('.')}"
         notes.append(f"SDP form: {form}")
-        notes.append(f"the SDP solver failed ({type(exc).__name__}: {exc}); returning the "
+        notes.append(f"the SDP solver stopped with an error ({brief}); returning the "
                      "closed-form estimate")
         est, p = _estimate(prep, prep.init_R)
-        cert = _failed_certificate(
-            options, p, f"the SDP solver (Clarabel) failed: {exc}. Try mode 'fast', or check the "
-            "data for degenerate edges and outliers")
+        what = ("the fast solver's certificate was inconclusive and its SDP fallback (Clarabel)"
+                if options.mode != "sdp" else "the SDP solver (Clarabel)")
+        cert = _failed_certificate(options, p, f"{what} stopped with an error ({brief})")
         return _result(prep, est, cert, "sdp", "failed", 0.0, notes)
     notes.append(f"SDP form: {form}")
     notes.append(f"Clarabel: {sol.iterations} iterations, status '{sol.status}'")
