@@ -476,8 +476,9 @@ def solve_and_write(
         files = write_outputs(paths, result_yaml=dump_document(doc), launch_text=launch,
                               force=True, urdf_text=urdf, frames_text=frames_text)
     except OSError as exc:
-        raise BadInput(f"cannot write the outputs: {describe_os_error(exc)}" + _kept(run)
-                       ) from None
+        where = "" if run.paths is None else f" into {run.paths.result.parent}"
+        raise BadInput(f"cannot write the outputs{where}: {describe_os_error(exc)}"
+                       + _kept(run)) from None
     files.update(_kept_files(run, dataset))
     if not report:
         remove_stale_reports(say, paths)
@@ -541,7 +542,8 @@ def calibrate_session(say: Printer, session, run, *, report: bool,
                                                                "--robust")
         raise NoSolution(why.replace("; all data kept:", ";") + _kept(run))
     if outcome.write_error:  # nothing printed as if it had been written
-        raise BadInput(f"cannot write the outputs: {outcome.write_error}" + _kept(run))
+        where = "" if run.paths is None else f" into {run.paths.result.parent}"
+        raise BadInput(f"cannot write the outputs{where}: {outcome.write_error}" + _kept(run))
     say.summary(outcome.message)
     for line in inputs:
         say(line)

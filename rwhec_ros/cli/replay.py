@@ -87,7 +87,7 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     run = Run("bag", say, paths, root, force=args.force,
               resume_options=settings.resume_options(args.report))
     try:
-        run.enter("reading")
+        run.enter("reading", pause=False)  # the pause: half-way through the messages
         try:
             tf_failure, errors = _replay(args, say, session, handlers, routes, TfTree)
         except ValueError as exc:  # a bag damaged part-way: keep what was read
@@ -309,7 +309,8 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
                      f"tags, {len(rig.boards)} boards, {args.seconds:g} s at {args.rate:g} Hz")
         rng = np.random.default_rng(args.seed)
         n_images = 0
-        run.enter("reading")
+        run.enter("reading", pause=False)  # the pause: half-way through the images
+        half = int(args.seconds * args.rate * len(rig.cameras)) // 2
         for stamp, cam, data in simulated_stream(rig, rng, seconds=args.seconds,
                                                  image_rate_hz=args.rate):
             if cam is None:
@@ -317,6 +318,8 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
             else:
                 session.add_image(cam, stamp, data)
                 n_images += 1
+                if n_images == half:
+                    pause_for_test("reading")
         session.close()
         counters = session.counters()
         simulated = (f"demo: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} tags, "

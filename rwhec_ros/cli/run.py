@@ -97,10 +97,12 @@ class Run:
         self.rescued = False
 
     # --- phases ------------------------------------------------------------------------------
-    def enter(self, phase: str) -> None:
-        """Enter ``phase`` (one of :data:`PHASES`); the test pause, if asked for."""
+    def enter(self, phase: str, *, pause: bool = True) -> None:
+        """Enter ``phase`` (one of :data:`PHASES`); the test pause, if asked for (not with
+        ``pause=False``: ``bag`` and ``demo`` pause half-way through their reading)."""
         self.phase = phase
-        pause_for_test(phase)
+        if pause:
+            pause_for_test(phase)
 
     # --- outputs -----------------------------------------------------------------------------
     def output_paths(self):

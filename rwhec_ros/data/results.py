@@ -415,6 +415,14 @@ def incomplete_result(doc: Mapping[str, Any]) -> str:
     for key in _COMPLETE_KEYS:
         if key not in doc:
             return f"key {key!r} is missing"
+    # keys written after others by the same version (result_document): the later ones absent
+    if doc.get("verdict") in ("good", "caution", "unusable") and "verdict_details" not in doc:
+        return "key 'verdict_details' is missing (the verdict is there)"
+    frames = doc["frames"] if isinstance(doc["frames"], list) else []
+    if any(isinstance(f, Mapping) and "std_kind" in f for f in frames):
+        for key in ("uncertainty", "cross_validation", "guidance", "accuracy_notes"):
+            if key not in doc:
+                return f"key {key!r} is missing (the frames have their uncertainty)"
 
     def walk(node: Any, where: str) -> str:
         if isinstance(node, Mapping):
