@@ -56,6 +56,32 @@ def test_fault_table_row(fault_inputs, name):
     assert row.passed, (row.problems, row.first)
 
 
+@pytest.mark.slow
+def test_a_bag_damaged_part_way_keeps_the_pairs_read(fault_inputs, tmp_path, monkeypatch):
+    """A storage file that opens but fails part-way (rosbags raises while reading): one line
+    with the reason and the repair, and the pairs read up to the damage kept."""
+    import rwhec_ros.data.rosbag as rosbag
+
+    inputs, _ = fault_inputs
+    real = rosbag.read_messages
+
+    def damaged(path, topics, **kw):
+        for i, m in enumerate(real(path, topics, **kw)):
+            if i == 500:
+                raise ValueError(rosbag.damaged_bag_words(
+                    path, RuntimeError("database disk image is malformed"), i, 720))
+            yield m
+
+    monkeypatch.setattr(rosbag, "read_messages", damaged)
+    out = tmp_path / "out"
+    code, stdout, stderr = run(["bag", inputs.bag, "--config", ft.REPO / "config" / "demo.yaml",
+                                "-o", out, "-q"])
+    assert code == EXIT_BAD_INPUT and len(stderr.splitlines()) == 1, stderr
+    assert "500 of 720 messages were read before the damage" in stderr
+    assert "ros2 bag reindex" in stderr and "resume with: rwhec-calibrate dataset" in stderr
+    assert Dataset.load(out / "dataset.yaml").n_pairs > 0
+
+
 # --- the checks of the table can fail -----------------------------------------------------------
 
 

@@ -46,11 +46,11 @@ def main(argv: Sequence[str] | None = None, *, stdout: TextIO | None = None,
     Bad input (unreadable or malformed files, invalid configuration, existing outputs without
     ``--force``, outputs that cannot be written) is reported on stderr as
     ``rwhec-calibrate <command>: error: <message>`` in words with exit code 2, never a
-    traceback. Ctrl-C ends with one line (exit code 130; ``bag`` first saves the data set
-    collected so far); SIGTERM the same with exit code 143; a closed output pipe (``| head``) ends
+    traceback. Ctrl-C ends with one line naming the phase and the data set kept (exit code 130;
+    :mod:`.run`), SIGTERM the same with exit code 143; a closed output pipe (``| head``) ends
     quietly (141). No solution (not enough data, a solver error) is one line on stderr (3).
-    Python warnings of
-    the libraries are printed once each as ``rwhec-calibrate <command>: note: <message>``.
+    Python warnings of the libraries are printed once each as
+    ``rwhec-calibrate <command>: note: <message>``.
     """
     from ..allocator import retain_freed_memory
 
@@ -74,6 +74,9 @@ def main(argv: Sequence[str] | None = None, *, stdout: TextIO | None = None,
     previous = _terminate_as_interrupt()
     with warnings.catch_warnings():
         warnings.simplefilter("default")
+        # a library's deprecations are for its callers' developers, not for the user
+        warnings.simplefilter("ignore", DeprecationWarning)
+        warnings.simplefilter("ignore", PendingDeprecationWarning)
         warnings.showwarning = note
         try:
             return _COMMANDS[args.command](args, say)
