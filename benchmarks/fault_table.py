@@ -211,6 +211,7 @@ def inspect(directory: Path, started: float) -> Disk:
     disk = Disk()
     if not directory.is_dir():
         return disk
+    old, new = [], []
     for path in sorted(directory.iterdir()):
         if path.is_dir():
             continue
@@ -218,8 +219,9 @@ def inspect(directory: Path, started: float) -> Disk:
         why = whole(path)
         if why:
             disk.broken.append(f"{path.name}: {why}")
-        elif path.stat().st_mtime < started:
-            disk.stale.append(f"{path.name}: from an earlier run")
+        (old if path.stat().st_mtime < started else new).append(path.name)
+    if old and new:  # files of an earlier run beside those of this one (a refused run: old only)
+        disk.stale += [f"{name}: from an earlier run" for name in old]
     data = directory / "dataset.yaml"
     if data.name in disk.files and not any(b.startswith("dataset") for b in disk.broken):
         dataset = Dataset.load(data)

@@ -86,8 +86,6 @@ def test_a_bag_damaged_part_way_keeps_the_pairs_read(fault_inputs, tmp_path, mon
 
 
 def test_the_inspection_finds_truncated_stale_and_temporary_files(tmp_path):
-    import time
-
     from rwhec_ros.core.synthetic import random_instance
 
     problem, _ = random_instance(np.random.default_rng(1), 2, 2, n_per_edge=6)
@@ -95,7 +93,8 @@ def test_the_inspection_finds_truncated_stale_and_temporary_files(tmp_path):
     text = (tmp_path / "dataset.yaml").read_text()
     (tmp_path / "result.yaml").write_text("certified: true\n")
     (tmp_path / ".result.yaml.x1.tmp").write_text("")
-    started = time.time() + 5.0  # every file "older" than this run
+    started = os.stat(tmp_path / "dataset.yaml").st_mtime + 0.5  # the data set is older
+    os.utime(tmp_path / "result.yaml", (started + 1, started + 1))  # this run's
     disk = ft.inspect(tmp_path, started)
     assert any(b.startswith("result.yaml") for b in disk.broken)
     assert any("temporary" in b for b in disk.broken)

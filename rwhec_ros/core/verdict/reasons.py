@@ -81,7 +81,10 @@ def _left_to_try(result: CalibrationResult) -> str:
     mode or the fast mode's fallback; the outlier rejection)."""
     sdp_ran = result.mode == "sdp" or any(n.startswith("SDP form:") for n in result.notes)
     robust = any(n.startswith("outlier rejection:") for n in result.notes)
-    tries = [] if sdp_ran else ["solve again with --mode sdp (solver.mode)"]
+    if result.mode == "sdp":
+        tries = ["solve with --mode fast (solver.mode; the local solver and its certificate)"]
+    else:
+        tries = [] if sdp_ran else ["solve again with --mode sdp (solver.mode)"]
     if not robust:
         tries.append("look for outliers with --robust (solver.reject_outliers)")
     tries.append("make sure the motion rotates about two axes (identical or nearly identical "
