@@ -371,8 +371,9 @@ def check_output_room(directory: Path, report: bool, option: str) -> None:
 
     why = check_room(directory, expected_output_bytes(report))
     if why:
-        raise BadInput(f"{option}: cannot write the outputs into {directory}: {why}; free some "
-                       "space or give another directory with -o")
+        fix = ("free some space or give another directory with -o" if "free on its" in why
+               else "give a writable directory with -o")
+        raise BadInput(f"{option}: cannot write the outputs into {directory}: {why}; {fix}")
 
 
 def write_report(say: Printer, doc: dict, problem, png: Path, html: Path, ident=None) -> None:

@@ -118,11 +118,12 @@ class StagedFiles:
 
 
 def existing_ancestor(path: str | Path) -> Path:
-    """``path`` or its nearest existing parent directory (``.`` for a relative path with none)."""
-    p = Path(path).absolute()
+    """``path`` or its nearest existing parent directory, relative when ``path`` is (``.`` for
+    a relative path with none)."""
+    p = Path(path)
     while not p.exists() and p != p.parent:
         p = p.parent
-    return p
+    return p if p.exists() else Path(".")
 
 
 def free_bytes(path: str | Path) -> int:
