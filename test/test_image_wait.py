@@ -66,12 +66,20 @@ def stream(seconds: float, pose_age_ms, image_age_ms: float = 30.0, start: int =
     return sorted(ev)
 
 
+def moving(stamp: int) -> np.ndarray:
+    """The pose at ``stamp`` of an arm moving at 0.2 m/s (1 mm between samples 5 ms apart,
+    beyond sync.at_rest_translation_m: the stop-and-go rule of sync/at_rest.py never applies)."""
+    T = np.eye(4)
+    T[0, 3] = 0.2 * (stamp % (1000 * NS)) / NS
+    return T
+
+
 def feed(session, clock, intr, events, *, until=None):
     outcomes = []
     for arrival, kind, stamp in events:
         clock.t = arrival
         if kind == 0:
-            session.add_pose(stamp, np.eye(4))
+            session.add_pose(stamp, moving(stamp))
         else:
             outcomes.append(session.add_image("cam0", stamp, Blank(intr)))
     return outcomes
@@ -95,7 +103,7 @@ def test_a_pose_stream_lagging_the_images_by_265_ms_loses_no_image(tmp_path):
     values = dict(session.pose_wait_values())
     assert float(values["pose_age_max_s"]) == pytest.approx(0.265, abs=1e-9)
     clock.t += 2 * NS  # nothing more comes: whatever still waits is answered by the clock
-    session.add_pose(events[-1][2] + 5 * MS, np.eye(4))
+    session.add_pose(events[-1][2] + 5 * MS, moving(events[-1][2] + 5 * MS))
     c = session.counters()
     assert no_pose(session) == {}
     assert c["images_pending"] > 0  # they did wait
@@ -116,7 +124,7 @@ def test_the_pose_stream_stops_images_wait_their_deadline_then_after_buffer(tmp_
     assert not session.pose_ready(last, arrived_ns=last + 30 * MS)
     clock.t = last + 141 * MS
     assert session.pose_ready(last, arrived_ns=last + 30 * MS)
-    session.add_pose(90 * NS, np.eye(4))  # any input lets the session answer the due ones
+    session.add_pose(90 * NS, moving(90 * NS))  # any input lets the session answer the due ones
     assert session.counters()["pending_images"] == 0
     lost = no_pose(session)
     assert set(lost) == {"no_pose_at_stamp:after_buffer"}
@@ -151,7 +159,7 @@ def test_waiting_images_are_bounded_in_memory_oldest_given_up(tmp_path):
     intr = demo_rig().intrinsics["cam0"]
     mb = 10 * intr.width * intr.height / 1e6  # room for ten images
     session, clock, intr = session_with_clock(tmp_path, **{"sync.max_waiting_mb": mb})
-    session.add_pose(100 * NS, np.eye(4))
+    session.add_pose(100 * NS, moving(100 * NS))
     for k in range(25):  # newer than the newest pose, well within the wait
         clock.t = 100 * NS + k * MS
         assert session.add_image("cam0", 100 * NS + (k + 20) * MS, Blank(intr)).status == \
@@ -167,12 +175,12 @@ def test_an_image_in_a_gap_waits_for_the_reordered_poses(tmp_path):
     session, clock, intr = session_with_clock(tmp_path)
     clock.t = 100 * NS + 300 * MS  # the poses arrive 55-300 ms late
     for k in list(range(0, 10)) + list(range(40, 50)):  # 150 ms gap: poses 10-39 are later
-        session.add_pose(100 * NS + k * 5 * MS, np.eye(4))
+        session.add_pose(100 * NS + k * 5 * MS, moving(100 * NS + k * 5 * MS))
     image = Blank(intr)
     assert session.add_image("cam0", 100 * NS + 120 * MS, image).status == "pending"
     clock.t = 100 * NS + 400 * MS  # before its deadline 0.12 + 0.1 + 0.3 + 0.061 s
     for k in range(10, 40):
-        session.add_pose(100 * NS + k * 5 * MS, np.eye(4))
+        session.add_pose(100 * NS + k * 5 * MS, moving(100 * NS + k * 5 * MS))
     assert image.calls == 1 and no_pose(session) == {}
 
 
@@ -181,7 +189,7 @@ def test_without_a_clock_the_newest_stamp_is_the_clock(tmp_path):
     intr = demo_rig().intrinsics["cam0"]
     session.set_camera_info("cam0", intr)
     for k in range(20):
-        session.add_pose(100 * NS + k * 5 * MS, np.eye(4))
+        session.add_pose(100 * NS + k * 5 * MS, moving(100 * NS + k * 5 * MS))
     assert session.now_ns() == 100 * NS + 95 * MS
     # an image after the last pose waits while later stamps arrive ...
     assert session.add_image("cam0", 100 * NS + 150 * MS, Blank(intr)).status == "pending"
@@ -196,3 +204,30 @@ def test_the_retired_parameter_says_what_replaced_it(tmp_path):
     with pytest.raises(ValueError, match=r"sync.max_pending_images: unknown parameter .*"
                        r"retired .*sync.max_pose_wait_s and sync.max_waiting_mb"):
         config(tmp_path, **{"sync.max_pending_images": 32})
+
+
+def test_a_stream_at_rest_that_stops_keeps_images_waiting_for_the_next_sample(tmp_path):
+    """Stop-and-go (sync/at_rest.py) joined to the wait: after a stream at rest stops, an image
+    newer than its newest pose waits past the pose deadline, up to sync.at_rest_max_gap_s after
+    that pose, for the next sample that may bridge it; the next agreeing sample pairs it."""
+    session, clock, intr = session_with_clock(tmp_path, **{"sync.at_rest_max_gap_s": 1.0})
+    for k in range(20):  # at rest: the same pose at 200 Hz, then nothing
+        session.add_pose(100 * NS + k * 5 * MS, np.eye(4))
+    stamp = 100 * NS + 300 * MS
+    clock.t = stamp + 30 * MS
+    assert session.add_image("cam0", stamp, Blank(intr)).status == "pending"
+    clock.t = 100 * NS + 900 * MS  # well past its pose deadline, within 1 s of the newest pose
+    assert not session.pose_ready(stamp, arrived_ns=stamp + 30 * MS)
+    clock.t = 100 * NS + 1100 * MS  # 1 s after the newest pose: final
+    assert session.pose_ready(stamp, arrived_ns=stamp + 30 * MS)
+    # the same image with the next sample at rest 0.8 s later: paired at rest
+    session2, clock2, _ = session_with_clock(tmp_path, **{"sync.at_rest_max_gap_s": 1.0})
+    for k in range(20):
+        session2.add_pose(100 * NS + k * 5 * MS, np.eye(4))
+    clock2.t = stamp + 30 * MS
+    image = Blank(intr)
+    assert session2.add_image("cam0", stamp, image).status == "pending"
+    clock2.t = 100 * NS + 900 * MS
+    session2.add_pose(100 * NS + 895 * MS, np.eye(4))
+    assert image.calls == 1 and no_pose(session2) == {}
+    assert session2.counters()["pose_at_rest"] == 1

@@ -117,8 +117,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "(A_i X_j = Y_k B_i) without ROS.",
         epilog="The first line printed is the verdict: GOOD, CAUTION or UNUSABLE, with the "
                "reason. Exit codes: 0 usable result (good or caution), 2 bad input or output, "
-               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted, 141 "
-               "output pipe closed (e.g. | head).",
+               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted "
+               "(Ctrl-C), 143 terminated (SIGTERM), 141 output pipe closed (e.g. | head); "
+               "the pairs gathered are kept in dataset.yaml however a run ends.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -200,6 +201,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated duration [s] (default: %(default)s, one full yaw turn)")
     p.add_argument("--rate", type=float, default=5.0, help="image rate [Hz] (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--bag", type=Path, default=None, metavar="DIR",
+                   help="write the simulated recording as a rosbag2 directory DIR instead of "
+                        "calibrating (then: rwhec-calibrate bag DIR --config "
+                        "config/demo.yaml); an existing DIR is refused unless --force "
+                        "(default: calibrate)")
+    p.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3",
+                   help="storage of --bag (default: %(default)s)")
 
     p = sub.add_parser("report", help="report PNG + HTML of a written result")
     p.add_argument("result", metavar="RESULT.yaml", type=Path,

@@ -103,6 +103,7 @@ from ..session.responses import (
     RESET_MESSAGE,
     calibrate_message,
     save_dataset_message,
+    save_on_shutdown,
     should_publish_tf,
 )
 from ..vision.annotate import annotate_detections
@@ -532,6 +533,7 @@ class CalibratorNode(Node):
         session = getattr(self, "session", None)
         if session is not None:
             session.close()
+            save_on_shutdown(session, self.get_logger())  # pairs never lost at shutdown
 
     def destroy_node(self) -> None:
         self.stop_activity()

@@ -162,6 +162,8 @@ class ImageWait:
         if status is LookupStatus.BEFORE_BUFFER:
             return False
         newest = self._buffer.newest_ns
+        if newest is None:  # no pose yet: wait until the deadline
+            return self._now_locked() < self._deadline(stamp, arrived).at_ns
         if status is LookupStatus.OK and stamp <= newest:
             return False
         rule = AtRestRule.from_sync(self.config.sync)

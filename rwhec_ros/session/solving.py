@@ -4,7 +4,7 @@ shared by the CLI and the node."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,6 +25,7 @@ __all__ = [
     "Solved",
     "solve_and_assess",
     "verdict_options",
+    "solver_alternatives",
 ]
 
 
@@ -192,17 +193,19 @@ def solve_and_assess(
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
     accuracy: AccuracyOptions | None = DEFAULT_ACCURACY,
     corners=None,
+    on_phase: Callable[[str], None] | None = None,
 ) -> Solved:
     """Solve ``problem`` (as :func:`solve_problem`: ``mode``, ``reject_outliers``, ``priors``,
-    ``unobservable_std_m``, ``min_scale``, ``sdp_backend``), analyse identifiability at the solution
-    and :func:`~rwhec_ros.core.verdict.assess` it with ``thresholds``. ``expected_x``/``expected_y``
-    are the tags and cameras the user asked for, ``excluded`` the edges left out before the solve
-    (with reasons), ``carriers`` the camera and tag carrier frame names. ``accuracy`` says what of
-    the per-frame uncertainty, cross-validation and guidance to compute
-    (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the verdict's precision
-    uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the reprojection error per
-    camera and the verdict's focal check (with ``accuracy`` only). Exceptions of the solver
-    propagate."""
+    ``unobservable_std_m``, ``min_scale``, ``sdp_backend``), analyse identifiability at the
+    solution and :func:`~rwhec_ros.core.verdict.assess` it with ``thresholds``.
+    ``expected_x``/``expected_y`` are the tags and cameras the user asked for, ``excluded`` the
+    edges left out before the solve (with reasons), ``carriers`` the camera and tag carrier frame
+    names. ``accuracy`` says what of the per-frame uncertainty, cross-validation and guidance to
+    compute (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the
+    verdict's precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
+    reprojection error per camera and the verdict's focal check (with ``accuracy`` only).
+    ``on_phase`` is called with ``"analysing"`` when the solver returned. Exceptions of the
+    solver propagate."""
     from ..core.solve import blas_threads
 
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
@@ -211,6 +214,8 @@ def solve_and_assess(
     result, solved, dropped, notes, rejected = _solve(problem, options, reject_outliers)
     notes = prior_notes + notes
     result.notes.extend(notes)
+    if on_phase is not None:
+        on_phase("analysing")
     ident = analyze_at_solution(solved, result)
     acc = None
     if accuracy is not None:
@@ -225,3 +230,19 @@ def solve_and_assess(
                          expected_y=[*expected_y, *problem.y_names],
                          excluded={**dict(excluded or {}), **dropped}, carriers=carriers)
     return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected)
+
+
+def solver_alternatives(mode: str, robust: bool, mode_option: str = "--mode",
+                        robust_option: str = "--robust") -> str:
+    """What is left to try after the solver stopped with an error in ``mode`` (with or
+    without outlier rejection), naming the option (``mode_option``, ``robust_option``) and its
+    current value; never what already ran."""
+    tries = []
+    if mode == "sdp":
+        tries.append(f"{mode_option} fast (now sdp)")
+    elif mode == "local":
+        tries.append(f"{mode_option} fast (now local: with a certificate and the SDP fallback)")
+    if not robust:
+        tries.append(f"{robust_option} (outlier rejection, now off)")
+    tries.append("more pairs from motion that rotates about two axes")
+    return "left to try: " + "; ".join(tries)

@@ -272,12 +272,15 @@ def solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Calib
             sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
     except Exception as exc:  # noqa: BLE001 - cvxpy/Clarabel raise SolverError and others
         notes.append(f"SDP form: {form}")
-        notes.append(f"the SDP solver failed ({type(exc).__name__}: {exc}); returning the "
+        # the error's first sentence only: the rest is cvxpy's advice for its own users
+        brief = f"{type(exc).__name__}: {str(exc).split('. ')[0].rstrip('.')}"
+        notes.append(f"the SDP solver stopped with an error ({brief}); returning the "
                      "closed-form estimate")
         est, p = _estimate(prep, prep.init_R)
-        cert = failed_certificate(
-            options, p, f"the SDP solver ({_SOLVER_NAMES[backend]}) failed: {exc}. Try mode "
-            "'fast', or check the data for degenerate edges and outliers")
+        solver = _SOLVER_NAMES[backend]
+        what = (f"the fast solver's certificate was inconclusive and its SDP fallback ({solver})"
+                if options.mode != "sdp" else f"the SDP solver ({solver})")
+        cert = failed_certificate(options, p, f"{what} stopped with an error ({brief})")
         return calibration_result(prep, est, cert, "sdp", "failed", 0.0, notes)
     notes.append(f"SDP form: {form}")
     notes.append(f"SDP backend: {backend}")
