@@ -20,15 +20,8 @@ Per board (:func:`estimate_board`):
    (:attr:`TargetObservation.outlier_corners`); then the flip check of
    :mod:`rwhec_ros.vision.planar_pose` (``ambiguous_pose``) and the detector's reprojection and
    obliquity gates.
-4. **precision** (:func:`points_precision`) -- first-order covariance of the pose from the
-   reprojection Jacobian of all points, with the per-coordinate pixel noise estimated from the
-   residual: ``sigma_px = max(pixel_noise_floor_px, rms sqrt(N / (2N - 6)))`` (``rms`` over
-   the N points of the 2D residual norm: ``E[N rms^2] = (2N - 6) sigma_px^2``, 6 pose
-   parameters; ``sqrt(2) rms`` for one tag, as in :mod:`rwhec_ros.vision.detection`).
-   ``sigma`` is the square root of the largest eigenvalue of the translation block (origin of
-   the board, camera axes), ``sigma_rot`` that of the rotation block (rotation about the board
-   origin), ``kappa = 1 / (2 sigma_rot^2)``; floors as for single tags.
-   A partly seen board gets a larger ``sigma`` when its origin lies away from the corners seen.
+4. **precision** (:func:`~rwhec_ros.vision.precision.points_precision`, re-exported here) --
+   first-order covariance of the pose from the reprojection Jacobian of all points.
 """
 
 from __future__ import annotations
@@ -39,73 +32,14 @@ import cv2
 import numpy as np
 
 from .boards import AprilGridSpec, CharucoSpec
-from .detection import DetectorConfig, RejectReason
+from .detector_config import DetectorConfig, RejectReason
 from .edges import refine_corners_edges
 from .intrinsics import CameraIntrinsics
 from .planar_pose import PoseStatus, solve_planar_pose
+from .precision import points_precision
 from .targets import TargetObservation, TargetRejection, TargetSpec
 
 __all__ = ["estimate_board", "points_precision", "charuco_detector"]
-
-
-def points_precision(
-    object_points: np.ndarray,
-    T_cam_target: np.ndarray,
-    intrinsics: CameraIntrinsics,
-    rms_px: float,
-    *,
-    pixel_noise_floor_px: float = 0.1,
-    sigma_floor_m: float = 1e-3,
-    rotation_std_floor_deg: float = 0.05,
-) -> tuple[float, float]:
-    """``(sigma, kappa)`` of a target pose from the reprojection Jacobian (module docstring).
-
-    Parameters
-    ----------
-    object_points : ndarray, shape (N, 3)
-        Points in the target frame, ``N >= 4``.
-    T_cam_target : ndarray, shape (4, 4)
-    intrinsics : CameraIntrinsics
-        Only ``K`` is used (the Jacobian of the pinhole projection).
-    rms_px : float
-        RMS reprojection error of the points (pixels).
-    pixel_noise_floor_px, sigma_floor_m, rotation_std_floor_deg : float
-        Floors of the pixel noise, of ``sigma`` and of the rotation standard deviation.
-
-    Returns
-    -------
-    sigma : float
-        Translation standard deviation [m], the largest over directions.
-    kappa : float
-        Langevin concentration ``1 / (2 sigma_rot^2)``.
-    """
-    X = np.asarray(object_points, dtype=float).reshape(-1, 3)
-    T = np.asarray(T_cam_target, dtype=float)
-    n = len(X)
-    if n < 4:
-        raise ValueError(f"object_points must hold at least 4 points, got {n}")
-    dof = 2 * n - 6
-    sigma_px = max(float(pixel_noise_floor_px), float(rms_px) * np.sqrt(n / dof))
-    K = np.asarray(intrinsics.K)
-    RX = X @ T[:3, :3].T  # target points about the origin, camera axes
-    p = RX + T[:3, 3]
-    x, y, z = p[:, 0], p[:, 1], p[:, 2]
-    # d(pixel)/d(camera point): rows (u, v).
-    du = np.stack([K[0, 0] / z, K[0, 1] / z, -(K[0, 0] * x + K[0, 1] * y) / z**2], axis=1)
-    dv = np.stack([np.zeros_like(z), K[1, 1] / z, -K[1, 1] * y / z**2], axis=1)
-    # Camera point under exp(dtheta) R X + t + dt: d/d(dtheta) = -[R X]_x, d/d(dt) = I.
-    skew = np.zeros((n, 3, 3))
-    skew[:, 0, 1], skew[:, 0, 2] = -RX[:, 2], RX[:, 1]
-    skew[:, 1, 0], skew[:, 1, 2] = RX[:, 2], -RX[:, 0]
-    skew[:, 2, 0], skew[:, 2, 1] = -RX[:, 1], RX[:, 0]
-    dp = np.concatenate([-skew, np.broadcast_to(np.eye(3), (n, 3, 3))], axis=2)  # (n, 3, 6)
-    J = np.concatenate([np.einsum("nk,nkj->nj", du, dp), np.einsum("nk,nkj->nj", dv, dp)])
-    cov = sigma_px**2 * np.linalg.pinv(J.T @ J)
-    sigma_rot = float(np.sqrt(max(np.linalg.eigvalsh(cov[:3, :3])[-1], 0.0)))
-    sigma_t = float(np.sqrt(max(np.linalg.eigvalsh(cov[3:, 3:])[-1], 0.0)))
-    sigma = max(float(sigma_floor_m), sigma_t)
-    sigma_rot = max(np.deg2rad(float(rotation_std_floor_deg)), sigma_rot)
-    return sigma, float(1.0 / (2.0 * sigma_rot**2))
 
 
 def charuco_detector(spec: CharucoSpec, config: DetectorConfig) -> cv2.aruco.CharucoDetector:
