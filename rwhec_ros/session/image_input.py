@@ -97,10 +97,22 @@ def safe_int(value: Any) -> int | None:
         return None
 
 
+def _first_target_rejection(detection) -> str | None:
+    """The reason an image whose configured targets were all rejected gave no pair: the first
+    whole-target rejection of a configured target, else its first marker's; None when no
+    configured target was found (markers of no target do not count)."""
+    own = [r for r in detection.rejections if r.name]
+    if not own:
+        return None
+    own.sort(key=lambda r: r.marker_id != -1)
+    return own[0].reason
+
+
 class ImageInput:
     """Mixin of :class:`~rwhec_ros.session.CalibrationSession`: the image path (see the module
     docstring). It uses the session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
     ``_pending``, ``_counters``, ``_camera_counts``, ``_rejections``, ``_intrinsics``,
+    ``_corner_noise``,
     ``_data_version``, ``_x_names``, ``_target_specs``, ``_local``, ``_detector_config``,
     ``config`` and
     ``_pose_to_A``."""
@@ -306,8 +318,11 @@ class ImageInput:
         gray, reason, detail, words = self._decoded(image, intrinsics)
         if gray is None:
             return self._reject(camera, stamp, reason, detail, words=words)
+        with self._lock:
+            history = tuple(self._corner_noise[camera])
         try:  # outside the lock: detection is the expensive part
-            detection = self._detector().detect(gray, intrinsics, only=wanted)
+            detection = self._detector().detect(gray, intrinsics, only=wanted,
+                                                noise_history=history)
         except Exception as exc:  # noqa: BLE001 - the live path never raises
             return self._reject(camera, stamp, f"image_detector_error:{type(exc).__name__}",
                                 str(exc))
@@ -346,9 +361,12 @@ class ImageInput:
             if not wanted:
                 continue
             gray, *_ = self._decoded(image, intrinsics)
+            with self._lock:
+                history = tuple(self._corner_noise[camera])
             try:
                 detection = (None if gray is None
-                             else self._detector().detect(gray, intrinsics, only=wanted))
+                             else self._detector().detect(gray, intrinsics, only=wanted,
+                                                          noise_history=history))
             except Exception:  # noqa: BLE001 - the live path never raises
                 detection = None
             with self._lock:
@@ -356,6 +374,7 @@ class ImageInput:
                     self._count("look_back_bad_image")
                     continue
                 self._count("images_searched_back")
+                self._corner_noise[camera].extend(detection.corner_noise_px.values())
                 kept = self._offer(camera, stamp, A, detection.observations)
                 self._camera_count(camera, "pairs_kept", len(kept))
 
@@ -364,6 +383,7 @@ class ImageInput:
         with self._lock:
             self._camera_count(camera, "detected")
             self._remember_view(camera, A, detection)
+            self._corner_noise[camera].extend(detection.corner_noise_px.values())
             for r in detection.rejections:
                 key = (
                     "tag_not_in_config"
@@ -377,7 +397,9 @@ class ImageInput:
             obs = detection.observations
             self._count("tags_detected", len(obs))
             if not obs and not detection.skipped:
-                self._count("images_without_tags")
+                why = _first_target_rejection(detection)
+                self._count("images_without_tags" if why is None
+                            else f"images_targets_rejected:{why}")
                 return ImageOutcome(camera, stamp, "no_tags", reasons=reasons,
                                     detection=detection)
             names = self._offer(camera, stamp, A, obs)

@@ -32,14 +32,19 @@ options and rejection reasons live in :mod:`rwhec_ros.vision.detector_config` (r
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
 from .candidates import CandidateSearch
-from .detector_config import CORNER_REFINEMENT_MODES, DetectorConfig, RejectReason
+from .detector_config import (
+    CORNER_REFINEMENT_MODES,
+    DetectorConfig,
+    RejectReason,
+    corner_noise_px,
+)
 from .edges import refine_corners_edges
 from .families import marker_cells
 from .intrinsics import CameraIntrinsics
@@ -129,12 +134,16 @@ class DetectionResult:
     """Output of :meth:`TagDetector.detect` (every list empty when nothing is seen).
 
     ``skipped`` holds the configured ids that the candidate search found but that were left
-    unexamined because the caller asked only for other ids (``detect(..., only_ids=...)``).
+    unexamined because the caller asked only for other ids (``detect(..., only_ids=...)``);
+    ``corner_noise_px`` the corner noise (:func:`~rwhec_ros.vision.detector_config.
+    corner_noise_px`) of every pose solved, by tag id, accepted or not (the caller's noise
+    history).
     """
 
     observations: list[TagObservation] = field(default_factory=list)
     rejections: list[TagRejection] = field(default_factory=list)
     skipped: list[int] = field(default_factory=list)
+    corner_noise_px: dict[int, float] = field(default_factory=dict)
 
     def by_id(self) -> dict[int, TagObservation]:
         """Accepted observations keyed by tag id."""
@@ -171,6 +180,7 @@ class TagDetector:
         predicted: Mapping[int, np.ndarray] | None = None,
         *,
         only_ids: Collection[int] | None = None,
+        noise_history: Sequence[float] | None = None,
     ) -> DetectionResult:
         """Detect tags in an 8-bit grayscale image and estimate their poses.
 
@@ -189,6 +199,10 @@ class TagDetector:
             gates and is listed in ``DetectionResult.skipped`` (the live session passes the tags
             whose pair the keyframe test could keep). Each tag is examined on its own, so the
             observations of the ids examined are those of a full ``detect``.
+        noise_history : sequence of float, optional
+            Corner noise [px] of the camera's earlier poses: scales the reprojection gate
+            (:meth:`DetectorConfig.reprojection_limit`); None: the fixed floor only. The noise
+            of each pose solved here is in :attr:`DetectionResult.corner_noise_px`.
 
         Returns
         -------
@@ -220,7 +234,7 @@ class TagDetector:
             )
             return result
         return self.estimate_markers(img, ids, corners, intrinsics, predicted, result,
-                                     only_ids=only_ids)
+                                     only_ids=only_ids, noise_history=noise_history)
 
     def estimate_markers(
         self,
@@ -232,10 +246,12 @@ class TagDetector:
         result: DetectionResult | None = None,
         *,
         only_ids: Collection[int] | None = None,
+        noise_history: Sequence[float] | None = None,
     ) -> DetectionResult:
         """The stages after :meth:`detect_markers` (duplicates, refinement, pose, gates) on given
         markers (ids and corners (4, 2) in distorted pixels) of a validated image; appends to
-        ``result`` (a new one by default); ``only_ids`` as in :meth:`detect`."""
+        ``result`` (a new one by default); ``only_ids`` and ``noise_history`` as in
+        :meth:`detect`."""
         result = DetectionResult() if result is None else result
         img = gray
         if not ids:
@@ -260,8 +276,8 @@ class TagDetector:
                 )
                 continue
             outcome = self._estimate(
-                img, tag_id, quad, intrinsics, None if predicted is None else predicted.get(tag_id)
-            )
+                img, tag_id, quad, intrinsics, None if predicted is None else predicted.get(tag_id),
+                noise_history, result.corner_noise_px)
             if isinstance(outcome, TagObservation):
                 result.observations.append(outcome)
             else:
@@ -293,6 +309,8 @@ class TagDetector:
         quad: np.ndarray,
         intrinsics: CameraIntrinsics,
         predicted: np.ndarray | None = None,
+        noise_history: Sequence[float] | None = None,
+        noise: dict[int, float] | None = None,
     ) -> TagObservation | TagRejection:
         cfg = self.config
         size = cfg.size_of(tag_id)
@@ -331,12 +349,15 @@ class TagDetector:
         distance = float(np.linalg.norm(t))
         cos_obl = float(np.clip(T[:3, 2] @ (-t / distance), -1.0, 1.0))
         obliquity = float(np.degrees(np.arccos(cos_obl)))
-        if not np.isfinite(rms) or rms > cfg.max_reprojection_rms_px:
-            return TagRejection(
-                tag_id,
-                RejectReason.REPROJECTION_ERROR.value,
-                f"RMS {rms:.3f} px > max_reprojection_rms_px {cfg.max_reprojection_rms_px:g}",
-            )
+        if noise is not None and np.isfinite(rms):
+            noise[tag_id] = corner_noise_px(rms, 4)
+        limit = cfg.reprojection_limit(rms, 4, noise_history)
+        if not np.isfinite(rms) or rms > limit:
+            detail = f"RMS {rms:.3f} px > max_reprojection_rms_px {cfg.max_reprojection_rms_px:g}"
+            if noise_history is not None:
+                detail = (f"RMS {rms:.3f} px > {limit:.3g} px (max_reprojection_rms_px "
+                          f"{cfg.max_reprojection_rms_px:g}, scaled to the camera's corner noise)")
+            return TagRejection(tag_id, RejectReason.REPROJECTION_ERROR.value, detail)
         if obliquity > cfg.max_obliquity_deg:
             return TagRejection(
                 tag_id,

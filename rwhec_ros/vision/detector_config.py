@@ -7,6 +7,7 @@ Shared by the single-tag detector (:mod:`rwhec_ros.vision.detection`), the board
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -17,7 +18,11 @@ from .candidates import check_decimate, decimation_factor
 from .families import _family_key
 from .planar_pose import check_flip_options
 
-__all__ = ["CORNER_REFINEMENT_MODES", "RejectReason", "DetectorConfig"]
+__all__ = ["CORNER_REFINEMENT_MODES", "CHESSBOARD_REFINEMENTS", "RejectReason", "DetectorConfig",
+           "corner_noise_px"]
+
+#: ``chessboard_refinement`` values: SB's own corners, or ``cv2.cornerSubPix`` after them.
+CHESSBOARD_REFINEMENTS = ("sb", "subpix")
 
 #: Corner refinement name -> ``cv2.aruco`` constant.
 CORNER_REFINEMENT_MODES: dict[str, int] = {
@@ -32,6 +37,17 @@ CORNER_REFINEMENT_MODES: dict[str, int] = {
 
 
 
+def corner_noise_px(rms_px: float, n_points: int) -> float:
+    """Per-coordinate corner noise [px] that a pose fit of ``n_points >= 4`` points with RMS
+    reprojection error ``rms_px`` (2D norm) measures: ``rms sqrt(N / (2N - 6))`` (``E[N rms^2]
+    = (2N - 6) sigma^2``, 6 pose parameters; ``sqrt(2) rms`` for a tag's 4 corners, the model
+    of :mod:`rwhec_ros.vision.precision`)."""
+    n = int(n_points)
+    if n < 4:
+        raise ValueError(f"n_points must be >= 4, got {n_points!r}")
+    return float(rms_px) * float(np.sqrt(n / (2.0 * n - 6.0)))
+
+
 class RejectReason(str, Enum):
     """Why a detected tag did not become an observation (compares equal to its string value)."""
 
@@ -44,6 +60,8 @@ class RejectReason(str, Enum):
     DETECTOR_ERROR = "detector_error"
     AMBIGUOUS_POSE = "ambiguous_pose"
     TOO_FEW_CORNERS = "too_few_corners"
+    PARTIAL_VIEW = "partial_view"
+    AMBIGUOUS_ORIENTATION = "ambiguous_orientation"
 
 
 
@@ -69,13 +87,26 @@ class DetectorConfig:
         aruco's SUBPIX corners; or one of ``cv2.aruco``'s own refinements ``"subpix"``,
         ``"apriltag"``, ``"contour"``, ``"none"``. The default was chosen by measured corner and
         pose accuracy on rendered images (``benchmarks/perception.md``).
+    chessboard_refinement : str
+        Chessboard corners: ``"sb"`` (default) as ``cv2.findChessboardCornersSB`` finds them,
+        or ``"subpix"`` polished by ``cv2.cornerSubPix`` (:mod:`rwhec_ros.vision.
+        grid_detection`); chosen on the real chessboard set and renders
+        (``benchmarks/real_data.md``).
     refine_pose : bool
         Polish the IPPE pose with ``cv2.solvePnPRefineLM`` (default True: IPPE alone is not the
         reprojection-error minimum for near face-on tags; LM cut the worst rotation error
         several-fold in ``benchmarks/perception.md``).
     max_reprojection_rms_px : float
-        Reject a tag whose RMS corner reprojection error exceeds this (default 1.0 px; rendered
-        tags give below 0.05 px with the edge refinement, so 1 px flags a wrong quad, not noise).
+        Reprojection gate, floor (default 1.0 px): a pose whose RMS corner reprojection error is
+        at or below it is never rejected for it. Without a noise history (``detect(...,
+        noise_history=None)``) it is the whole gate (rendered tags give below 0.05 px with the
+        edge refinement, so 1 px flags a wrong quad, not noise).
+    reprojection_gate_factor : float
+        Reprojection gate, scaled part (default 4): with a noise history (the live session keeps
+        one per camera) a pose above the floor is rejected when the corner noise it measures,
+        :func:`corner_noise_px`, exceeds this factor times the median of the history and itself
+        (:meth:`reprojection_limit`): the gate follows the corner noise of the camera's own
+        images (lens model errors included) instead of a fixed pixel count.
     min_side_px : float
         Reject a tag whose shortest quad side is below this (default 20 px: 2.5 px per cell of a
         tag36h11, about the least for reliable decoding and for the edge refinement, whose
@@ -102,7 +133,9 @@ class DetectorConfig:
     flip_min_ratio : float
         Pose-flip check (:mod:`rwhec_ros.vision.planar_pose`): a tag whose two IPPE poses
         reproject within this ratio of each other (``e_alt / e_best``) is ambiguous (default 3;
-        1 disables the check).
+        1 disables the check); for ``N > 4`` points the same excess misfit of the mirror pose
+        in units of the measured corner noise, a ratio nearer 1 (:func:`~rwhec_ros.vision.
+        planar_pose.ratio_for_points`).
     flip_min_separation_deg : float
         Two IPPE poses closer than this in rotation count as one (default 2 degrees).
     flip_prediction_margin : float
@@ -115,8 +148,10 @@ class DetectorConfig:
     default_tag_size: float | None = None
     unknown_scale: bool = False
     corner_refinement: str = "edge"
+    chessboard_refinement: str = "sb"
     refine_pose: bool = True
     max_reprojection_rms_px: float = 1.0
+    reprojection_gate_factor: float = 4.0
     min_side_px: float = 20.0
     max_obliquity_deg: float = 70.0
     estimate_precision: bool = True
@@ -150,8 +185,13 @@ class DetectorConfig:
                 f"corner_refinement must be one of {sorted(CORNER_REFINEMENT_MODES)}, got "
                 f"{self.corner_refinement!r}"
             )
+        if self.chessboard_refinement not in CHESSBOARD_REFINEMENTS:
+            raise ValueError(
+                f"chessboard_refinement must be one of {list(CHESSBOARD_REFINEMENTS)}, got "
+                f"{self.chessboard_refinement!r}")
         for name in (
             "max_reprojection_rms_px",
+            "reprojection_gate_factor",
             "pixel_noise_floor_px",
             "sigma_floor_m",
             "rotation_std_floor_deg",
@@ -173,6 +213,25 @@ class DetectorConfig:
         self.decimate = check_decimate(self.decimate)
         check_flip_options(self.flip_min_ratio, self.flip_min_separation_deg,
                            self.flip_prediction_margin, prefix="flip_")
+        if self.reprojection_gate_factor < 1:
+            raise ValueError(f"reprojection_gate_factor must be >= 1, got "
+                             f"{self.reprojection_gate_factor!r}")
+
+    def reprojection_limit(self, rms_px: float, n_points: int,
+                           noise_history: Sequence[float] | None = None) -> float:
+        """The RMS reprojection error [px] above which a pose of ``n_points`` points whose RMS
+        is ``rms_px`` is rejected: ``max_reprojection_rms_px`` without a history, else the
+        larger of it and ``reprojection_gate_factor`` times the median of ``noise_history``
+        and this pose's own :func:`corner_noise_px`, converted back to an RMS of
+        ``n_points``. The pose's own value counts so that a camera's first images are judged
+        by their own noise (a gross error is caught once a few poses are known)."""
+        if noise_history is None:
+            return float(self.max_reprojection_rms_px)
+        scale = corner_noise_px(1.0, n_points)
+        noise = np.median(np.r_[np.asarray(noise_history, dtype=float).reshape(-1),
+                                rms_px * scale])
+        return float(max(self.max_reprojection_rms_px,
+                         self.reprojection_gate_factor * noise / scale))
 
     def decimation_for(self, width: int, height: int) -> int:
         """The decimation factor used for images of ``width x height`` (1 for refinements

@@ -11,9 +11,10 @@ of the ideal piecewise-constant scene); ``supersample**2`` samples per pixel on 
 (:func:`sample_offsets`) are averaged (box filter), which anti-aliases the edges. The lookup is
 restricted to the bounding box of the tag's projected outline.
 
-Boards (:class:`RenderedBoard`: an AprilGrid or a ChArUco board of :mod:`rwhec_ros.vision.boards`)
-are drawn the same way in their board frame (centre of the pattern, ``x`` right, ``y`` up, ``z`` out
-of the face), with the board's own :meth:`texture` and a white margin around the pattern.
+Boards (:class:`RenderedBoard`: an AprilGrid or a ChArUco board of :mod:`rwhec_ros.vision.boards`,
+a chessboard or a circle grid of :mod:`rwhec_ros.vision.grids`) are drawn the same way in their
+board frame (centre of the pattern, ``x`` right, ``y`` up, ``z`` out of the face), with the
+board's own :meth:`texture` and a white margin around the pattern.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import numpy as np
 
 from .boards import AprilGridSpec, CharucoSpec
 from .families import marker_bitmap, marker_cells
+from .grids import ChessboardSpec, CircleGridSpec
 from .intrinsics import CameraIntrinsics
 
 __all__ = [
@@ -68,28 +70,32 @@ class RenderedTag:
         object.__setattr__(self, "T_cam_tag", T)
 
 
+_BOARDS = (AprilGridSpec, CharucoSpec, ChessboardSpec, CircleGridSpec)
+
+
 @dataclass(frozen=True, eq=False)
 class RenderedBoard:
     """A board to render.
 
     Attributes
     ----------
-    board : AprilGridSpec or CharucoSpec
-        Layout (:mod:`rwhec_ros.vision.boards`).
+    board : AprilGridSpec, CharucoSpec, ChessboardSpec or CircleGridSpec
+        Layout (:mod:`rwhec_ros.vision.boards`, :mod:`rwhec_ros.vision.grids`).
     T_cam_board : ndarray, shape (4, 4)
         Pose of the board frame in the camera frame.
     margin : float or None
         White margin around the pattern [m] (beyond Kalibr's corner squares for a grid); None:
-        one gap of the grid (at least one tag cell), half a square of a ChArUco board.
+        one gap of the grid (at least one tag cell), half a square of a ChArUco board, the
+        ``quiet_zone()`` of a chessboard or circle grid.
     """
 
-    board: AprilGridSpec | CharucoSpec
+    board: AprilGridSpec | CharucoSpec | ChessboardSpec | CircleGridSpec
     T_cam_board: np.ndarray
     margin: float | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.board, (AprilGridSpec, CharucoSpec)):
-            raise ValueError(f"board must be an AprilGridSpec or a CharucoSpec, got "
+        if not isinstance(self.board, _BOARDS):
+            raise ValueError(f"board must be one of {[b.__name__ for b in _BOARDS]}, got "
                              f"{type(self.board).__name__}")
         T = np.array(self.T_cam_board, dtype=float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
@@ -104,8 +110,12 @@ class RenderedBoard:
         margin = self.margin
         if margin is None:
             b = self.board
-            margin = (max(b.gap, b.tag_size / b.cells) if isinstance(b, AprilGridSpec)
-                      else 0.5 * b.square_size)
+            if isinstance(b, AprilGridSpec):
+                margin = max(b.gap, b.tag_size / b.cells)
+            elif isinstance(b, CharucoSpec):
+                margin = 0.5 * b.square_size
+            else:
+                margin = b.quiet_zone()
         return self.board.outline(float(margin))
 
 
