@@ -206,9 +206,16 @@ def sample_offsets(supersample: int) -> np.ndarray:
     A rank-1 lattice: sample ``k`` sits at ``x = (k + 1/2)/n``, ``y = ((k (s + 1)) mod n + 1/2)/n``
     (minus 1/2). Every sample has its own ``x`` and its own ``y``, so the coverage of a nearly
     axis-aligned edge is resolved in steps of ``1/n`` pixel instead of ``1/s`` for a regular
-    ``s x s`` grid.
+    ``s x s`` grid. For ``s = 2`` that lattice degenerates (generator 3 = -1 mod 4: three of the
+    four samples lie on one anti-diagonal, so an edge at 45 degrees is resolved in half pixels
+    and a tag turned by 45 degrees in the image gets corners 0.3-0.7 px off, poses 1-3 degrees
+    off: the false CAUTION of issue 39 on the demo's early data); ``s = 2`` uses the rotated
+    grid ``(+-1/8, +-3/8)`` instead, whose four samples have distinct projections on both axes
+    and both diagonals.
     """
     s = int(supersample)
+    if s == 2:
+        return np.array([[-0.375, -0.125], [0.125, -0.375], [0.375, 0.125], [-0.125, 0.375]])
     n = s * s
     k = np.arange(n)
     return np.stack([(k + 0.5) / n - 0.5, ((k * (s + 1)) % n + 0.5) / n - 0.5], axis=1)
