@@ -190,7 +190,7 @@ def marker_table(data: Path) -> None:
                 idx = []
                 for p in square:
                     d = np.linalg.norm(chess[:, :2] - p, axis=1)
-                    idx.append(int(np.argmin(d)) if d.min() < 1e-9 else -1)
+                    idx.append(int(np.argmin(d)) if d.min() < 1e-6 else -1)
                 if not all(i in pos for i in idx):
                     continue
                 H, _ = cv2.findHomography(square, np.array([pos[i] for i in idx]), 0)
@@ -229,8 +229,8 @@ def circle_bias_table() -> None:
              CircleGridSpec(4, 11, 0.02, asymmetric=True, diameter=0.01), 0.5),
             ("6 x 5 with origin, 2 cm every 4 cm", CircleGridSpec(
                 6, 5, 0.04, origin_circle=True, diameter=0.02), 0.5),
-            ("4 x 3 with origin, 2 cm every 3.5 cm", CircleGridSpec(
-                4, 3, 0.035, origin_circle=True, diameter=0.02), 0.3)):
+            ("5 x 4 with origin, 2 cm every 3.5 cm", CircleGridSpec(
+                5, 4, 0.035, origin_circle=True, diameter=0.02), 0.35)):
         finder = GridFinder(TargetSpec("b", board=spec), DetectorConfig())
         rng = np.random.default_rng(7)
         raw_e, cor_e, bias_max = [], [], 0.0

@@ -1,7 +1,7 @@
 """Demo: a simulated mobile rig (3 cameras, 6 AprilTags, motion-capture poses) + the calibrator.
 
     ros2 launch rwhec_ros demo.launch.py [boards:=true|grids]
-    ros2 service call /calibrate std_srvs/srv/Trigger          # after ~20 s of motion
+    ros2 service call /calibrate std_srvs/srv/Trigger          # after ~15-20 s of motion
     ros2 topic echo --once --qos-durability transient_local --qos-reliability reliable \
         /calibrator/suboptimality_bound
 

@@ -91,7 +91,10 @@ def test_pose_against_the_renders_truth_in_any_turn(spec, t_mm, r_deg):
         T = view(rng, roll=k * np.pi / 3 + 0.2)
         res = det.detect(render(spec, T, rng), CAM)
         obs = res.by_name()["b"]
-        assert obs.n_corners == spec.n_corners
+        # every point, or all but the one or two the outlier step drops (an SB corner off by
+        # more than 0.5 px and 3 robust standard deviations happens on renders)
+        assert obs.n_corners + obs.outlier_corners == spec.n_corners
+        assert obs.outlier_corners <= 2
         t, r = errors(obs.T_cam_target, T)
         assert t < t_mm and r < r_deg, (k, t, r)
         assert res.markers["b"][0][0] == -1 and res.markers["b"][0][1].shape == (4, 2)
