@@ -150,7 +150,7 @@ class DemoSimulatorNode(Node):
         for cam in self.rig.cameras:
             gray = self.rig.render(cam, T_world_rig, self._image_rng,
                                    noise_std=self._image_noise,
-                                   supersample=DEMO_SUPERSAMPLE)
+                                   supersample=DEMO_SUPERSAMPLE, shift_pattern=True)
             if self._stopping.is_set():  # rendering takes a while: stop before publishing
                 return
             frame = f"{cam}_optical"

@@ -28,7 +28,13 @@ Order of the work for one image of camera ``c`` at stamp ``s``:
    <rwhec_ros.vision.target_detector.TargetDetector.detect>`; the others are counted
    ``tags_skipped_no_motion``);
 5. one pair per target -- a board is one ``B`` from all its corners -- is offered to the
-   accumulator (which applies the same keyframe test again);
+   accumulator (which applies the same keyframe test again). The corner noise each pose
+   measured goes to the camera's noise history, which scales the reprojection gate of its next
+   images (:meth:`DetectorConfig.reprojection_limit
+   <rwhec_ros.vision.detector_config.DetectorConfig.reprojection_limit>`). An image searched is
+   counted once by what it gave: ``images_used``, ``images_no_new_pairs``,
+   ``images_without_tags`` (no configured target found) or ``images_targets_rejected:<reason>``
+   (targets found, all rejected: the first whole-target reason);
 6. **look-back** (discovery step > 0): the targets this search found and the camera's previous
    search had not (they came into view meanwhile) are searched for in the images of the camera
    that the gate skipped in between (at most :data:`LOOK_BACK_IMAGES`, held undecoded), oldest

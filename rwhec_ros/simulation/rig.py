@@ -212,6 +212,7 @@ class SimulatedRig:
         blur_sigma: float = 0.6,
         supersample: int = 3,
         boards: Mapping[int, Board] | None = None,
+        shift_pattern: bool = False,
     ) -> np.ndarray:
         """(H, W) uint8 image of ``camera`` at rig pose ``T_world_rig`` (true pose).
 
@@ -223,7 +224,8 @@ class SimulatedRig:
         tag's pose, so ``X_j = T_world_tag[j]`` and ``B = T_cam_tag(camera, j, T_world_rig)``
         stay the truth with the same trajectory and images. A board is drawn when its centre is
         in front of the camera and its face toward it, also when only partly in view (a board
-        gives a pose from the corners seen).
+        gives a pose from the corners seen). ``shift_pattern``: see
+        :func:`~rwhec_ros.vision.render.render_tags` (the demo's images use it).
         """
         boards = dict(self.boards if boards is None else boards)
         unknown = sorted(set(boards) - set(self.tag_ids))
@@ -243,6 +245,7 @@ class SimulatedRig:
             noise_std=noise_std if rng is not None else 0.0,
             rng=rng,
             supersample=supersample,
+            shift_pattern=shift_pattern,
         )
 
 

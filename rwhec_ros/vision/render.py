@@ -8,9 +8,9 @@ spans ``[-size/2, size/2]^2`` in ``(x, y)``; the white quiet zone surrounds it.
 Rendering is an exact inverse lookup: every (sub-)sample of the output image is undistorted to
 its ray, intersected with the tag plane and given the colour of the cell it hits (point sampling
 of the ideal piecewise-constant scene); ``supersample**2`` samples per pixel on a rank-1 lattice
-(:func:`sample_offsets`), shifted differently in every pixel (:func:`pixel_shifts`), are averaged
-(box filter), which anti-aliases the edges. The lookup is restricted to the bounding box of the
-tag's projected outline.
+(:func:`sample_offsets`; optionally shifted differently in every pixel, :func:`pixel_shifts`) are
+averaged (box filter), which anti-aliases the edges. The lookup is restricted to the bounding box
+of the tag's projected outline.
 
 Boards (:class:`RenderedBoard`: an AprilGrid or a ChArUco board of :mod:`rwhec_ros.vision.boards`,
 a chessboard or a circle grid of :mod:`rwhec_ros.vision.grids`) are drawn the same way in their
@@ -208,16 +208,10 @@ def sample_offsets(supersample: int) -> np.ndarray:
     A rank-1 lattice: sample ``k`` sits at ``x = (k + 1/2)/n``, ``y = ((k (s + 1)) mod n + 1/2)/n``
     (minus 1/2). Every sample has its own ``x`` and its own ``y``, so the coverage of a nearly
     axis-aligned edge is resolved in steps of ``1/n`` pixel instead of ``1/s`` for a regular
-    ``s x s`` grid. For ``s = 2`` that lattice degenerates (generator 3 = -1 mod 4: three of the
-    four samples lie on one anti-diagonal, so an edge at 45 degrees is resolved in half pixels
-    and a tag turned by 45 degrees in the image gets corners 0.3-0.7 px off, poses 1-3 degrees
-    off: the false CAUTION of issue 39 on the demo's early data); ``s = 2`` uses the rotated
-    grid ``(+-1/8, +-3/8)`` instead, whose four samples have distinct projections on both axes
-    and both diagonals.
+    ``s x s`` grid. Edges parallel to the lattice's short vectors are resolved coarsely
+    (:func:`pixel_shifts`).
     """
     s = int(supersample)
-    if s == 2:
-        return np.array([[-0.375, -0.125], [0.125, -0.375], [0.375, 0.125], [-0.125, 0.375]])
     n = s * s
     k = np.arange(n)
     return np.stack([(k + 0.5) / n - 0.5, ((k * (s + 1)) % n + 0.5) / n - 0.5], axis=1)
@@ -225,12 +219,14 @@ def sample_offsets(supersample: int) -> np.ndarray:
 
 def pixel_shifts(uu: np.ndarray, vv: np.ndarray) -> np.ndarray:
     """Per-pixel shifts (..., 2) in ``[0, 1)^2`` of the sample pattern (a Cranley-Patterson
-    rotation): a fixed hash (splitmix64) of the integer pixel coordinates, so rendering stays
-    deterministic. Any fixed sample pattern resolves edges of some direction coarsely (a rank-1
-    lattice of ``n`` points puts its samples on few lines across its short vectors: with
-    ``s = 3`` an edge of slope 1/2 sees only 3 distinct coverages, which put a demo tag's corners
-    0.4 px off); shifting the pattern differently in every pixel turns that quantisation into
-    noise that averages out along an edge."""
+    rotation, ``render_tags(..., shift_pattern=True)``): a fixed hash (splitmix64) of the integer
+    pixel coordinates, so rendering stays deterministic. Any fixed lattice puts its samples on a
+    few lines parallel to its short vectors, so an edge parallel to them is resolved in a few
+    coverage levels, the same all along the edge: a systematic shift of the edge (``s = 2`` at 45
+    degrees, ``s = 3`` at slope 1/2, ``s = 4`` at slope 1/3: demo tags turned that way got
+    corners 0.2-0.7 px off, poses 1.5-3 degrees off). Shifted differently in every pixel, the
+    quantisation becomes noise (about ``1 / (n sqrt(12))`` of the contrast per edge pixel) that
+    averages out along an edge, whatever its direction."""
     x = (np.asarray(uu).astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) ^ (
         np.asarray(vv).astype(np.uint64) * np.uint64(0xC2B2AE3D27D4EB4F))
     out = []
@@ -244,15 +240,18 @@ def pixel_shifts(uu: np.ndarray, vv: np.ndarray) -> np.ndarray:
 
 
 def _rays(
-    intrinsics: CameraIntrinsics, box: tuple[int, int, int, int], offsets: np.ndarray
+    intrinsics: CameraIntrinsics, box: tuple[int, int, int, int], offsets: np.ndarray,
+    shift: bool = False,
 ) -> np.ndarray:
-    """Normalized rays (h, w, n, 2) of the sub-samples of the pixels in ``box``: the pattern
-    ``offsets`` shifted in each pixel by :func:`pixel_shifts` (modulo the pixel)."""
+    """Normalized rays (h, w, n, 2) of the sub-samples of the pixels in ``box`` (the pattern
+    ``offsets`` shifted in each pixel by :func:`pixel_shifts`, modulo the pixel, with
+    ``shift``)."""
     u0, v0, u1, v1 = box
     vv, uu = np.mgrid[v0:v1, u0:u1]
-    shifted = np.mod(offsets[None, None, :, :] + 0.5 + pixel_shifts(uu, vv)[:, :, None, :],
-                     1.0) - 0.5
-    pix = np.stack([uu, vv], axis=-1).astype(float)[:, :, None, :] + shifted
+    off = np.broadcast_to(offsets[None, None, :, :], (v1 - v0, u1 - u0) + offsets.shape)
+    if shift:
+        off = np.mod(off + 0.5 + pixel_shifts(uu, vv)[:, :, None, :], 1.0) - 0.5
+    pix = np.stack([uu, vv], axis=-1).astype(float)[:, :, None, :] + off
     xy = intrinsics.normalize_points(pix.reshape(-1, 2))
     return xy.reshape(pix.shape)
 
@@ -270,6 +269,7 @@ def render_tags(
     black_level: float = 30.0,
     white_level: float = 225.0,
     quiet_zone_cells: int = 1,
+    shift_pattern: bool = False,
 ) -> np.ndarray:
     """Render AprilTags and boards into a grayscale image of the camera ``intrinsics``.
 
@@ -301,6 +301,10 @@ def render_tags(
         Grey levels of the black and white tag cells (and board areas).
     quiet_zone_cells : int
         Width of the white border around the black square of a single tag, in cells.
+    shift_pattern : bool
+        Shift the sample pattern differently in every pixel (:func:`pixel_shifts`): no edge
+        direction is resolved coarsely, at the price of a little noise along every edge (the
+        demo's images; default False, the fixed lattice of the benchmarks).
 
     Returns
     -------
@@ -339,7 +343,7 @@ def render_tags(
         else:
             outline = tag_outline(item.size, extent, cells)
             lookup = _tag_lookup(item, family, quiet_zone_cells, black_level, white_level)
-        _draw_plane(canvas, intrinsics, T, outline, offsets, lookup)
+        _draw_plane(canvas, intrinsics, T, outline, offsets, lookup, shift_pattern)
 
     if blur_sigma > 0:
         canvas = cv2.GaussianBlur(canvas, (0, 0), sigmaX=float(blur_sigma))
@@ -401,13 +405,13 @@ def _board_lookup(item: RenderedBoard, black: float, white: float):
 
 
 def _draw_plane(canvas: np.ndarray, intrinsics: CameraIntrinsics, T: np.ndarray,
-                outline: np.ndarray, offsets: np.ndarray, lookup) -> None:
+                outline: np.ndarray, offsets: np.ndarray, lookup, shift: bool = False) -> None:
     """Paint a planar item (pose ``T`` = T_cam_item, texture ``lookup``) into ``canvas``."""
     box = _bounding_box(intrinsics, T, outline)
     if box is None:
         return
     u0, v0, u1, v1 = box
-    xy = _rays(intrinsics, box, offsets)
+    xy = _rays(intrinsics, box, offsets, shift)
     # Ray (x, y, 1) meets the plane {R [a, b, 0] + t}: [a, b, 1] ~ H^-1 [x, y, 1],
     # H = [r1 r2 t]; the third component is positive in front of the camera.
     Hinv = np.linalg.inv(np.c_[T[:3, 0], T[:3, 1], T[:3, 3]])

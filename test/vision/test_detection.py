@@ -138,13 +138,10 @@ def test_unconfigured_id_and_per_id_sizes():
     result = detector.detect(img, CAM)
     assert [o.tag_id for o in result.observations] == [4, 9]
     assert [(r.tag_id, r.reason) for r in result.rejections] == [(11, "not_in_configuration")]
-    for obs, T, r_max in zip(result.observations, poses, (0.2, 0.5), strict=False):
+    for obs, T in zip(result.observations, poses, strict=False):
         e_t, e_r = pose_errors(obs.T_cam_tag, T)
-        # 2 mm / 0.2 degree: the task's figures for the 16 cm tag; the 8 cm tag (~80 px) is tilted
-        # less precisely: the precision model gives 0.5 deg per axis (1 sigma) at 1 m with the
-        # ~0.02 px corners measured here, and 6 noise seeds gave 0.13-0.41 deg (with either
-        # sample pattern of the renderer)
-        assert e_t < 2.0 and e_r < r_max, (obs.tag_id, e_t, e_r)
+        # 2 mm / 0.2 degree: the task's figures (the 8 cm tag is the harder one).
+        assert e_t < 2.0 and e_r < 0.2
     # A wrong size scales the translation by the same factor: the unknown-scale model (eq. (21)).
     scaled = TagDetector(DetectorConfig(tag_sizes={4: 0.32}, unknown_scale=True))
     obs = scaled.detect(img, CAM).by_id()[4]

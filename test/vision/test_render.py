@@ -55,31 +55,34 @@ def test_sample_offsets_are_a_latin_square_in_the_pixel():
         np.testing.assert_allclose(np.sort(off[:, axis]), (np.arange(16) + 0.5) / 16 - 0.5)
 
 
-def test_two_by_two_sampling_resolves_both_diagonals():
-    """supersample=2: the four samples project to four distinct values on both axes and both
-    diagonals (the rank-1 lattice with generator 3 put three on one anti-diagonal); the demo's
-    3 x 3 (DEMO_SUPERSAMPLE) locates a tag turned by 45 degrees in the image as 4 x 4 does."""
-    off = sample_offsets(2)
-    assert off.shape == (4, 2) and np.all(np.abs(off) < 0.5)
-    for d in ([1, 0], [0, 1], [1, 1], [1, -1]):
-        assert len(np.unique(np.round(off @ np.asarray(d, float), 9))) == 4, d
+# the bad edge directions of the 2 x 2, 3 x 3 and 4 x 4 lattices (45 degrees, slopes 1/2, 1/3)
+@pytest.mark.parametrize("turn_deg", [45.0, 26.57, 18.43])
+def test_shifted_pattern_locates_tags_turned_at_any_angle(turn_deg):
+    """The demo's images (DEMO_SUPERSAMPLE samples, the pattern shifted in every pixel) locate
+    the corners of a tag turned in the image at the angles where a fixed lattice resolves an
+    edge in few coverage levels; the fixed lattice of the same size does not at its bad angle."""
     from rwhec_ros.core.lie import make_transform, so3_exp
+    from rwhec_ros.simulation import DEMO_SUPERSAMPLE
     from rwhec_ros.vision.detection import DetectorConfig, TagDetector, tag_object_points
 
     cam = CameraIntrinsics.pinhole(640, 480, 500.0)
-    T = make_transform(np.eye(3), [0.02, -0.03, 1.2]) @ face_on() @ make_transform(
-        so3_exp(np.array([0.05, -0.08, np.pi / 4])), np.zeros(3))
-    det = TagDetector(DetectorConfig(tag_sizes={7: 0.25}))
+    T = face_on(0.02, -0.03, 1.2) @ make_transform(
+        so3_exp(np.array([0.05, -0.08, np.radians(turn_deg)])), np.zeros(3))
     truth = cam.project_points(tag_object_points(0.25), T)
-    from rwhec_ros.simulation import DEMO_SUPERSAMPLE
+    det = TagDetector(DetectorConfig(tag_sizes={7: 0.25}))
 
-    for s in (DEMO_SUPERSAMPLE, 4):
-        img = render_tags(cam, [RenderedTag(7, T, 0.25)], supersample=s, blur_sigma=0.6)
+    def corner_error(shift: bool) -> float:
+        img = render_tags(cam, [RenderedTag(7, T, 0.25)], supersample=DEMO_SUPERSAMPLE,
+                          blur_sigma=0.6, shift_pattern=shift)
         obs = det.detect(img, cam).by_id()[7]
-        err = np.sqrt(np.mean(np.sum((obs.corners - truth) ** 2, axis=1)))
-        # measured 0.01-0.06 px with 3 x 3 and 4 x 4 sampling on the demo's turned tags; 2 x 2
-        # gave 0.24-0.66 px with the old lattice, 0.12-0.29 px with the rotated grid
-        assert err < 0.1, (s, err)
+        return float(np.sqrt(np.mean(np.sum((obs.corners - truth) ** 2, axis=1))))
+
+    err = corner_error(True)
+    # measured 0.03-0.10 px shifted (at 45 degrees the edge fit itself leaves ~0.1 px on this
+    # noise-free view with 5 x 5 fixed samples too); the fixed 3 x 3 lattice: 0.46 px at 1/2
+    assert err < 0.15, err
+    if turn_deg == 26.57:
+        assert corner_error(False) > 0.3
 
 
 def test_pixel_aligned_tag_equals_the_upscaled_bitmap():
@@ -94,21 +97,14 @@ def test_pixel_aligned_tag_equals_the_upscaled_bitmap():
 
 
 def test_edge_pixels_carry_the_covered_area():
-    """A shift of 0.3 px gives edge pixels 30 % / 70 % coverage: each pixel within the pattern's
-    1/16 px resolution, the column's mean much closer (the per-pixel shifts of the pattern
-    spread the quantisation instead of repeating it)."""
+    """A shift of 0.3 px gives edge pixels 30 % / 70 % coverage (1/16 px lattice resolution)."""
     cam = CameraIntrinsics.pinhole(200, 160, 1000.0, cx=99.5, cy=79.5)
     img = render_tags(cam, [RenderedTag(7, face_on(x=0.0003), 0.08)], supersample=4)
     # Left edge of the quiet zone at u = 49.5 + 0.3: pixel 49 stays background, pixel 50 is
-    # 30 % background and 70 % white; 4/16 or 5/16 of its samples land left of the edge.
-    exact = 0.3 * BACKGROUND + 0.7 * WHITE
-    step = (WHITE - BACKGROUND) / 16
+    # 30 % background and 70 % white. 5/16 is the lattice's nearest level to 0.3.
+    level = 5 / 16 * BACKGROUND + 11 / 16 * WHITE
     # 0.5 grey level: rounding to uint8.
-    col = img[40:120, 50].astype(float)
-    assert np.all(np.abs(col - exact) <= step + 0.5)
-    # 80 pixels, each off by at most one step (1/16 px) around a mean of the exact coverage:
-    # the mean within a quarter of a step (a 0.3 / 16 px edge position)
-    assert abs(col.mean() - exact) < 0.25 * step
+    np.testing.assert_allclose(img[40:120, 50], level, atol=0.5)
     np.testing.assert_array_equal(img[40:120, 49], BACKGROUND)
 
 
