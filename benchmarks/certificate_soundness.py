@@ -94,12 +94,12 @@ DEFINITIONS = f"""\
 
 All costs are ``f = 1/2 sum_pairs (|alpha (R_A t_X + t_A - t_Y) - R_Y t_B|^2 / sigma^2 +
 kappa |R_A R_X - R_Y R_B|_F^2)`` (eq. (33) with the 1/2 of eq. (42); metric ``t``; ``alpha = 1``
-for known scale) -- the same number as ``rwhec_ros.core.cost.direct_cost`` (checked in
+for known scale) -- the same number as ``rwhec_ros.core.model.cost.direct_cost`` (checked in
 ``test/core/test_certificate_soundness.py``). The feasible set is rotations in SO(3), any
 translations and, for unknown scale, ``alpha > 0`` (the checker allows ``alpha = 0`` as the limit
 of feasible points). ``p``, ``d``, ``rho_hat``, ``rho_tol`` are the certificate's
 ``primal_cost``, ``dual_bound``, ``suboptimality_bound``, ``tolerance``. The product claims
-(``rwhec_ros/core/certificate.py``): ``d`` is a lower bound on the optimum and
+(``rwhec_ros/core/certify/dense.py``): ``d`` is a lower bound on the optimum and
 ``rho_hat = (p - d) / max(d, cost_floor) <= rho_tol``; the denominator is recovered as
 ``D = max(|d|, (p - d) / rho_hat)`` (``|d|`` when ``rho_hat <= 0``).
 
@@ -150,13 +150,17 @@ def _base_record(inst: Instance, mode: str) -> dict:
 
 
 #: ``--mode`` values and their solver options: ``fast-sparse`` forces the sparse unreduced path of
-#: ``fast`` (issue 14) with no dense/SDP fallback, so that every certificate is the sparse one.
+#: ``fast`` (issue 14) with no dense/SDP fallback, so that every certificate is the sparse one;
+#: ``sdp-cvxpy`` and ``sdp-structured`` force the SDP's backend (``sdp`` takes the default).
 MODE_OPTIONS = {"fast": {"mode": "fast"}, "sdp": {"mode": "sdp"},
+                "sdp-cvxpy": {"mode": "sdp", "sdp_backend": "cvxpy"},
+                "sdp-structured": {"mode": "sdp", "sdp_backend": "structured"},
                 "fast-sparse": {"mode": "fast", "fast_form": "sparse", "fallback_to_sdp": False}}
 
 
 def _solve(inst: Instance, mode: str, rec: dict):
     """Run the product; fills status fields or the crash. Returns the result or None."""
+    from rwhec_ros.core.relaxation import SdpOptions
     from rwhec_ros.core.solve import SolveOptions, solve
 
     try:
@@ -167,7 +171,11 @@ def _solve(inst: Instance, mode: str, rec: dict):
         return None
     t0 = time.perf_counter()
     try:
-        res = solve(problem, SolveOptions(**MODE_OPTIONS[mode]))
+        opts = dict(MODE_OPTIONS[mode])
+        backend = opts.pop("sdp_backend", None)
+        if backend is not None:
+            opts["sdp"] = SdpOptions(backend=backend)
+        res = solve(problem, SolveOptions(**opts))
     except Exception as exc:
         rec.update(status="crash", certified=False, solve_s=time.perf_counter() - t0,
                    crash=f"{type(exc).__name__}: {exc}"[:300],
@@ -409,8 +417,8 @@ def _offenders(records: list[dict], limit: int) -> list[str]:
 
 def _retry_line(records: list[dict]) -> str:
     """How often the certificate's extended-precision retry fired (``"tighten"`` in the result's
-    ``timing_s``: the reduction's residual bound recomputed, :func:`rwhec_ros.core.solve.
-    _tighten_reduction`) and what came of it."""
+    ``timing_s``: the reduction's residual bound recomputed, :func:`rwhec_ros.core.pipeline.
+    dense._tighten_reduction`) and what came of it."""
     fired = [r for r in records if r.get("retry")]
     if not any("retry" in r for r in records):
         return "Extended-precision certificate retry: not recorded (log from an older harness)."

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Certificate soundness far from the origin: the adversarial instances of
-``certificate_soundness.py`` moved far away, solved (with ``core/recentre.py``'s re-centring) and
-every certified result compared with the independent checker (Markdown).
+``certificate_soundness.py`` moved far away, solved (with ``core/model/recentre.py``'s re-centring)
+and every certified result compared with the independent checker (Markdown).
 
 Run from the repository root (a few minutes with ``--jobs 2``)::
 
@@ -74,7 +74,7 @@ def _task(args):
     from certificate_soundness import evaluate
     from soundness_checker import CheckerOptions
 
-    from rwhec_ros.core.recentre import recentring_for
+    from rwhec_ros.core.model.recentre import recentring_for
 
     index, side, distance = args
     inst = moved(make_instance(SEED, index), side, distance)

@@ -13,13 +13,13 @@ pairs had arrived on every edge since the re-solve before).
 Each re-solve is the session's live path, :class:`~rwhec_ros.session.live_solve.LiveSolver`
 on its worker thread, end to end: the snapshot of the kept pairs under the session lock
 (``PairAccumulator.kept_pairs``, the only time the sensor path could wait), the problem built
-outside the lock, the ``fast`` solve without SDP fallback, :func:`~rwhec_ros.core.uncertainty.
-frame_uncertainty` and the convergence verdict. Each timed re-solve follows an untimed one on
-the first 95 % of the row's pairs of every edge (``PREVIOUS``), whose certified estimate is
-the warm start of the timed one (the session's default) and whose edge blocks the timed one
-reuses (the accumulator's lineages tell which pairs are new); a second live solver without
-warm start (``warm_start=False``, the closed-form start of every solve before) re-solves the
-same data interleaved with it, so both see the same machine load.
+outside the lock, the ``fast`` solve without SDP fallback,
+:func:`~rwhec_ros.core.analysis.uncertainty. frame_uncertainty` and the convergence verdict. Each
+timed re-solve follows an untimed one on the first 95 % of the row's pairs of every edge
+(``PREVIOUS``), whose certified estimate is the warm start of the timed one (the session's default)
+and whose edge blocks the timed one reuses (the accumulator's lineages tell which pairs are new); a
+second live solver without warm start (``warm_start=False``, the closed-form start of every solve
+before) re-solves the same data interleaved with it, so both see the same machine load.
 
 Columns: *lock ms*: the snapshot under the lock; *solve ms* and *uncertainty ms*: the solver's and
 the uncertainty's own timers (warm-started); *re-solve ms*: the whole warm-started re-solve,

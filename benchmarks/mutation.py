@@ -18,10 +18,10 @@ a mutant at module or class level (a default value, run at import) runs the test
 target's ``TESTS`` files instead; a mutant on a line no test executes survives without a run.
 ``--select files`` runs every test of the ``TESTS`` files (slow: minutes per surviving mutant).
 
-Targets (``TARGETS``): ``rwhec_ros/core/certificate.py``, ``rwhec_ros/core/verified.py`` and
-the large-rig path's ``rwhec_ros/core/sparse_certificate.py`` (every line but docstrings), and
-the status decisions of ``rwhec_ros/core/solve.py`` and ``rwhec_ros/core/sparse_fast.py`` (the
-functions named there).
+Targets (``TARGETS``): ``rwhec_ros/core/certify/dense.py``, ``rwhec_ros/core/numerics/verified.py``
+and the large-rig path's ``rwhec_ros/core/certify/sparse.py`` (every line but docstrings), and
+the status decisions of the solve's paths, ``rwhec_ros/core/pipeline/dense.py``, ``common.py``,
+``statuses.py`` and ``sparse.py`` (the functions named there).
 
 Usage (from the repository root; prints Markdown; the coverage run of the suite takes ~5-10 min,
 the mutants ~3-5 s each on 2 cores)::
@@ -54,36 +54,40 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 TARGETS = {
-    "rwhec_ros/core/certificate.py": None,  # every function and class
-    "rwhec_ros/core/verified.py": None,
-    "rwhec_ros/core/solve.py": {
-        "_certify", "_failed_certificate", "_solve_fast", "_solve_sdp", "_check_identifiability",
-        "_downgrade", "_rotation_gauge_words", "_estimate",
+    "rwhec_ros/core/certify/dense.py": None,  # every function and class
+    "rwhec_ros/core/numerics/verified.py": None,
+    "rwhec_ros/core/pipeline/dense.py": {"_certify", "solve_fast_dense", "solve_sdp", "_estimate"},
+    "rwhec_ros/core/pipeline/common.py": {"failed_certificate"},
+    "rwhec_ros/core/pipeline/statuses.py": {
+        "check_identifiability", "_downgrade", "_rotation_gauge_words",
     },
     # the large-rig path (issue 14): its certificate and the status decisions of its solve
-    "rwhec_ros/core/sparse_certificate.py": None,
-    "rwhec_ros/core/sparse_fast.py": {"solve_fast_sparse", "failed_result"},
+    "rwhec_ros/core/certify/sparse.py": None,
+    "rwhec_ros/core/pipeline/sparse.py": {"solve_fast_sparse", "failed_result"},
 }
 
 #: The tests that reach each target, fastest first (``pytest -x`` stops at the first failure).
 TESTS = {
-    "rwhec_ros/core/certificate.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
+    "rwhec_ros/core/certify/dense.py": ["test/core/test_certificate.py", "test/core/test_gauge.py",
                                       "test/core/test_solve.py"],
-    "rwhec_ros/core/verified.py": ["test/core/test_verified_rounding.py",
+    "rwhec_ros/core/numerics/verified.py": ["test/core/test_verified_rounding.py",
                                    "test/core/test_verified.py", "test/core/test_certificate.py"],
-    "rwhec_ros/core/solve.py": ["test/core/test_solve_status.py", "test/core/test_certificate.py",
-                                "test/core/test_gauge.py", "test/core/test_solve.py"],
-    "rwhec_ros/core/sparse_certificate.py": ["test/core/test_sparse_certificate_paths.py",
+    **{f"rwhec_ros/core/pipeline/{name}.py": ["test/core/test_solve_status.py",
+                                              "test/core/test_certificate.py",
+                                              "test/core/test_gauge.py", "test/core/test_solve.py"]
+       for name in ("dense", "common", "statuses")},
+    "rwhec_ros/core/certify/sparse.py": ["test/core/test_sparse_certificate_paths.py",
                                              "test/core/test_sparse_path.py",
                                              "test/core/test_gauge.py"],
-    "rwhec_ros/core/sparse_fast.py": ["test/core/test_sparse_fast.py",
+    "rwhec_ros/core/pipeline/sparse.py": ["test/core/test_sparse_fast.py",
                                       "test/core/test_sparse_path.py",
                                       "test/core/test_gauge.py"],
 }
 
 #: Mutants argued equivalent (no observable change), keyed by (file, source line, mutation).
-_CERT = "rwhec_ros/core/certificate.py"
-_SOLVE = "rwhec_ros/core/solve.py"
+_CERT = "rwhec_ros/core/certify/dense.py"
+_DENSE = "rwhec_ros/core/pipeline/dense.py"
+_STATUSES = "rwhec_ros/core/pipeline/statuses.py"
 _TERMS = "terms = int(np.diff(constraints.C.tocsr().indptr).max(initial=1))"
 EQUIVALENT: dict[tuple[str, str, str], str] = {
     (_CERT, "block_lower: float = 1.0", "1.0 -> x100"):
@@ -112,13 +116,13 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
     (_CERT, "rows = (rows + z_err_rows) * (1.0 + gamma(3))", "3 -> 4"):
         "1.0 + gamma(3) and 1.0 + gamma(4) are the same double, 1 + 2^-51: asserted in "
         "test_certificate",
-    **{("rwhec_ros/core/solve.py", "if abs(v[-1]) > 1e-8 * np.linalg.norm(v):", d):
+    **{(_DENSE, "if abs(v[-1]) > 1e-8 * np.linalg.norm(v):", d):
        "the division of the null vector by s is redundant: rotations_from_vector divides every "
        "block by the mean cube-root determinant, which removes any common scale and sign (only "
        "the rounding differs)" for d in ("Gt -> GtE", "drop abs", "drop USub", "1 -> 2",
                                           "1 -> 0", "Mult -> Div", "1e-08 -> x100",
                                           "1e-08 -> /100")},
-    **{("rwhec_ros/core/verified.py", src, d): why for src, d, why in [
+    **{("rwhec_ros/core/numerics/verified.py", src, d): why for src, d, why in [
         ("if n == 0 or not np.any(A):", "Or -> And",
          "for a zero A the power iteration stops at once (top = 0) and returns 0 as well"),
         ("if n == 0 or not np.any(A):", "0 -> -1",
@@ -155,12 +159,13 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         ("(d, d), matvec=lambda b: scipy.linalg.cho_solve(factor, b, check_finite=False),",
          "False -> True", "the right-hand sides of ARPACK are finite"),
     ]},
-    # -- the status decisions of solve.py (issue 19, second pass) --
-    **{(_SOLVE, "v = v / v[-1]", d):
+    # -- the status decisions of the solve (issue 19, second pass; then in solve.py) --
+    **{(_DENSE, "v = v / v[-1]", d):
        "a common factor of the null vector (s, or the entry v[1], v[-2], v[0]), removed by "
        "rotations_from_vector's mean cube-root determinant with its sign; only an entry that is "
        "exactly 0.0 would differ" for d in ("Div -> Mult", "drop USub", "1 -> 2", "1 -> 0")},
-    **{(_SOLVE, src, d): why for src, d, why in [
+    **{(_DENSE if src.startswith(("if form", "if abs(v")) else _STATUSES, src, d): why
+       for src, d, why in [
         ('if form == "arrow" and split is None:', "And -> Or",
          "arrow_split returns None only below 2 frames and every Problem has an X and a Y frame: "
          "the split then computed for the full or reduced form is never used"),
@@ -195,8 +200,8 @@ EQUIVALENT: dict[tuple[str, str, str], str] = {
         "Z is square: shape[-1] = shape[0]",
 }
 
-# the large-rig certificate (issue 19): rwhec_ros/core/sparse_certificate.py
-_SC = "rwhec_ros/core/sparse_certificate.py"
+# the large-rig certificate (issue 19): rwhec_ros/core/certify/sparse.py
+_SC = "rwhec_ros/core/certify/sparse.py"
 _SC_EY = "e_y = float(min(c_y.sum(), ny * c_y.max(initial=0.0)) * (1.0 + gamma(ny)))"
 _SC_MU0 = "mu0 = gamma(64) * float(np.abs(data[pattern.diag[nf:]]).mean()) + 1e-300"
 _SC_SLOPE = "if not np.isfinite(slope) or abs(slope) < 1e-300:"

@@ -6,8 +6,8 @@ Run from the repository root::
     python benchmarks/paper_tables.py --quick         # 5 runs per noise level
     python benchmarks/paper_tables.py --runs 20 --seed 1 --tables 2 4 --output out.md
 
-Every method sees the same runs (scenario data from :mod:`rwhec_ros.core.scenarios`, seeded per
-table, noise level and run). Weights are the true noise levels (``sigma``, ``kappa``); LOM uses
+Every method sees the same runs (scenario data from :mod:`rwhec_ros.simulation.scenarios`, seeded
+per table, noise level and run). Weights are the true noise levels (``sigma``, ``kappa``); LOM uses
 ``sigma_R = 1 / sqrt(kappa)`` as the paper does. "Ours" is
 ``rwhec_ros.core.solve.solve(problem, SolveOptions(mode="fast"))``; the fraction of runs it
 certifies is reported. Each cell shows ``ours-mean +- std / paper-mean +- std (relative
@@ -39,13 +39,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rwhec_ros.core.baselines import dornaika1998, run_baseline, wang2022  # noqa: E402
 from rwhec_ros.core.lie import make_transform, rotation_distance, so3_exp  # noqa: E402
-from rwhec_ros.core.scenarios import (  # noqa: E402
+from rwhec_ros.simulation.scenarios import (  # noqa: E402
     PAPER_NOISE_LEVELS,
     NoiseLevel,
     fixed_cameras_hand_target,
     hand_camera_sphere,
 )
-from rwhec_ros.core.synthetic import GroundTruth  # noqa: E402
+from rwhec_ros.simulation.synthetic import GroundTruth  # noqa: E402
 
 COLUMNS = ("t_x", "r_x", "t_y", "r_y", "alpha")
 HEADERS = {
@@ -225,7 +225,7 @@ def _dornaika_wang(problem, gt, rng):
 
 
 def _lom():
-    return importlib.import_module("rwhec_ros.core.lom")
+    return importlib.import_module("rwhec_ros.core.baselines.lom_solver")
 
 
 def _lom_wang(problem, gt, rng):
@@ -695,10 +695,10 @@ def notes(flagged: list[dict], sensitivity: list[str], exact: list[str],
         "(not on the ground truth: the MLE, Wang, Dornaika and OpenCV-direct Shah are "
         "equivariant under a change of base or hand frame, tested in "
         "`test/core/test_baselines.py`). Our readings are documented in "
-        "`rwhec_ros/core/scenarios.py`: 8.1 is a spiral over latitudes +45..-45 deg (one azimuth "
-        "turn) on the sphere, camera looking at the centre with `y` to the south pole; 8.2 uses "
-        "uniformly random target orientations in an 80 x 80 x 60 cm box kept only when the "
-        "target is in front of and within 60 deg of every optical axis of four cameras 1.5 m "
+        "`rwhec_ros/simulation/scenarios.py`: 8.1 is a spiral over latitudes +45..-45 deg (one "
+        "azimuth turn) on the sphere, camera looking at the centre with `y` to the south pole; "
+        "8.2 uses uniformly random target orientations in an 80 x 80 x 60 cm box kept only when "
+        "the target is in front of and within 60 deg of every optical axis of four cameras 1.5 m "
         "away. We tried other 8.1 readings (table below, measured by this script): the whole "
         "sphere or a polar cap give much smaller t_x and r_y than the paper, and a cap makes "
         "t_y as large as t_x, whereas the paper has t_y about a third of t_x; an equatorial "
@@ -770,7 +770,7 @@ def main(argv: list[str] | None = None) -> int:
     if runs < 1:
         ap.error(f"--runs must be >= 1, got {runs}")
 
-    have_lom = _available("rwhec_ros.core.lom")
+    have_lom = _available("rwhec_ros.core.baselines.lom_solver")
     have_solve = _available("rwhec_ros.core.solve")
     specs = table_specs(have_lom, have_solve)
 
@@ -819,7 +819,8 @@ def main(argv: list[str] | None = None) -> int:
         "",
     ]
     if not have_lom:
-        head += ["**LOM rows skipped: `rwhec_ros.core.lom` is not available.**", ""]
+        head += ["**LOM rows skipped: `rwhec_ros.core.baselines.lom_solver` is not available.**",
+                 ""]
     if not have_solve:
         head += ["**Ours rows skipped: `rwhec_ros.core.solve` is not available.**", ""]
     summary = ["## Acceptance summary", "", "Certification (Ours):", ""]

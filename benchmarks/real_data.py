@@ -39,11 +39,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rwhec_ros.config import CalibratorConfig  # noqa: E402
+from rwhec_ros.core.analysis.validation import fold_assignment  # noqa: E402
 from rwhec_ros.core.baselines.registry import run_baseline  # noqa: E402
 from rwhec_ros.core.lie import invert_transform  # noqa: E402
 from rwhec_ros.core.problem import Edge, Problem  # noqa: E402
 from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
-from rwhec_ros.core.validation import fold_assignment  # noqa: E402
 from rwhec_ros.data.real_layouts import (  # noqa: E402
     CAMERA,
     TARGET,

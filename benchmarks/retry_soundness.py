@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
-"""Soundness of the certificate's extended-precision retry (``rwhec_ros.core.solve._certify``).
+"""Soundness of the certificate's extended-precision retry
+(``rwhec_ros.core.pipeline.dense._certify``).
 
 When a certificate fails on its bound alone and the Schur reduction's rounding terms take more
 than a tenth of the allowed gap, the solver recomputes the bound on the recovery's residual
-``F = Q_ee G + Q_ey`` in extended precision (:mod:`rwhec_ros.core.extended_residual`,
+``F = Q_ee G + Q_ey`` in extended precision (:mod:`rwhec_ros.core.numerics.extended_residual`,
 ``reduce_cost(residual="extended")``) and certifies again. A wrong bound there would turn into a
 false ``certified_optimal``. This study checks the retry by paths independent of it:
 
@@ -25,8 +26,8 @@ false ``certified_optimal``. This study checks the retry by paths independent of
    violations confirmed in exact rational arithmetic).
 2. **The reduction's bounds in exact arithmetic on those instances.** For the first
    ``--exact`` retry instances: ``|F|`` exactly (integer arithmetic on the doubles' mantissas)
-   against :func:`~rwhec_ros.core.extended_residual.residual_bound` entry by entry, ``||F||_F``
-   against ``residual_norm`` and, for the first ``--exact-sg`` of them, the row sums of
+   against :func:`~rwhec_ros.core.numerics.extended_residual.residual_bound` entry by entry,
+   ``||F||_F`` against ``residual_norm`` and, for the first ``--exact-sg`` of them, the row sums of
    ``|Qr - S_G|`` (``S_G`` the exact reduced cost for the ``G`` used) against ``err_rows``.
 3. **Random blocks.** ``residual_bound`` against the exact residual on random symmetric positive
    definite ``Q_ee`` (m = 30) and ``Q_ey`` (k = 60) with condition numbers 1e2..1e14 and ``G``
@@ -211,7 +212,7 @@ def exact_reduction_check(Q: np.ndarray, layout, unknown_scale: bool, reduced) -
     (``S_G = Q_kk + G^T F + Q_ek^T G`` for the ``G`` used)."""
     from fractions import Fraction
 
-    from rwhec_ros.core.extended_residual import residual_bound
+    from rwhec_ros.core.numerics.extended_residual import residual_bound
 
     nt, a, r0, size = layout.n_t, layout.alpha, layout.r0, layout.size
     rot = np.arange(r0, size)
@@ -272,7 +273,7 @@ def random_blocks(rng: np.random.Generator, m: int, k: int, cond: float):
 
 def block_study(seed: int, n_blocks: int, m: int, k: int) -> list[dict]:
     """``residual_bound`` against the exact residual, native and with the float64 fallback."""
-    import rwhec_ros.core.extended_residual as er
+    import rwhec_ros.core.numerics.extended_residual as er
 
     rng = np.random.default_rng(seed)
     out = []
@@ -313,8 +314,9 @@ def _deficit_ratio(rec: dict) -> float:
 
 def _exact_on(inst: Instance, with_sg: bool) -> dict:
     """Section 2 for one instance: rebuild the product's reduction (same calls as ``solve``)."""
-    from rwhec_ros.core.cost import reduce_cost
-    from rwhec_ros.core.solve import SolveOptions, _prepare
+    from rwhec_ros.core.model.reduction import reduce_cost
+    from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare
+    from rwhec_ros.core.solve import SolveOptions
 
     problem = inst.to_problem()
     prep = _prepare(problem, SolveOptions(mode="fast"))
@@ -403,7 +405,7 @@ def main(argv: list[str] | None = None) -> int:
     blocks = block_study(args.seed, args.blocks, 30, 60) + block_study(args.seed + 1, 2, 60, 120)
 
     # the float64 fallback on the retry instances
-    import rwhec_ros.core.extended_residual as er
+    import rwhec_ros.core.numerics.extended_residual as er
 
     native = er.extended_dtype
     fb = []

@@ -4,9 +4,9 @@
 Prints Markdown (commit the output as ``benchmarks/sdp_forms.md``):
 
 1. For graphs of several shapes and the paper's real data: the cost per Clarabel iteration that
-   :func:`rwhec_ros.core.sparsity.estimate_form_costs` predicts for the ``reduced``, ``full`` and
-   ``arrow`` forms, and the measured solve (time, iterations, certificate) of every form whose
-   estimate is within ``--max-ratio`` of the cheapest; the form ``auto`` picks is marked.
+   :func:`rwhec_ros.core.certify.sparsity.estimate_form_costs` predicts for the ``reduced``,
+   ``full`` and ``arrow`` forms, and the measured solve (time, iterations, certificate) of every
+   form whose estimate is within ``--max-ratio`` of the cheapest; the form ``auto`` picks is marked.
    All forms run must reach the same dual bound ``d`` (they are exact reformulations).
 2. Clarabel's Ruiz equilibration on and off for the arrow form (its default is off).
 
@@ -28,9 +28,11 @@ from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rwhec_ros.core.relaxation import SdpOptions  # noqa: E402
-from rwhec_ros.core.solve import SolveOptions, _form_costs, _prepare, solve  # noqa: E402
-from rwhec_ros.core.synthetic import random_instance  # noqa: E402
+from rwhec_ros.core.certify.relaxation import SdpOptions  # noqa: E402
+from rwhec_ros.core.pipeline.dense import _form_costs  # noqa: E402
+from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare  # noqa: E402
+from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
+from rwhec_ros.simulation.synthetic import random_instance  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "paper_real_world"
 FORMS = ("reduced", "full", "arrow")

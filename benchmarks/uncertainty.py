@@ -3,14 +3,14 @@
 
 Prints Markdown tables (commit the output as ``benchmarks/uncertainty.md``):
 
-1. Monte-Carlo per scenario: the paper's Section 8 scenarios (``rwhec_ros.core.scenarios``:
+1. Monte-Carlo per scenario: the paper's Section 8 scenarios (``rwhec_ros.simulation.scenarios``:
    8.1 hand camera on a sphere, 8.2 four fixed cameras and a hand-held target; known and unknown
    scale; two noise levels) and the demo rig (``rwhec_ros.simulation.rig``: 3 cameras, 6 tags,
    geometry only, no rendering). For each scenario ONE design (trajectory and ground truth) is
    drawn and then ``--runs`` independent noise draws of ``B`` (the paper's noise model, the stated
    ``sigma``/``kappa`` equal to the true ones); every run is solved (``fast``) and only
    certified estimates count. Per frame and axis the predicted std (root mean predicted
-   variance, :func:`~rwhec_ros.core.uncertainty.frame_uncertainty`) is compared with the
+   variance, :func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty`) is compared with the
    empirical std of the estimates' errors in the same convention (``t = t_true + dt``,
    ``R = exp(phi^) R_true``, in the frame's parent); the coverage is the fraction of
    frame-runs whose error lies in the predicted 95 % ellipsoid (``e^T C^-1 e <= chi2_6(0.95)``).
@@ -34,24 +34,24 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rwhec_ros.core.cost import build_cost_matrices  # noqa: E402
-from rwhec_ros.core.guidance import GuidanceOptions, suggest_next_motion  # noqa: E402
-from rwhec_ros.core.information import information_from_cost_matrix  # noqa: E402
+from rwhec_ros.core.analysis.guidance import GuidanceOptions, suggest_next_motion  # noqa: E402
+from rwhec_ros.core.analysis.information import information_from_cost_matrix  # noqa: E402
+from rwhec_ros.core.analysis.uncertainty import (  # noqa: E402
+    frame_uncertainty,
+    uncertainty_from_information,
+)
+from rwhec_ros.core.analysis.validation import cross_validate  # noqa: E402
 from rwhec_ros.core.lie import invert_transform, so3_log  # noqa: E402
+from rwhec_ros.core.model.cost import build_cost_matrices  # noqa: E402
 from rwhec_ros.core.problem import Edge, Problem  # noqa: E402
-from rwhec_ros.core.scenarios import (  # noqa: E402
+from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
+from rwhec_ros.simulation.rig import demo_rig  # noqa: E402
+from rwhec_ros.simulation.scenarios import (  # noqa: E402
     fixed_cameras_hand_target,
     hand_camera_sphere,
     noisy_measurements,
 )
-from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
-from rwhec_ros.core.synthetic import GroundTruth  # noqa: E402
-from rwhec_ros.core.uncertainty import (  # noqa: E402
-    frame_uncertainty,
-    uncertainty_from_information,
-)
-from rwhec_ros.core.validation import cross_validate  # noqa: E402
-from rwhec_ros.simulation.rig import demo_rig  # noqa: E402
+from rwhec_ros.simulation.synthetic import GroundTruth  # noqa: E402
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "paper_real_world"
 CHI2_6_95 = 12.591587243743977  # scipy.stats.chi2.ppf(0.95, 6)

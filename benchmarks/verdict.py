@@ -7,7 +7,7 @@ Run from the repository root::
 
 Three parts, each row with its own seeded runs:
 
-1. **Good data, the paper's Section 8 scenarios** (:mod:`rwhec_ros.core.scenarios`): the hand
+1. **Good data, the paper's Section 8 scenarios** (:mod:`rwhec_ros.simulation.scenarios`): the hand
    camera on spheres (Tables 2, 3) and four fixed cameras with a hand-held target (Tables 4, 5),
    known and unknown scale, at the paper's four noise levels, the solver weighted with the true
    noise. Target: ``good`` in >= 99 % of the runs.
@@ -58,14 +58,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp  # noqa: E402
 from rwhec_ros.core.problem import Edge, Problem  # noqa: E402
-from rwhec_ros.core.scenarios import (  # noqa: E402
+from rwhec_ros.core.solve import solve  # noqa: E402
+from rwhec_ros.core.verdict import Verdict, assess  # noqa: E402
+from rwhec_ros.simulation.scenarios import (  # noqa: E402
     PAPER_NOISE_LEVELS,
     fixed_cameras_hand_target,
     hand_camera_sphere,
 )
-from rwhec_ros.core.solve import solve  # noqa: E402
-from rwhec_ros.core.synthetic import perturb_measurements  # noqa: E402
-from rwhec_ros.core.verdict import Verdict, assess  # noqa: E402
+from rwhec_ros.simulation.synthetic import perturb_measurements  # noqa: E402
 
 #: The stated noise of config/demo.yaml.
 DEMO_SIGMA, DEMO_KAPPA = 0.005, 400.0

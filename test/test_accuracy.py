@@ -17,15 +17,15 @@ import numpy as np
 import pytest
 import yaml
 
-from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior
-from rwhec_ros.core.synthetic import random_instance
-from rwhec_ros.core.uncertainty import UncertaintyOptions, frame_uncertainty
-from rwhec_ros.core.validation import cross_validate
+from rwhec_ros.core.analysis.uncertainty import UncertaintyOptions, frame_uncertainty
+from rwhec_ros.core.analysis.validation import cross_validate
+from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.data.results import FrameNaming, result_document
 from rwhec_ros.messages import diagnostic_rows
 from rwhec_ros.session import summary
 from rwhec_ros.session.accuracy import AccuracyOptions
 from rwhec_ros.session.solving import solve_and_assess
+from rwhec_ros.simulation.synthetic import random_instance
 
 REPO = Path(__file__).resolve().parents[1]
 

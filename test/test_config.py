@@ -10,11 +10,8 @@ import pytest
 import yaml
 
 from rwhec_ros.config import (
-    CAMERA_SPECS,
     GLOBAL_SPECS,
-    TARGET_SPECS,
     CalibratorConfig,
-    ParamSpec,
     flatten_parameters,
     fully_qualified_name,
     load_config,
@@ -303,47 +300,6 @@ def test_live_solve_and_convergence_settings():
     c = CalibratorConfig.from_parameters(p)  # 0 = off is valid
     assert (c.solver.live_period_s, c.convergence.max_std_translation_m,
             c.convergence.max_std_rotation_deg) == (0.0, 0.002, 0.1)
-
-
-README = Path(__file__).resolve().parents[1] / "README.md"
-_KINDS = {"bool": "bool", "int": "int", "double": "double", "string": "string",
-          "int_array": "int[]", "double_array": "double[]", "string_array": "string[]",
-          "int_or_auto": 'int or `"auto"`'}
-
-
-def _readme_default(spec) -> str:
-    if spec.required:
-        return "**required**"
-    v = spec.default
-    if v is None:
-        return "unset"
-    if isinstance(v, bool):
-        return f"`{str(v).lower()}`"
-    if isinstance(v, str):
-        return f'`"{v}"`'
-    if isinstance(v, tuple):
-        return f"`{list(v)}`"
-    return f"`{v!r}`"
-
-
-def test_readme_parameter_table_matches_the_specs():
-    """Every parameter of the schema has its row (type, default, doc) in the README's
-    configuration reference, and the table names no other parameter."""
-    lines = README.read_text(encoding="utf-8").splitlines()
-    start = lines.index("| parameter | type | default | meaning |") + 2
-    end = lines.index("", start)
-    table = {re.match(r"^\| `([^`]+)`", ln).group(1): ln for ln in lines[start:end]}
-    specs = list(GLOBAL_SPECS) + [
-        ParamSpec(f"cameras.<name>.{s.name}", s.kind, s.default, s.required, s.doc)
-        for s in CAMERA_SPECS] + [
-        ParamSpec(f"targets.<name>.{s.name}", s.kind, s.default, s.required, s.doc)
-        for s in TARGET_SPECS]
-    for spec in specs:
-        doc = spec.doc.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
-        want = f"| `{spec.name}` | {_KINDS[spec.kind]} | {_readme_default(spec)} | {doc} |"
-        assert table.get(spec.name) == want, f"README row of {spec.name}"
-    names = {spec.name for spec in specs}
-    assert not set(table) - names, sorted(set(table) - names)
 
 
 # --- the file format -------------------------------------------------------------------------

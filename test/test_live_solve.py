@@ -4,7 +4,7 @@ blocking ``calibrate``, failures keep the data, the period is honoured, converge
 The session is fed through its real sensor path (``add_pose``, ``add_image``: lock, motion
 gate, keyframes, accumulator, identifiability tracker); only the tag detector is replaced by one
 that returns the simulated measurement ``B = Y_k^-1 A X_j`` with the paper's noise model
-(:func:`rwhec_ros.core.synthetic.perturb_measurements`), so hundreds of images take
+(:func:`rwhec_ros.simulation.synthetic.perturb_measurements`), so hundreds of images take
 milliseconds instead of rendering.
 """
 
@@ -20,10 +20,10 @@ import yaml
 
 from rwhec_ros.config import CalibratorConfig, read_parameter_file
 from rwhec_ros.core.lie import invert_transform
-from rwhec_ros.core.synthetic import perturb_measurements, random_transforms
 from rwhec_ros.session import CalibrationSession
 from rwhec_ros.session.convergence import convergence_of
 from rwhec_ros.session.live_solve import LiveSolver, solve_with_uncertainty
+from rwhec_ros.simulation.synthetic import perturb_measurements, random_transforms
 from rwhec_ros.vision.intrinsics import CameraIntrinsics
 from rwhec_ros.vision.targets import TargetDetectionResult, TargetObservation
 
@@ -333,7 +333,7 @@ def test_converged_flips_when_the_stds_go_below_the_limits(tmp_path):
 
 def test_unobservable_axes_never_converge(tmp_path):
     # one camera, one tag, rotation about one axis only: a translation direction is undetermined
-    from rwhec_ros.core.synthetic import planar_instance
+    from rwhec_ros.simulation.synthetic import planar_instance
 
     problem, _ = planar_instance(np.random.default_rng(5), 1, 1, 30, sigma=0.001, kappa=2000.0)
     config = make_config(tmp_path)
@@ -404,7 +404,7 @@ def _assert_same_solution(warm, cold, unc_warm, unc_cold):
 
 
 def test_warm_start_gives_the_cold_estimate_and_certificate(tmp_path):
-    from rwhec_ros.core.synthetic import random_instance
+    from rwhec_ros.simulation.synthetic import random_instance
 
     problem, _ = random_instance(np.random.default_rng(21), 3, 2, n_per_edge=30, sigma=SIGMA,
                                  kappa=KAPPA)
@@ -420,7 +420,7 @@ def test_warm_start_gives_the_cold_estimate_and_certificate(tmp_path):
 
 
 def test_a_bad_warm_start_never_changes_the_outcome(tmp_path):
-    from rwhec_ros.core.synthetic import random_instance
+    from rwhec_ros.simulation.synthetic import random_instance
 
     problem, _ = random_instance(np.random.default_rng(22), 3, 2, n_per_edge=30, sigma=SIGMA,
                                  kappa=KAPPA)
@@ -479,8 +479,8 @@ def test_live_uncertainty_and_cached_blocks_match_the_reference_path(tmp_path):
     """The live path (edge blocks reused from the previous re-solve, information from the edge
     blocks) gives the certificate of a solve from scratch and the uncertainty of the
     pair-by-pair :func:`frame_uncertainty`."""
+    from rwhec_ros.core.analysis.uncertainty import UncertaintyOptions, frame_uncertainty
     from rwhec_ros.core.solve import solve
-    from rwhec_ros.core.uncertainty import UncertaintyOptions, frame_uncertainty
     from rwhec_ros.session.solving import solve_options
     from rwhec_ros.sync.accumulator import problem_from_edges
 
@@ -545,7 +545,7 @@ def _convergence_reference(unc, expected, max_t, max_r):
 def test_convergence_of_is_the_frame_by_frame_verdict(seed):
     """The vectorised convergence_of against the loop it replaced, with ties, NaN
     (unobservable) axes and a variance factor above and below 1."""
-    from rwhec_ros.core.uncertainty import FrameUncertainty, Uncertainty
+    from rwhec_ros.core.analysis.uncertainty import FrameUncertainty, Uncertainty
 
     rng = np.random.default_rng(seed)
     frames = []

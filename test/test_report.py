@@ -7,9 +7,9 @@ import pytest
 
 from rwhec_ros.core.lie import make_transform, so3_exp
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import random_instance
 from rwhec_ros.data.results import FrameNaming, result_document
 from rwhec_ros.report import edge_residuals, estimates_from_document, write_report
+from rwhec_ros.simulation.synthetic import random_instance
 
 
 def test_residuals_vanish_at_the_truth_of_exact_data_also_with_a_scale():

@@ -503,8 +503,8 @@ def test_solve_problem_with_outlier_rejection_recertifies():
     are rejected (and reported), and the result on the inlier set is certified."""
     from rwhec_ros.core.lie import make_transform
     from rwhec_ros.core.problem import Edge, Problem
-    from rwhec_ros.core.synthetic import random_instance, random_rotations
     from rwhec_ros.session import solve_problem
+    from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
     rng = np.random.default_rng(7)
     problem, gt = random_instance(rng, 2, 2, n_per_edge=30, sigma=0.01, kappa=125)

@@ -9,12 +9,12 @@ import pytest
 from launch_helpers import demo_config, launch_transforms
 
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import random_instance
 from rwhec_ros.core.verdict import assess
 from rwhec_ros.data.results import FrameNaming
 from rwhec_ros.session import CalibrationSession, summary
 from rwhec_ros.session.info_wait import CameraInfoWait
 from rwhec_ros.session.outputs import launch_header, publishable, static_transforms_launch
+from rwhec_ros.simulation.synthetic import random_instance
 from rwhec_ros.vision.intrinsics import CameraIntrinsics
 
 NS = 1_000_000_000

@@ -1,9 +1,9 @@
 """The argument parser of ``rwhec-calibrate``: one set of shared options, one help style.
 
-Every solving subcommand (``csv``, ``bag``, ``dataset``, ``demo``) takes the same options with the
-same meaning: ``-o/--output DIR``, ``--force``, ``--config FILE`` (``--node-name``), ``--mode``,
-``--min-pairs``, ``--robust``, ``--prior``, ``--folds``, ``--no-guidance``, ``--report`` and
-``-q/--quiet``; ``report`` takes ``-o`` and
+Every solving subcommand (``csv``, ``bag``, ``samples``, ``poses``, ``dataset``, ``demo``) takes
+the same options with the same meaning: ``-o/--output DIR``, ``--force``, ``--config FILE``
+(``--node-name``), ``--mode``, ``--min-pairs``, ``--robust``, ``--prior``, ``--folds``,
+``--no-guidance``, ``--report`` and ``-q/--quiet``; ``report`` takes ``-o`` and
 ``--force``. Help texts end with ``(default: ...)``; a default that comes from the configuration
 reads "the configuration's <parameter>, else <value>".
 """
@@ -14,7 +14,7 @@ import argparse
 from pathlib import Path
 
 from .. import __version__
-from .common import DEFAULT_OUTPUT, MODES, PROG
+from .common import DEFAULT_OUTPUT, MODES, PROG, SDP_BACKENDS
 
 __all__ = ["build_parser"]
 
@@ -46,6 +46,10 @@ def _add_config(p: argparse.ArgumentParser, help_text: str, *, required: bool = 
 def _add_solver(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=MODES, default=None,
                    help="solver mode (default: the configuration's solver.mode, else fast)")
+    p.add_argument("--sdp-backend", choices=SDP_BACKENDS, default=None,
+                   help="the SDP's solver (mode sdp, and fast when its certificate is "
+                        "inconclusive): structured, cvxpy (cvxpy + Clarabel) or auto (default: "
+                        "the configuration's solver.sdp_backend, else auto)")
     p.add_argument("--min-pairs", type=int, default=None, metavar="N",
                    help="leave out edges with fewer pairs (default: the configuration's "
                         "solver.min_pairs, else 3)")
@@ -80,6 +84,16 @@ def _add_carriers(p: argparse.ArgumentParser, *, stored: bool = False) -> None:
                         f"tag_carrier.frame{also}, else world)")
 
 
+def _add_mount(p: argparse.ArgumentParser, default: str) -> None:
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--eye-in-hand", action="store_true",
+                       help="the cameras ride on the robot's flange (the pose's child frame), "
+                            f"the target is fixed (default: {default})")
+    group.add_argument("--eye-to-hand", action="store_true",
+                       help="the cameras are fixed (in the pose's parent frame), the target "
+                            f"rides on the flange (default: {default})")
+
+
 def _add_solving(sub, name: str, help_text: str, positional: tuple[str, str, str] | None,
                  config_help: str, *, config_required: bool = False) -> argparse.ArgumentParser:
     """A solving subcommand: its positional argument ``(dest, metavar, help)`` and the shared
@@ -95,15 +109,17 @@ def _add_solving(sub, name: str, help_text: str, positional: tuple[str, str, str
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``rwhec-calibrate`` (subcommands csv, bag, dataset, demo, report)."""
+    """The argument parser of ``rwhec-calibrate`` (subcommands csv, bag, samples, poses, dataset,
+    demo, report)."""
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="Certifiably globally optimal robot-world/hand-eye calibration "
                     "(A_i X_j = Y_k B_i) without ROS.",
         epilog="The first line printed is the verdict: GOOD, CAUTION or UNUSABLE, with the "
                "reason. Exit codes: 0 usable result (good or caution), 2 bad input or output, "
-               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted, 141 "
-               "output pipe closed (e.g. | head).",
+               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted "
+               "(Ctrl-C), 143 terminated (SIGTERM), 141 output pipe closed (e.g. | head); "
+               "the pairs gathered are kept in dataset.yaml however a run ends.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -127,6 +143,41 @@ def build_parser() -> argparse.ArgumentParser:
                  ("bag", "BAG", "rosbag2 directory (sqlite3 or mcap)"),
                  "the node's parameter file, e.g. config/demo.yaml (required)",
                  config_required=True)
+
+    p = _add_solving(sub, "samples", "a folder of stop-and-go views: an image per camera and "
+                     "the robot pose per view (our manifest samples.yaml, industrial_calibration's "
+                     "cal_data.yaml, camera_calibration_toolkit's N.jpg + N.json)",
+                     ("path", "DIR", "the folder (or the manifest file) of the views"),
+                     "a node parameter file, full (its cameras, carriers and targets replace "
+                     "the data's) or partial (e.g. noise, keyframe, solver), on top of the "
+                     "settings the data give (default: none)")
+    _add_mount(p, "the data's mount: the manifest's mount or camera_carrier, "
+                  "industrial_calibration's static_camera; else the configuration's carriers")
+    p.add_argument("--intrinsics", action="append", default=None, metavar="[CAMERA=]FILE",
+                   help="intrinsics of a camera: a ROS camera_calibration YAML or an OpenCV "
+                        "FileStorage YAML/XML; repeatable, CAMERA= with several cameras "
+                        "(default: the data's own)")
+    p.add_argument("--layout", default="auto",
+                   choices=("auto", "manifest", "industrial_calibration",
+                            "camera_calibration_toolkit"),
+                   help="how the folder is laid out (default: %(default)s, from the files "
+                        "found)")
+
+    p = _add_solving(sub, "poses", "a pose list: robot poses and target-in-camera poses "
+                     "(OpenCV's gripper2base and target2cam), CSV or YAML",
+                     ("file", "FILE", "the pose list (.csv, or .yaml/.yml)"),
+                     "take the noise, solver and output settings from a node parameter file "
+                     "(default: none)")
+    _add_mount(p, "the YAML file's mount, else the configuration's carriers")
+    p.add_argument("--sigma", type=float, default=None,
+                   help="translation std of B [m] (default: the configuration's noise.sigma, "
+                        "else 0.005)")
+    p.add_argument("--kappa", type=float, default=None,
+                   help="Langevin concentration of the B rotations (default: the "
+                        "configuration's noise.kappa, else 400.0)")
+    p.add_argument("--unknown-scale", action="store_true",
+                   help="estimate a common scale of the B translations, paper Problem 3 "
+                        "(default: the configuration's tags.unknown_scale, else off)")
 
     p = _add_solving(sub, "dataset", "a data set saved by the session or the CLI",
                      ("file", "FILE", "dataset.yaml written by the node or the CLI"),
@@ -153,6 +204,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated duration [s] (default: %(default)s, one full yaw turn)")
     p.add_argument("--rate", type=float, default=5.0, help="image rate [Hz] (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--bag", type=Path, default=None, metavar="DIR",
+                   help="write the simulated recording as a rosbag2 directory DIR instead of "
+                        "calibrating (then: rwhec-calibrate bag DIR --config "
+                        "config/demo.yaml); an existing DIR is refused unless --force "
+                        "(default: calibrate)")
+    p.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3",
+                   help="storage of --bag (default: %(default)s)")
 
     p = sub.add_parser("report", help="report PNG + HTML of a written result")
     p.add_argument("result", metavar="RESULT.yaml", type=Path,

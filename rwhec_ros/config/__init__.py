@@ -49,8 +49,9 @@ Units: metres, seconds, radians (suffixes ``_m``, ``_s``, ``_rad`` in the names)
 Modules: :mod:`.specs` (the parameter schema), :mod:`.sections` (the typed sections),
 :mod:`.targets` (the named targets: boards),
 :mod:`.calibrator` (:class:`CalibratorConfig`, built from its sections), :mod:`.validation`
-(types and values, naming the parameter) and :mod:`.parameter_file` (reading a ROS 2 parameter
-file without ROS).
+(types and values, naming the parameter), :mod:`.parameter_file` (reading a ROS 2 parameter
+file without ROS) and :mod:`.reference` (the Markdown reference of every parameter,
+``docs/configuration-reference.md``, rendered from the specs).
 """
 
 from . import sections, specs

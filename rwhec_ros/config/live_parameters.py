@@ -20,7 +20,9 @@ What a live change does (the text also goes into the callback's answer and the l
   from now on (pairs already kept stay);
 * ``output.*`` -- used by the next ``calibrate`` / ``save_dataset``;
 * ``solver.live_period_s`` (0 turns the live re-solve off), ``convergence.*`` -- used by the next
-  live re-solve (:mod:`rwhec_ros.session.live_solve`).
+  live re-solve (:mod:`rwhec_ros.session.live_solve`);
+* ``capture.*`` -- used for the images from now on (:mod:`rwhec_ros.session.capture`), so an
+  arm's operator can switch between continuous keyframing and ``~/capture``.
 
 Everything else is read once at start-up (subscriptions, queues, worker threads, detectors, the
 frames of the problem) and needs a restart. A new parameter is restart-only until it is added to
@@ -63,6 +65,7 @@ LIVE_PARAMETERS: dict[str, str] = {
     "keyframe.min_translation_m": "used for the pairs offered from now on",
     "priors.": _NEXT_SOLVE,
     "accuracy.": _NEXT_SOLVE,
+    "capture.": "used for the images from now on (a running ~/capture keeps its cameras)",
     "output.directory": "used by the next calibrate and save_dataset",
     "output.": _NEXT_SOLVE,
 }

@@ -20,6 +20,7 @@ __all__ = [
     "OutputConfig",
     "RosConfig",
     "AccuracyConfig",
+    "CaptureConfig",
 ]
 
 
@@ -113,7 +114,10 @@ class SyncConfig:
     """Pose/image time matching. Seconds here; the session converts to integer nanoseconds.
 
     ``image_queue_size`` counts per camera; ``detection_threads`` is an integer or ``"auto"``
-    (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`).
+    (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`); an image waits for
+    the pose at its stamp at most ``max_pose_wait_s``, the waiting images of one holder take at
+    most ``max_waiting_mb`` megabytes (:mod:`rwhec_ros.sync.pose_wait`). ``at_rest_*``: the
+    stop-and-go rule of :mod:`rwhec_ros.sync.at_rest`.
     """
 
     max_gap_s: float
@@ -121,8 +125,12 @@ class SyncConfig:
     pose_buffer_size: int
     image_queue_size: int
     detection_threads: int | str
-    max_pending_images: int
     tf_timeout_s: float
+    at_rest_max_gap_s: float = 2.0
+    at_rest_translation_m: float = 0.0005
+    at_rest_rotation_rad: float = 0.001
+    max_pose_wait_s: float = 1.0
+    max_waiting_mb: float = 256.0
 
 
 @dataclass(frozen=True)
@@ -161,6 +169,7 @@ class SolverConfig:
     unobservable_std_m: float = 1.0
     min_scale: float = 0.01
     live_period_s: float = 2.0
+    sdp_backend: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -176,7 +185,7 @@ class ConvergenceConfig:
 @dataclass(frozen=True)
 class PriorsConfig:
     """Known translation components ``(frame, axis, value_m)`` that fix unobservable directions
-    (:class:`rwhec_ros.core.gauge.TranslationPrior`; the axis is of the frame's carrier)."""
+    (:class:`rwhec_ros.core.model.gauge.TranslationPrior`; the axis is of the frame's carrier)."""
 
     entries: tuple[tuple[str, str, float], ...] = ()
 
@@ -211,3 +220,14 @@ class AccuracyConfig:
 
     cross_validation_folds: int = 5
     guidance: bool = True
+
+
+@dataclass(frozen=True)
+class CaptureConfig:
+    """Which images become candidate views (:mod:`rwhec_ros.session.capture`): ``mode``
+    ``"continuous"``, ``"capture"`` or ``"both"``; a capture takes each camera's next image
+    whose pose has been at rest for ``rest_s`` and answers after at most ``timeout_s``."""
+
+    mode: str = "continuous"
+    rest_s: float = 0.5
+    timeout_s: float = 10.0

@@ -24,9 +24,11 @@ __all__ = [
     "ROS_MANAGED_PREFIXES",
     "KINDS",
     "SOLVER_MODES",
+    "SDP_BACKENDS",
     "POSE_SOURCE_TYPES",
     "IMAGE_QOS",
     "IMAGE_TRANSPORTS",
+    "CAPTURE_MODES",
 ]
 
 #: Node name used by the console script, the launch files and the example configurations.
@@ -45,9 +47,13 @@ KINDS = ("bool", "int", "double", "string", "int_array", "double_array", "string
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 SOLVER_MODES = ("fast", "sdp", "local")
+#: ``solver.sdp_backend`` values (:attr:`rwhec_ros.core.relaxation.SdpOptions.backend`).
+SDP_BACKENDS = ("auto", "structured", "cvxpy")
 POSE_SOURCE_TYPES = ("topic", "tf")
 IMAGE_QOS = ("sensor_data", "reliable")
 IMAGE_TRANSPORTS = ("raw", "compressed")
+#: ``capture.mode`` values: which images become candidate views (:mod:`rwhec_ros.session.capture`).
+CAPTURE_MODES = ("continuous", "capture", "both")
 #: ``targets.<name>.type`` values: one tag of ``tags.family`` with its own frame name, a
 #: Kalibr-style AprilGrid, a ChArUco board (:mod:`rwhec_ros.vision.boards`), a chessboard, a
 #: circle grid with a larger origin circle, OpenCV's asymmetric circle grid
@@ -133,15 +139,38 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("sync.detection_threads", "int_or_auto", "auto",
               doc="threads running tag detection (node and bag replay): 'auto' = the cores "
                   "available to the process, at most one per camera; or an integer >= 1"),
-    ParamSpec("sync.max_pending_images", "int", 32,
-              doc="images waiting for a later pose to bracket their stamp"),
+    ParamSpec("sync.max_pose_wait_s", "double", 1.0,
+              doc="longest wait [s] of an image for the pose at its stamp (it waits as long as "
+                  "the pose stream's measured lateness needs, at most this; see "
+                  "docs/ros-transport.md)"),
+    ParamSpec("sync.max_waiting_mb", "double", 256.0,
+              doc="memory [MB] of the images held while they wait for their pose (the node's "
+                  "queue; the session's own); beyond it the oldest is given up and counted"),
     ParamSpec("sync.tf_timeout_s", "double", 0.2,
               doc="wait [s] for tf at an image stamp (pose_source.type 'tf')"),
+    ParamSpec("sync.at_rest_max_gap_s", "double", 2.0,
+              doc="stop-and-go: an image between two pose samples further apart than "
+                  "sync.max_gap_s but at most this [s], that agree within sync.at_rest_*, gets "
+                  "the pose at rest (an image newer than the newest sample waits this long for "
+                  "one after it when the two newest agree); 0 = off"),
+    ParamSpec("sync.at_rest_translation_m", "double", 0.0005,
+              doc="two pose samples are the same pose at rest when their translations differ "
+                  "by at most this [m] ..."),
+    ParamSpec("sync.at_rest_rotation_rad", "double", 0.001,
+              doc="... and their rotations by at most this [rad]"),
     ParamSpec("keyframe.min_rotation_rad", "double", 0.05,
               doc="a new pair needs this rotation [rad] from the last kept one (same edge)"),
     ParamSpec("keyframe.min_translation_m", "double", 0.02,
               doc="... or this translation [m]"),
     ParamSpec("keyframe.max_pairs_per_edge", "int", 300, doc="cap on kept pairs per edge"),
+    ParamSpec("capture.mode", "string", "continuous",
+              doc="'continuous' (every image is a candidate view, kept by the keyframe test), "
+                  "'capture' (only the images taken by the ~/capture service) or 'both'"),
+    ParamSpec("capture.rest_s", "double", 0.5,
+              doc="~/capture takes each camera's next image whose pose has been at rest "
+                  "(sync.at_rest_* tolerances, over that camera's images) for this long [s]"),
+    ParamSpec("capture.timeout_s", "double", 10.0,
+              doc="~/capture answers with what it has after this long [s]"),
     ParamSpec("detection.corner_refinement", "string", "edge",
               doc="corner refinement: 'edge' (sub-pixel edge-line fit, the most accurate "
                   "measured, see benchmarks/perception.md), or cv2.aruco's 'subpix', "
@@ -180,6 +209,11 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "skipped)"),
     ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),
     ParamSpec("solver.min_pairs", "int", 3, doc="edges with fewer pairs are left out"),
+    ParamSpec("solver.sdp_backend", "string", "auto",
+              doc="the SDP's solver (mode sdp and the fallback of fast): 'structured' (the "
+                  "interior-point method on the frame blocks, docs/sdp.md), 'cvxpy' (cvxpy + "
+                  "Clarabel) or 'auto' (structured unless Clarabel's chordal decomposition is "
+                  "estimated cheaper)"),
     ParamSpec("solver.reject_outliers", "bool", False,
               doc="outlier rejection: per-edge RANSAC on eq. (70) (paper Sec. 9.1), then a "
                   "GNC-TLS robust solve, re-certified on the inlier set"),

@@ -215,9 +215,9 @@ class Problem:
         self.edge_x = np.array(xi, dtype=int)
         self.edge_y = np.array(yi, dtype=int)
         #: The cost's edge blocks ``(full, rot, idx)`` of these edges when computed ahead
-        #: (:class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`, the live re-solve's), used by
-        #: :func:`~rwhec_ros.core.cost.edge_blocks` instead of assembling them; ``None``: built
-        #: when needed. Only valid while the edges' arrays are not changed in place.
+        #: (:class:`~rwhec_ros.core.model.edge_cache.EdgeBlockCache`, the live re-solve's), used by
+        #: :func:`~rwhec_ros.core.model.cost.edge_blocks` instead of assembling them; ``None``:
+        # built  when needed. Only valid while the edges' arrays are not changed in place.
         self.precomputed_blocks: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     # --- sizes -------------------------------------------------------------------------------

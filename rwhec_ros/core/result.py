@@ -86,7 +86,7 @@ class Certificate:
         Proven lower bound on ``lambda_min(Z)`` (scaled units) used in ``dual_bound``.
     margins : dict of str to float
         What the rounding analysis subtracted from ``lambda_s`` (unscaled cost units):
-        ``eigenvalue``, ``rounding``, ``schur`` (see :mod:`rwhec_ros.core.certificate`).
+        ``eigenvalue``, ``rounding``, ``schur`` (see :mod:`rwhec_ros.core.certify.dense`).
     cost_floor : float
         The cost regarded as zero at the scale of the data (unscaled): ``rho_hat``'s denominator
         is ``max(d, cost_floor)``; ``nan`` where no bound was computed.
@@ -113,7 +113,7 @@ class Certificate:
                     margin: tuple[str, float] | None = None) -> Certificate:
         """This certificate with another ``p`` (a proven upper bound on the cost of the estimate
         that is returned) and ``d`` (a proven lower bound on the optimum), e.g. of the same
-        problem solved about another origin (:mod:`rwhec_ros.core.recentre`): ``rho_hat``
+        problem solved about another origin (:mod:`rwhec_ros.core.model.recentre`): ``rho_hat``
         recomputed with the same cost floor, and a certificate whose ``rho_hat`` then exceeds
         the tolerance is ``not_tight``, with ``why`` (what the new bounds are) in its message.
         Other statuses keep theirs (new bounds cannot prove more than the old ones did; ``rho_hat``
@@ -190,8 +190,8 @@ class CalibrationResult:
     notes : list of str
         Anything the user should know (fallbacks, dropped edges, ...).
     unobservable : list
-        :class:`~rwhec_ros.core.gauge.UnobservableDirection` s: translation directions the data
-        do not determine, with how each was fixed (prior or default) and its value.
+        :class:`~rwhec_ros.core.model.gauge.UnobservableDirection` s: translation directions the
+        data do not determine, with how each was fixed (prior or default) and its value.
     """
 
     x_names: tuple[str, ...]

@@ -36,6 +36,7 @@ data set and output files), :mod:`.rejections` (data rejected wholesale, in word
 :mod:`.live_solve` (:class:`~rwhec_ros.session.live_solve.LiveSolver`, the session's ``live``:
 background re-solves while data arrive, off the sensor path and never blocking ``calibrate``),
 :mod:`.convergence` (its convergence verdict and the ``~/estimate`` document),
+:mod:`.capture` (``capture.mode`` and the ``~/capture`` service's view at rest),
 :mod:`.paths` (the output root), :mod:`.responses` (the service answers) and :mod:`.handlers`
 (:class:`MessageHandlers`: one ROS message, rclpy's or rosbags', into the session).
 """

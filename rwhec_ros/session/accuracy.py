@@ -2,12 +2,15 @@
 
 At the solution of :func:`~rwhec_ros.session.solving.solve_and_assess`:
 
-* the **uncertainty** of every frame (:func:`rwhec_ros.core.uncertainty.frame_uncertainty`, with
+* the **uncertainty** of every frame (:func:`rwhec_ros.core.analysis.uncertainty.frame_uncertainty`,
+with
   the solve's priors): the 6x6 covariance on the tangent space of SE(3) in the frame's parent,
   predicted from the stated noise and rescaled a posteriori; unobservable axes as such;
-* the **cross-validation** (:func:`rwhec_ros.core.validation.cross_validate`, ``folds`` folds,
+* the **cross-validation** (:func:`rwhec_ros.core.analysis.validation.cross_validate`, ``folds``
+folds,
   ``0`` for none): per edge the held-out residuals next to the in-sample ones;
-* the **next-motion guidance** (:func:`rwhec_ros.core.guidance.suggest_next_motion`): the motion
+* the **next-motion guidance** (:func:`rwhec_ros.core.analysis.guidance.suggest_next_motion`): the
+motion
   that would most reduce the largest remaining std, in words;
 * the **reprojection error per camera**
   (:func:`rwhec_ros.vision.reprojection.reprojection_errors`) of the detected corners (tags,
@@ -34,10 +37,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.guidance import Guidance, GuidanceOptions, suggest_next_motion
+from ..core.analysis.guidance import Guidance, GuidanceOptions, suggest_next_motion
+from ..core.analysis.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
+from ..core.analysis.validation import CrossValidation, cross_validate
 from ..core.problem import Problem
-from ..core.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
-from ..core.validation import CrossValidation, cross_validate
 from ..core.verdict.words import deg, mm
 
 __all__ = ["AccuracyOptions", "Accuracy", "assess_accuracy", "accuracy_lines", "std_words",
@@ -230,7 +233,7 @@ def assess_accuracy(problem: Problem, result, *, solve_options=None,
     :class:`~rwhec_ros.vision.reprojection.CornerObservation` and camera -> intrinsics) give the
     reprojection error per camera (observations of frames the result lacks are left out). A part
     that fails leaves a note and None; nothing raises for the data's sake."""
-    from ..core.gauge import GaugeOptions
+    from ..core.model.gauge import GaugeOptions
     from ..core.solve import SolveOptions
 
     opts = options or AccuracyOptions()

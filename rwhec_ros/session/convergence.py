@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from ..core.analysis.uncertainty import Uncertainty
 from ..core.result import CalibrationResult
-from ..core.uncertainty import Uncertainty
 from ..data.results import FrameNaming, plain, result_document
 
 __all__ = ["Convergence", "convergence_of", "estimate_document", "LIVE_SOURCE"]
@@ -148,9 +148,10 @@ def estimate_document(result: CalibrationResult, uncertainty: Uncertainty, confi
     """The ``~/estimate`` YAML mapping: the result YAML's schema
     (:func:`rwhec_ros.data.results.result_document`, ``verdict: unknown``: a live estimate is not
     assessed, ``calibrate`` does that; ``source.type: live``) plus, per frame, the
-    :meth:`~rwhec_ros.core.uncertainty.FrameUncertainty.to_dict` keys (``std_translation_m``
-    [x, y, z], ``std_rotation_deg`` [x, y, z], ``covariance``, ``a_posteriori``,
-    ``unobservable``), the whole-problem ``uncertainty`` (variance factor, notes; without the
+    :meth:`~rwhec_ros.core.analysis.uncertainty.FrameUncertainty.to_dict` keys
+    (``std_translation_m`` [x, y, z], ``std_rotation_deg`` [x, y, z], ``covariance``,
+    ``a_posteriori``, ``unobservable``), the whole-problem ``uncertainty`` (variance factor, notes;
+    without the
     frames), ``convergence`` (:meth:`Convergence.to_dict`) and ``live`` (pairs, timing)."""
     doc = result_document(result, FrameNaming.from_config(config), excluded=excluded,
                           config=config.to_parameters(), source={"type": LIVE_SOURCE})

@@ -8,7 +8,7 @@ thread and returns at once. The re-solve takes the kept pairs under the session'
 (read-only views that the accumulator never changes afterwards, or copies), then builds the
 problem, solves it in ``fast`` mode (paper Section 7.3, no SDP fallback: a live estimate never
 waits for the SDP) and computes every frame's uncertainty
-(:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`) outside it. So the sensor path
+(:func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty`) outside it. So the sensor path
 (``add_pose``/``add_image``, the detection workers) never waits for a live solve.
 
 A re-solve is due when (1) ``solver.live_period_s`` > 0 (0 = off; read at every tick, so it can
@@ -35,8 +35,8 @@ that does not certify is solved again from the closed form, so the statuses are 
 start (``test/test_live_solve.py`` checks estimates and certificates against cold solves).
 
 The cost's edge blocks are kept from one re-solve to the next
-(:class:`~rwhec_ros.core.edge_cache.EdgeBlockCache`: an edge that only gained pairs at its end,
-as the accumulator's lineages tell without a look at the pairs, has only those summed) and set
+(:class:`~rwhec_ros.core.model.edge_cache.EdgeBlockCache`: an edge that only gained pairs at its
+end, as the accumulator's lineages tell without a look at the pairs, has only those summed) and set
 as the problem's ``precomputed_blocks``, which the solve and the
 uncertainty (``information="edge_blocks"``: the information matrix from the blocks, not from
 the pairs) both use; the results equal the fresh, pair-by-pair ones to rounding.
@@ -56,10 +56,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..core.edge_cache import EdgeBlockCache
+from ..core.analysis.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
+from ..core.model.edge_cache import EdgeBlockCache
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
-from ..core.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
 from ..messages import LEVEL_OK, LEVEL_WARN
 from ..sync.accumulator import problem_from_edges
 from .convergence import Convergence, convergence_of, estimate_document
@@ -102,7 +102,7 @@ def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = Non
                            ) -> tuple[CalibrationResult, Uncertainty]:
     """The live re-solve: ``fast`` without SDP fallback or outlier rejection, with the
     configuration's priors, ``solver.unobservable_std_m`` and ``solver.min_scale``, then
-    :func:`~rwhec_ros.core.uncertainty.frame_uncertainty` with the same gauge options.
+    :func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty` with the same gauge options.
 
     ``initial`` ``(X (M, 4, 4), Y (P, 4, 4))``: a warm start (the previous live estimate, in the
     problem's frame order) for the local solver instead of the closed-form estimate. The

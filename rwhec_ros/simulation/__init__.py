@@ -4,7 +4,10 @@
 * :mod:`.stream`: its sensor stream in stamp order (:func:`simulated_stream`), as the CLI's
   ``demo`` and the simulator node consume it;
 * :mod:`.bag`: that stream as the messages ``rwhec_demo_sim`` publishes
-  (:func:`simulation_messages`) and recorded into a bag (:func:`write_simulated_bag`).
+  (:func:`simulation_messages`) and recorded into a bag (:func:`write_simulated_bag`);
+* :mod:`.synthetic` and :mod:`.scenarios`: seeded ``(Problem, GroundTruth)`` generators at the
+  level of the solver's input -- random rigs and the paper's noise model, and the paper's Section
+  8 scenarios (import them from their modules; they are not re-exported here).
 """
 
 from . import bag, rig, stream

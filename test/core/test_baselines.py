@@ -18,7 +18,7 @@ from rwhec_ros.core.baselines import (
 )
 from rwhec_ros.core.baselines.dornaika import _dornaika_residuals
 from rwhec_ros.core.lie import invert_transform, rotation_distance
-from rwhec_ros.core.synthetic import random_instance, random_transforms
+from rwhec_ros.simulation.synthetic import random_instance, random_transforms
 
 #: Noise-free data: every method is exact up to round-off in its linear algebra (SVDs, OpenCV's
 #: internal conversions, a converged Gauss-Newton); 1e-6 leaves ample margin above ~1e-12.
@@ -160,7 +160,8 @@ def test_registry_is_read_only_and_labelled():
 
 
 @pytest.mark.skipif(
-    importlib.util.find_spec("rwhec_ros.core.lom") is None, reason="rwhec_ros.core.lom missing"
+    importlib.util.find_spec("rwhec_ros.core.baselines.lom_solver") is None,
+    reason="rwhec_ros.core.baselines.lom_solver missing",
 )
 def test_lom_exact_on_noise_free_graph():
     problem, gt = random_instance(np.random.default_rng(10), 2, 2, n_per_edge=8)

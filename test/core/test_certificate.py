@@ -2,14 +2,14 @@
 
 ``Z = V diag(w) V^T`` with a random orthogonal ``V`` and chosen eigenvalues ``w``; scale 1, an
 exact reduction (no translations), ``lambda_s = 1``. Each test pins one decision of
-:func:`rwhec_ros.core.certificate.certify_from_Z` (the tolerances, the dual bound of eq. (71), the
+:func:`rwhec_ros.core.certify.dense.certify_from_Z` (the tolerances, the dual bound of eq. (71), the
 solver-status and non-finite paths) so that changing it makes a test fail.
 """
 
 import numpy as np
 import pytest
 
-from rwhec_ros.core.certificate import (
+from rwhec_ros.core.certify.dense import (
     CertificateOptions,
     DualBound,
     ExactReduction,
@@ -19,17 +19,19 @@ from rwhec_ros.core.certificate import (
     certify_from_Z,
     rigorous_dual_bound,
 )
-from rwhec_ros.core.cost import StateLayout, build_cost_matrices, reduce_cost
-from rwhec_ros.core.local_solver import (
+from rwhec_ros.core.certify.multipliers import (
     fast_certificate_matrix,
     fast_certificate_multipliers,
     handedness_direction,
     handedness_multipliers,
-    refine_rotations,
 )
-from rwhec_ros.core.relaxation import so3_constraint_matrices
+from rwhec_ros.core.certify.relaxation import so3_constraint_matrices
+from rwhec_ros.core.local.dense import refine_rotations
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices
+from rwhec_ros.core.model.reduction import reduce_cost
+from rwhec_ros.core.numerics.verified import gamma
 from rwhec_ros.core.result import Status
-from rwhec_ros.core.synthetic import random_instance, random_rotations
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
 N_ROT = 2  # two rotations: Z is 19 x 19 and |y|^2 = 3 n + 1 = 7
 D = 9 * N_ROT + 1
@@ -173,6 +175,39 @@ def test_unverifiable_reduction_is_ill_conditioned():
     assert "translation block" in c.message
 
 
+def test_no_shifted_factorisation_gives_no_bound():
+    """The branch of rigorous_dual_bound where every shifted Cholesky factorisation of Z fails:
+    an estimate of lambda_min above the whole spectrum (1.0 for the spectrum 0.05..1, of an
+    eigensolver that went wrong) puts every shift mu = estimate - gap (the gap grows from
+    gamma_{n+1} max|Z_ii| ~ 1e-15 to ~1e-8 in 8 attempts) above lambda_max, so fl(Z - mu I) is
+    negative definite and no factorisation succeeds, deterministically on any machine. No bound:
+    -inf, with the reason."""
+    Z = _crafted(_spectrum(0.05))
+    b = rigorous_dual_bound(Z, np.zeros(D), 1.0, ExactReduction(D), 1.0, N_ROT, 1.0 + 1e-3)
+    assert b.value == float("-inf") and b.lambda_min_lower == float("-inf")
+    assert b.reason == "no shifted factorisation of Z succeeded"
+    # the same Z with a right estimate is bounded (the failure is the factorisation's alone)
+    ok = rigorous_dual_bound(Z, np.zeros(D), 1.0, ExactReduction(D), 1.0, N_ROT, 0.05)
+    assert np.isfinite(ok.value) and ok.reason == ""
+
+
+def test_no_shifted_factorisation_is_not_certified(monkeypatch):
+    """Through certify_from_Z: when the eigenvalue estimate it factorises Z against is wrong
+    (above the spectrum), no shifted factorisation succeeds and the status is ill-conditioned
+    with that reason, never certified (the data are otherwise a clear certificate)."""
+    import rwhec_ros.core.certify.dense as certificate
+
+    def estimate_above_spectrum(Z, k):
+        return np.full(k, float(np.linalg.eigvalsh(Z)[-1]) + 1e-3)
+
+    assert _cert(_spectrum(0.0)).status is Status.CERTIFIED_OPTIMAL
+    monkeypatch.setattr(certificate, "smallest_eigenvalues", estimate_above_spectrum)
+    c = _cert(_spectrum(0.0))
+    assert c.status is Status.ILL_CONDITIONED
+    assert "no shifted factorisation of Z succeeded" in c.message
+    assert c.dual_bound == float("-inf")
+
+
 def test_schur_residual_lowers_the_bound():
     """||F||^2 / l_e times |y|^2 = 7 is subtracted: residual 1e-3, block bound 1 -> 7e-6."""
     red = ExactReduction(D, residual_norm=1e-3, block_lower=1.0)
@@ -233,8 +268,12 @@ def test_fast_multipliers_reproduce_the_fast_certificate_matrix():
     Z2, lam_s = fast_certificate_matrix(Qs, R)
     np.testing.assert_allclose(Z1, Z2, atol=1e-12 * np.abs(Qs).max())
     assert lam[-1] == pytest.approx(lam_s)
-    D_ = cons.apply(handedness_multipliers(R))
-    np.testing.assert_allclose(D_, handedness_direction(R), atol=1e-15)
+    hm = handedness_multipliers(R)
+    D_ = cons.apply(hm)
+    # the same matrix assembled in another order: each entry a sum of at most max_terms terms,
+    # so the two are within 2 gamma_{max_terms} of the sum of the terms' absolute values
+    absD = np.asarray(cons.abs_C @ np.abs(hm)).reshape(cons.d, cons.d, order="F")
+    assert np.all(np.abs(D_ - handedness_direction(R)) <= 2.0 * gamma(cons.max_terms) * absD)
     z = np.concatenate([np.swapaxes(R, 1, 2).reshape(-1), [1.0]])
     np.testing.assert_allclose(D_ @ z, 0.0, atol=1e-12)  # the handedness direction keeps Z z
 
@@ -285,7 +324,7 @@ def test_certificate_matrix_rounding_bound_holds_in_exact_arithmetic():
 def test_certificate_matrix_rounding_bound_is_the_documented_formula():
     """err_rows = gamma_{t+1} rows(|C||lambda|) + gamma_3 rows(|Q'| + |K|), t the most
     constraints on one entry of Z (counted here from the dense constraint matrices)."""
-    from rwhec_ros.core.verified import gamma
+    from rwhec_ros.core.numerics.verified import gamma
 
     Qs, cons, lam = _constraint_case(7)
     Z, err = certificate_matrix(Qs, cons, lam)
@@ -498,7 +537,7 @@ def test_inflation_factors_that_are_the_same_double():
     """Why two mutants of the rounding term are equivalent (benchmarks/mutation.py): as doubles,
     1 + gamma_1 == 1 + gamma_2 (= 1 + 2^-52) and 1 + gamma_3 == 1 + gamma_4 (= 1 + 2^-51), while
     1 + gamma_2 < 1 + gamma_3."""
-    from rwhec_ros.core.verified import gamma
+    from rwhec_ros.core.numerics.verified import gamma
 
     assert 1.0 + gamma(1) == 1.0 + gamma(2) == 1.0 + 2.0**-52
     assert 1.0 + gamma(3) == 1.0 + gamma(4) == 1.0 + 2.0**-51

@@ -25,7 +25,7 @@ import certificate_soundness as cs  # noqa: E402
 import soundness_checker as sc  # noqa: E402
 import soundness_instances as si  # noqa: E402
 
-from rwhec_ros.core.cost import direct_cost as product_direct_cost  # noqa: E402
+from rwhec_ros.core.model.cost import direct_cost as product_direct_cost  # noqa: E402
 
 FAILURES = BENCH / "soundness_failures"
 SEED = 2026

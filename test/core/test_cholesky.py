@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from rwhec_ros.core.cholesky import upper_cholesky, upper_cholesky_solve
+from rwhec_ros.core.numerics.cholesky import upper_cholesky, upper_cholesky_solve
 
 
 def _spd(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -3,14 +3,9 @@
 import numpy as np
 import pytest
 
-from rwhec_ros.core.cost import (
-    StateLayout,
-    build_cost_matrix,
-    direct_cost,
-    pack_state,
-    reduce_cost,
-)
-from rwhec_ros.core.synthetic import random_instance, random_transforms
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrix, direct_cost, pack_state
+from rwhec_ros.core.model.reduction import reduce_cost
+from rwhec_ros.simulation.synthetic import random_instance, random_transforms
 
 
 @pytest.mark.parametrize("unknown_scale", [False, True])

@@ -1,4 +1,4 @@
-"""The live re-solve's cache of the cost's edge blocks (:mod:`rwhec_ros.core.edge_cache`): the
+"""The live re-solve's cache of the cost's edge blocks (:mod:`rwhec_ros.core.model.edge_cache`): the
 cached blocks equal the freshly assembled ones whatever happened to the pairs since (pairs
 added, a pair replaced, the noise changed, edges added or dropped), and a solve from cached
 blocks equals a solve from scratch."""
@@ -6,11 +6,11 @@ blocks equals a solve from scratch."""
 import numpy as np
 import pytest
 
-from rwhec_ros.core.cost import _edge_sums, _edge_sums_few, build_cost_matrices, edge_blocks
-from rwhec_ros.core.edge_cache import EdgeBlockCache
+from rwhec_ros.core.model.cost import _edge_sums, _edge_sums_few, build_cost_matrices, edge_blocks
+from rwhec_ros.core.model.edge_cache import EdgeBlockCache
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance, random_transforms
+from rwhec_ros.simulation.synthetic import random_instance, random_transforms
 
 # The cached sums add two runs of each edge's pairs where a fresh assembly sums them in one:
 # they differ by the rounding of sums of ~100 terms of size <= max|block| (~1e-14 relative).

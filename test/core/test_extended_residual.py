@@ -1,5 +1,5 @@
 """The extended-precision residual bound of the Schur reduction and the certificate retry that
-uses it (rwhec_ros.core.extended_residual, cost.reduce_cost(residual="extended"),
+uses it (rwhec_ros.core.numerics.extended_residual, cost.reduce_cost(residual="extended"),
 solve._certify).
 
 The data set ``fixtures/precise_rig.npz`` is a 3-camera, 6-tag part (252 pairs) of the camera-rate
@@ -17,13 +17,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import rwhec_ros.core.solve as solve_module
-from rwhec_ros.core.cost import StateLayout, build_cost_matrices, reduce_cost
-from rwhec_ros.core.extended_residual import extended_dtype, residual_bound
+import rwhec_ros.core.pipeline.dense as dense_path
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices
+from rwhec_ros.core.model.reduction import reduce_cost
+from rwhec_ros.core.numerics.extended_residual import extended_dtype, residual_bound
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.result import Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance, random_rotations
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
 FIXTURE = Path(__file__).parent / "fixtures" / "precise_rig.npz"
 
@@ -163,7 +164,7 @@ def test_precise_rig_certified_only_with_the_extended_bound(precise_rig, monkeyp
     same estimate (bit for bit: the retry changes no matrix the solvers use) is certified."""
     opts = SolveOptions(mode="fast", fallback_to_sdp=False)
     certified = solve(precise_rig, opts)
-    monkeypatch.setattr(solve_module, "_tighten_reduction", lambda prep: False)
+    monkeypatch.setattr(dense_path, "_tighten_reduction", lambda prep: False)
     plain = solve(precise_rig, opts)
     assert plain.certificate.status is Status.NOT_TIGHT
     assert plain.certificate.null_space_dim == 1
@@ -182,17 +183,17 @@ def test_precise_rig_certified_only_with_the_extended_bound(precise_rig, monkeyp
 def test_precise_rig_certified_estimate_beats_random_starts(precise_rig):
     """Independent check of the certified claim: no local solve from random rotations finds a
     lower cost than the certified estimate (up to its proven bound plus rounding of the cost)."""
-    from rwhec_ros.core.local_solver import refine_rotations
+    from rwhec_ros.core.local.dense import refine_rotations
     res = solve(precise_rig, SolveOptions(mode="fast", fallback_to_sdp=False))
     assert res.certificate.certified
     p = res.certificate.primal_cost
     rng = np.random.default_rng(0)
-    prep = solve_module._prepare(precise_rig, SolveOptions(mode="fast"))
+    prep = dense_path.prepare_dense(precise_rig, SolveOptions(mode="fast"))
     n = precise_rig.M + precise_rig.P
     for _ in range(8):
         R0 = random_rotations(rng, n)
         loc = refine_rotations(prep.Qs, R0, SolveOptions().local)
-        _, cost = solve_module._estimate(prep, loc.R)
+        _, cost = dense_path._estimate(prep, loc.R)
         assert cost >= p * (1 - res.certificate.suboptimality_bound) - 1e-9 * p
 
 
@@ -212,13 +213,13 @@ def _cert(status=Status.NOT_TIGHT, null_dim=1, rounding=1e-3, schur=0.0, dual=10
     ({"rounding": 0.0, "schur": 0.11e-6 * 10.0}, True),
 ])
 def test_retry_only_when_the_reduction_bound_can_decide(kwargs, expected):
-    assert solve_module._residual_bound_decides(_cert(**kwargs), SolveOptions()) is expected
+    assert dense_path._residual_bound_decides(_cert(**kwargs), SolveOptions()) is expected
 
 
 def test_retry_allowance_uses_the_cost_floor():
     """The gap allowed is rho_tol times the bound's denominator: the cost floor when it is larger
     than the dual bound (precise data), so small reduction terms do not trigger the retry."""
     cert = _cert(rounding=0.11e-6 * 10.0, dual=10.0)
-    assert solve_module._residual_bound_decides(cert, SolveOptions(), 0.0)
-    assert not solve_module._residual_bound_decides(cert, SolveOptions(), 1000.0)
+    assert dense_path._residual_bound_decides(cert, SolveOptions(), 0.0)
+    assert not dense_path._residual_bound_decides(cert, SolveOptions(), 1000.0)
 

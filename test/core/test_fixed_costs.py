@@ -7,10 +7,12 @@ import contextlib
 import numpy as np
 import pytest
 
-from rwhec_ros.core.cost import StateLayout, _dense_blocks, build_cost_matrices, reduce_cost
-from rwhec_ros.core.relaxation import frame_constraints, so3_constraint_matrices
-from rwhec_ros.core.solve import SolveOptions, _blas_controller, blas_threads, solve
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.core.certify.relaxation import frame_constraints, so3_constraint_matrices
+from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices
+from rwhec_ros.core.model.reduction import _dense_blocks, reduce_cost
+from rwhec_ros.core.numerics.blas import _blas_controller
+from rwhec_ros.core.solve import SolveOptions, blas_threads, solve
+from rwhec_ros.simulation.synthetic import random_instance
 
 
 def _ix_blocks(Qd, layout, unknown_scale):

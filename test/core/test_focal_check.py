@@ -14,10 +14,10 @@ import pytest
 from rwhec_ros.core.lie import invert_transform
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import perturb_measurements
 from rwhec_ros.core.verdict import VerdictOptions, assess
 from rwhec_ros.core.verdict.focal_check import NOT_CHECKED
 from rwhec_ros.simulation import Trajectory, demo_rig
+from rwhec_ros.simulation.synthetic import perturb_measurements
 from rwhec_ros.vision.detection import tag_object_points
 from rwhec_ros.vision.focal_fit import scaled_focal
 from rwhec_ros.vision.reprojection import CornerObservation, reprojection_errors

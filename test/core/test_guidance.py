@@ -4,17 +4,17 @@ import numpy as np
 import pytest
 import yaml
 
-from rwhec_ros.core.guidance import GuidanceOptions, suggest_next_motion
+from rwhec_ros.core.analysis.guidance import GuidanceOptions, suggest_next_motion
+from rwhec_ros.core.analysis.uncertainty import frame_uncertainty
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import (
+from rwhec_ros.simulation.synthetic import (
     perturb_measurements,
     planar_instance,
     random_instance,
     random_transforms,
 )
-from rwhec_ros.core.uncertainty import frame_uncertainty
 
 
 def _planar(seed=1):

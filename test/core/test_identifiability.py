@@ -16,7 +16,7 @@ from rwhec_ros.core.identifiability import (
 )
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp
 from rwhec_ros.core.problem import Edge, Problem
-from rwhec_ros.core.synthetic import perturb_measurements, random_instance, random_transforms
+from rwhec_ros.simulation.synthetic import perturb_measurements, random_instance, random_transforms
 
 S = IdentifiabilityStatus
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
@@ -392,6 +392,60 @@ def test_to_dict_is_plain_yaml():
     assert back["numeric"]["scale_undetermined"] is True
     assert back["edges"][0]["scale_rel_std"] == float("inf")
     assert back["thresholds"]["min_pairs"] == 3
+
+
+def _assert_flags_agree_with_stds(report):
+    """The report's flags and numbers agree by construction: an edge whose reasons say the
+    rotation (or the scale) is not determined carries an infinite std for it, and one whose
+    reasons do not carries a finite std; the same for the whole-problem numeric check."""
+    rot_words = ("no rotation", "only about one axis", "kernel of dimension",
+                 "rotation not determined")
+    for e in report.edges:
+        rot_undetermined = any(w in r for r in e.reasons for w in rot_words)
+        assert np.isinf(e.rotation_std_deg) == rot_undetermined, (e.reasons, e.rotation_std_deg)
+        d = e.to_dict()
+        assert np.isinf(d["rotation_std_deg"]) == rot_undetermined
+        if rot_undetermined:
+            continue  # the scale is not examined without the rotations
+        scale_undetermined = any("translation direction degenerate" in r for r in e.reasons)
+        assert np.isinf(e.scale_rel_std) == scale_undetermined, (e.reasons, e.scale_rel_std)
+        assert np.isinf(d["scale_rel_std"]) == scale_undetermined
+    num = report.numeric
+    if num is not None and num.scale_rel_std is not None:
+        assert np.isinf(num.scale_rel_std) == num.scale_undetermined
+        if num.scale_undetermined:
+            assert all(np.isinf(v) for v in num.translation_std_m.values())
+    if num is not None:
+        for name in num.undetermined_frames:
+            assert np.isinf(num.translation_std_m[name]) or np.isinf(num.rotation_std_deg[name])
+
+
+@pytest.mark.parametrize("unknown_scale", [False, True])
+@pytest.mark.parametrize("jitter", [0.0, 1e-15, 1e-12, 1e-9])
+def test_undetermined_flags_and_stds_agree_under_rounding(unknown_scale, jitter):
+    """Degenerate motions (a single sphere around the target, one rotation axis, no rotation)
+    with perturbations at and above the rounding level, which move the exact zeros of the rank
+    decisions to tiny numbers of either sign: whatever a machine's rounding gives, a quantity
+    reported undetermined has no finite std (issue: 1672 reported for an undetermined scale)."""
+    rng = np.random.default_rng(16)
+    problems = [_sphere_problem(rng, [1.0], unknown_scale)]
+    X, Y = random_transforms(rng, 1)[0], random_transforms(rng, 1)[0]
+    for axis_case in ("planar", "turntable", "translation"):
+        if axis_case == "translation":
+            A = make_transform(np.repeat(np.eye(3)[None], 20, axis=0), rng.standard_normal((20, 3)))
+        else:
+            A = _single_axis_A(rng, 20, [0.0, 0.0, 1.0], fixed_line=axis_case == "turntable")
+        problems.append(Problem(["tag"], ["cam"], [_edge(rng, X, Y, A, "tag", "cam")],
+                                unknown_scale=unknown_scale))
+    for problem in problems:
+        if jitter:
+            e = problem.edges[0]
+            A = e.A.copy()
+            A[:, :3, 3] += jitter * rng.standard_normal(A[:, :3, 3].shape)
+            problem = Problem(problem.x_names, problem.y_names,
+                              [Edge.build(e.x, e.y, A, e.B, sigma=1e-3, kappa=1e4)],
+                              unknown_scale=unknown_scale)
+        _assert_flags_agree_with_stds(analyze(problem))
 
 
 # ----------------------------------------------------------------------------------------------

@@ -11,19 +11,20 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from rwhec_ros.core.certificate import certificate_matrix
-from rwhec_ros.core.cost import build_cost_matrices, direct_cost
-from rwhec_ros.core.local_solver import (
+from rwhec_ros.core.certify.dense import certificate_matrix
+from rwhec_ros.core.certify.multipliers import fast_certificate_multipliers
+from rwhec_ros.core.certify.relaxation import frame_constraints, so3_constraint_matrices
+from rwhec_ros.core.local.dense import (
     LocalSolverOptions,
     _grad_hess,
     damped_newton,
-    fast_certificate_multipliers,
     refine_rotations,
 )
-from rwhec_ros.core.relaxation import frame_constraints, so3_constraint_matrices
-from rwhec_ros.core.solve import SolveOptions, _prepare, solve
-from rwhec_ros.core.synthetic import random_instance
-from rwhec_ros.core.verified import gamma
+from rwhec_ros.core.model.cost import build_cost_matrices, direct_cost
+from rwhec_ros.core.numerics.verified import gamma
+from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare
+from rwhec_ros.core.solve import SolveOptions, solve
+from rwhec_ros.simulation.synthetic import random_instance
 
 
 def _instance(seed, unknown_scale=False, n_per_edge=15, sigma=0.01):
@@ -182,7 +183,7 @@ def test_direct_cost_ignores_the_last_rows_of_the_measurements():
 def test_rotation_blocks_are_exactly_symmetric_without_symmetrising(unknown_scale):
     """_finished_blocks no longer symmetrises ``rot``: it is exactly symmetric as built, so the
     old ``0.5 (rot + rot^T)`` changes no bit of it."""
-    from rwhec_ros.core.cost import _all_edge_blocks, edge_blocks
+    from rwhec_ros.core.model.cost import _all_edge_blocks, edge_blocks
 
     problem, _ = _instance(8, unknown_scale)
     _, rot = _all_edge_blocks(problem)
@@ -211,7 +212,7 @@ def _far_world(problem, gt, far, seed):
 def test_direct_cost_error_bounds_the_rounding_of_the_cost(seed):
     """|p - p_exact| <= err at the truth, away from it and in a world 10 km away (where the
     rounding is ~1e-11 relative); the bound stays far below the certificate's 1e-6."""
-    from rwhec_ros.core.cost import direct_cost_error
+    from rwhec_ros.core.model.cost import direct_cost_error
 
     unknown = bool(seed % 2)
     problem, gt = _instance(seed, unknown, n_per_edge=8, sigma=0.002 * (seed + 1))
@@ -238,8 +239,8 @@ def test_certificate_cost_is_a_proven_upper_bound(monkeypatch):
     """The certificate's p is the direct cost plus its rounding bound, rounded up: at least the
     exact cost of the returned estimate, and no further from it than the bound. (Solved as
     given, without the re-centring of far data, whose p test_recentre.py checks.)"""
-    from rwhec_ros.core import recentre
-    from rwhec_ros.core.cost import direct_cost_error
+    from rwhec_ros.core.model import recentre
+    from rwhec_ros.core.model.cost import direct_cost_error
 
     monkeypatch.setattr(recentre, "RECENTRE_MIN_OFFSET_M", np.inf)
     problem, gt = _instance(3, n_per_edge=10, sigma=0.005)
@@ -254,7 +255,7 @@ def test_certificate_cost_is_a_proven_upper_bound(monkeypatch):
 
 def test_gauge_penalty_error_bounds_its_rounding():
     """GaugeFix.penalty_error against the penalty in exact rational arithmetic."""
-    from rwhec_ros.core.gauge import GaugeFix
+    from rwhec_ros.core.model.gauge import GaugeFix
 
     rng = np.random.default_rng(4)
     n = 5
@@ -276,10 +277,10 @@ def test_far_world_frame_is_not_certified_and_says_why(monkeypatch):
     """1 km from the world origin, solved as given, the rounding terms of the bound alone
     exceed the gap 1e-6 allows: not certified, and the certificate and the verdict say it is
     the coordinates (not the optimisation) and what to do; the same data about the origin are
-    certified. (Such data are re-centred by core/recentre.py and then certified, as checked
+    certified. (Such data are re-centred by core/model/recentre.py and then certified, as checked
     first; solved as given are data that it does not move: translation priors, poses spread
     over kilometres.)"""
-    from rwhec_ros.core import recentre
+    from rwhec_ros.core.model import recentre
     from rwhec_ros.core.result import Certificate, Status
     from rwhec_ros.core.verdict import assess
 

@@ -5,8 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rwhec_ros.core.lie import hat, invert_transform, make_transform, rotation_distance, so3_exp
-from rwhec_ros.core.lom import (
+from rwhec_ros.core.baselines.lom_solver import (
     left_jacobian_inverse,
     lom_cost,
     lom_jacobians,
@@ -14,7 +13,8 @@ from rwhec_ros.core.lom import (
     right_jacobian_inverse,
     solve_lom,
 )
-from rwhec_ros.core.synthetic import random_instance, random_rotations, random_transforms
+from rwhec_ros.core.lie import hat, invert_transform, make_transform, rotation_distance, so3_exp
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations, random_transforms
 
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
 
@@ -188,8 +188,8 @@ def test_real_data_converges():
     assert problem.n_measurements == 3230
     # start: the paper's frame layout with a rough guess is not available, so use the exact
     # minimiser of the rotation-only linear problem via our own identifiability machinery
-    from rwhec_ros.core.cost import StateLayout, build_cost_matrix
     from rwhec_ros.core.identifiability.numeric import _initial_point
+    from rwhec_ros.core.model.cost import StateLayout, build_cost_matrix
 
     layout = StateLayout(problem.M, problem.P)
     R, t, _, _ = _initial_point(problem, build_cost_matrix(problem), layout)

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rwhec_ros.core.cost import direct_cost
 from rwhec_ros.core.lie import invert_transform, rotation_distance, so3_exp
+from rwhec_ros.core.model.cost import direct_cost
 from rwhec_ros.core.outliers import (
     GncOptions,
     RansacOptions,
@@ -25,7 +25,7 @@ from rwhec_ros.core.outliers import (
 )
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import perturb_measurements, random_instance, random_transforms
+from rwhec_ros.simulation.synthetic import perturb_measurements, random_instance, random_transforms
 
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
 SIGMA, KAPPA = 0.01, 125.0

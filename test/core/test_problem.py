@@ -5,7 +5,7 @@ import pytest
 
 from rwhec_ros.core.lie import make_transform
 from rwhec_ros.core.problem import Edge, Problem
-from rwhec_ros.core.synthetic import random_transforms
+from rwhec_ros.simulation.synthetic import random_transforms
 
 
 @pytest.fixture

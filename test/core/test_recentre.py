@@ -1,5 +1,5 @@
-"""The re-centring of far-away carrier frames (``core/recentre.py``): when it applies, that the
-camera carrier's re-centred data are the given data minus the offset exactly and the tag
+"""The re-centring of far-away carrier frames (``core/model/recentre.py``): when it applies, that
+the camera carrier's re-centred data are the given data minus the offset exactly and the tag
 carrier's within the proven bound, that far data are then certified with the estimate, stds and
 guidance of the same data near the origin, that the certificate's ``p`` bounds the exact cost
 of the returned estimate on the given data and ``d`` stays below it, and the cases solved as
@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from rwhec_ros.core import recentre as recentre_module
-from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior
-from rwhec_ros.core.guidance import suggest_next_motion
+from rwhec_ros.core.analysis.guidance import suggest_next_motion
+from rwhec_ros.core.analysis.uncertainty import frame_uncertainty
+from rwhec_ros.core.model import recentre as recentre_module
+from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
+from rwhec_ros.core.model.recentre import CAMERA, TAG, Recentring, recentred_problem, recentring_for
 from rwhec_ros.core.problem import Edge
-from rwhec_ros.core.recentre import CAMERA, TAG, Recentring, recentred_problem, recentring_for
 from rwhec_ros.core.result import Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import planar_instance, random_instance
-from rwhec_ros.core.uncertainty import frame_uncertainty
+from rwhec_ros.simulation.synthetic import planar_instance, random_instance
 
 PAPER_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "paper_real_world"
 
@@ -289,8 +289,8 @@ def test_pose_misfit_and_scale_bounds_hold_in_exact_arithmetic():
     """The misfit of the pose translations alone: the proven lower bound is below the exact
     minimum (rational arithmetic, with the bound's rounded-down weights) and not far below it;
     the scale bound holds at the optimum."""
-    from rwhec_ros.core.recentre import pose_misfit_lower_bound, scale_bound
-    from rwhec_ros.core.verified import gamma
+    from rwhec_ros.core.model.recentre import pose_misfit_lower_bound, scale_bound
+    from rwhec_ros.core.numerics.verified import gamma
 
     problem, _ = _instance(13, unknown_scale=True)
     far, _ = _far_tags(problem, 1e4)

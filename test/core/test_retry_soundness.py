@@ -32,7 +32,7 @@ def test_exact_residual_is_the_rational_one():
 
 def test_exact_check_fails_on_a_bound_below_the_residual():
     """The exact comparison is not vacuous: half the true residual is rejected."""
-    from rwhec_ros.core.extended_residual import residual_bound
+    from rwhec_ros.core.numerics.extended_residual import residual_bound
 
     rng = np.random.default_rng(1)
     Qee, G, Qey = rs.random_blocks(rng, 8, 5, 1e10)

@@ -8,7 +8,7 @@ from scipy import integrate, stats
 
 from rwhec_ros.core.baselines import run_baseline
 from rwhec_ros.core.lie import invert_transform, rotation_angle, so3_log
-from rwhec_ros.core.scenarios import (
+from rwhec_ros.simulation.scenarios import (
     PAPER_NOISE_LEVELS,
     FixedCameraDesign,
     fixed_cameras_hand_target,
@@ -18,7 +18,7 @@ from rwhec_ros.core.scenarios import (
     sphere_spiral_directions,
     target_visibility,
 )
-from rwhec_ros.core.synthetic import sample_langevin
+from rwhec_ros.simulation.synthetic import sample_langevin
 
 #: Exact data built by composing float64 transforms: residuals are round-off (~1e-15); 1e-9
 #: leaves margin for the ~1 m lever arms.

@@ -9,7 +9,7 @@ import pytest
 from rwhec_ros.core.lie import make_transform, rotation_distance
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance, random_rotations
+from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"
 
@@ -99,7 +99,7 @@ def test_noisy_certified_and_agrees(graph, sigma, kappa, unknown_scale):
 def test_wrong_basin_is_never_certified(fast_form):
     """Random starts on heavy-noise 2X2Y data reach non-global stationary points; the fast
     certificate (no SDP fallback) must flag every one of them and certify the global ones --
-    on the dense path and on the large-rig sparse path (:mod:`rwhec_ros.core.sparse_fast`)."""
+    on the dense path and on the large-rig sparse path (:mod:`rwhec_ros.core.pipeline.sparse`)."""
     non_global = 0
     for seed in (3, 5, 8):
         rng = np.random.default_rng(seed)
@@ -172,7 +172,7 @@ def test_fast_certificate_strengthened_on_single_sphere():
     """Single-sphere trajectories (paper Sec. 8.1) violate eq. (63): the orthogonality-only
     multipliers then leave e_s in the null space of Z; the handedness direction lifts it and the
     fast path certifies without the SDP, with the same optimum as the SDP."""
-    from rwhec_ros.core.scenarios import hand_camera_sphere
+    from rwhec_ros.simulation.scenarios import hand_camera_sphere
 
     rng = np.random.default_rng(0)
     problem, _ = hand_camera_sphere(rng, sigma=0.01, kappa=125)

@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 from test_gauge import _planar_rig
 
-from rwhec_ros.core import solve as solve_module
-from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior
-from rwhec_ros.core.relaxation import SdpOptions
+from rwhec_ros.core.certify.relaxation import SdpOptions
+from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
+from rwhec_ros.core.pipeline import dense as dense_path
+from rwhec_ros.core.pipeline import statuses
 from rwhec_ros.core.result import CalibrationResult, Certificate, Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.simulation.synthetic import random_instance
 
 NULL_TOL = 1e-6  # the default CertificateOptions.null_tol; the Hessian threshold is 10x this
 
@@ -48,7 +49,7 @@ def test_explicit_arrow_form_is_solved_and_certified():
 
 
 def _sphere_problem():
-    from rwhec_ros.core.scenarios import hand_camera_sphere
+    from rwhec_ros.simulation.scenarios import hand_camera_sphere
 
     problem, _ = hand_camera_sphere(np.random.default_rng(0), sigma=0.01, kappa=125)
     return problem
@@ -67,7 +68,7 @@ def test_strengthening_that_fails_keeps_the_inconclusive_certificate(monkeypatch
     def boom(*args, **kwargs):
         raise np.linalg.LinAlgError("no step")
 
-    monkeypatch.setattr(solve_module, "strengthen_certificate", boom)
+    monkeypatch.setattr(dense_path, "strengthen_certificate", boom)
     res, wall = _timed(problem, SolveOptions(fallback_to_sdp=False))
     assert res.certificate.status is Status.NOT_TIGHT, res.certificate.message
     assert res.certificate.null_space_dim >= 2  # e_s left in the null space of Z
@@ -109,7 +110,7 @@ def two_frames():
 def _words(problem, w, V):
     prep = _stub_prep(problem, w, V)
     cert = _cert(Status.NOT_TIGHT, 2)
-    return solve_module._rotation_gauge_words(prep, _identity_result(problem, cert), NULL_TOL)
+    return statuses._rotation_gauge_words(prep, _identity_result(problem, cert), NULL_TOL)
 
 
 # the Hessian thresholds: a saddle below -10 null_tol, a flat direction |w| <= 10 null_tol
@@ -164,7 +165,7 @@ def test_rotation_gauge_analysis_runs_only_for_a_larger_null_space(two_frames, s
     calls = []
     prep = _stub_prep(two_frames, _FLAT, np.eye(6), calls)
     res = _identity_result(two_frames, _cert(status, null_dim))
-    solve_module._check_identifiability(prep, SolveOptions(), res)
+    statuses.check_identifiability(prep, SolveOptions(), res)
     assert calls == ([NULL_TOL] if analysed else [])
     if analysed:
         assert res.certificate.status is Status.NOT_IDENTIFIABLE
@@ -238,7 +239,7 @@ def test_strengthening_is_tried_down_to_minus_null_tol(monkeypatch):
     eigenvalue, it does not (no SDP fallback here, so the first certificate is returned)."""
     rng = np.random.default_rng(12)
     problem, _ = random_instance(rng, 3, 2, n_per_edge=15, sigma=0.01, kappa=125)
-    real = solve_module._certify
+    real = dense_path._certify
     for lam_min, strengthened in ((-NULL_TOL, True), (np.nextafter(-NULL_TOL, -1.0), False)):
         calls = []
 
@@ -250,7 +251,7 @@ def test_strengthening_is_tried_down_to_minus_null_tol(monkeypatch):
                                            message="crafted: not tight")
             return cert
 
-        monkeypatch.setattr(solve_module, "_certify", first_inconclusive)
+        monkeypatch.setattr(dense_path, "_certify", first_inconclusive)
         res = solve(problem, SolveOptions(fallback_to_sdp=False))
         assert len(calls) == (2 if strengthened else 1)
         assert ("strengthen" in res.timing_s) is strengthened

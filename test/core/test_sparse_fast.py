@@ -1,4 +1,4 @@
-"""The status decisions of the large-rig sparse path (:mod:`rwhec_ros.core.sparse_fast`): each
+"""The status decisions of the large-rig sparse path (:mod:`rwhec_ros.core.pipeline.sparse`): each
 way it can end -- certified, local only, not converged, the local solver or the certificate
 failing, an inconclusive certificate with and without the dense fallback and its frame limit,
 a translation block that cannot be factorised -- with the status, notes and path asserted (issue
@@ -10,12 +10,11 @@ import time
 import numpy as np
 import pytest
 
-from rwhec_ros.core import solve as solve_module
-from rwhec_ros.core import sparse_fast
-from rwhec_ros.core.local_solver import LocalSolverOptions
+from rwhec_ros.core.local.dense import LocalSolverOptions
+from rwhec_ros.core.pipeline import sparse as sparse_fast
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.simulation.synthetic import random_instance
 
 SPARSE = "sparse unreduced path (5 frames"
 DENSE_AGAIN = "solved again by the dense path"
@@ -129,7 +128,7 @@ def test_translation_block_that_cannot_be_factorised(monkeypatch, problem):
     def boom(*args, **kwargs):
         raise np.linalg.LinAlgError("translation block not positive definite")
 
-    monkeypatch.setattr(solve_module, "prepare_sparse", boom)
+    monkeypatch.setattr(sparse_fast, "prepare_sparse", boom)
     why = ("the sparse path could not start (LinAlgError: translation block not positive "
            "definite)")
     res = _solve(problem)

@@ -7,29 +7,30 @@ import pytest
 import scipy.sparse as sp
 from test_gauge import _planar_rig
 
-from rwhec_ros.core import gauge as gauge_module
-from rwhec_ros.core.cost import DENSE_MAX_SIZE, StateLayout, build_cost_matrices, reduce_cost
-from rwhec_ros.core.gauge import (
+from rwhec_ros.core.certify.sparse import (
+    CertificatePattern,
+    first_order_multipliers,
+    sparse_dual_bound,
+)
+from rwhec_ros.core.certify.sparsity import elimination_front
+from rwhec_ros.core.initial.closed_form import estimate_from_rotations
+from rwhec_ros.core.local.sparse import refine_rotations_sparse
+from rwhec_ros.core.model import gauge as gauge_module
+from rwhec_ros.core.model.cost import DENSE_MAX_SIZE, StateLayout, build_cost_matrices
+from rwhec_ros.core.model.gauge import (
     GaugeOptions,
     TranslationPrior,
     build_gauge_fix,
     find_unobservable_directions,
 )
-from rwhec_ros.core.initialization import estimate_from_rotations
+from rwhec_ros.core.model.reduction import reduce_cost
+from rwhec_ros.core.model.sparse_cost import build_full_form
+from rwhec_ros.core.numerics.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
+from rwhec_ros.core.pipeline.sparse import prepare_sparse, use_sparse
 from rwhec_ros.core.problem import Problem
 from rwhec_ros.core.result import Status
 from rwhec_ros.core.solve import SolveOptions, solve
-from rwhec_ros.core.sparse_certificate import (
-    CertificatePattern,
-    first_order_multipliers,
-    sparse_dual_bound,
-)
-from rwhec_ros.core.sparse_fast import prepare_sparse, use_sparse
-from rwhec_ros.core.sparse_ldl import FactorizationError, SparseLDL, upper_with_diagonal
-from rwhec_ros.core.sparse_problem import build_full_form
-from rwhec_ros.core.sparse_solver import refine_rotations_sparse
-from rwhec_ros.core.sparsity import elimination_front
-from rwhec_ros.core.synthetic import (
+from rwhec_ros.simulation.synthetic import (
     random_camera_tag_graph,
     random_instance,
     random_rotations,
@@ -256,8 +257,8 @@ def test_sparse_certificate_matrix_and_its_rounding_rows(t):
     row, plus with ``t``: ``gamma_{n+8} h + gamma_2 (|Q_s| + |K| + h) 1`` with ``h`` the row sums
     of ``|t|`` times the bound on |D|'s terms. Relative agreement 1e-12 (the sums run in another
     order); every factor of the bound changes it by far more."""
-    from rwhec_ros.core.sparse_certificate import handedness_entries
-    from rwhec_ros.core.verified import gamma
+    from rwhec_ros.core.certify.sparse import handedness_entries
+    from rwhec_ros.core.numerics.verified import gamma
 
     problem, _ = random_instance(np.random.default_rng(4), 1, 5, n_per_edge=8, sigma=0.02,
                                  kappa=100)

@@ -4,16 +4,18 @@ cost model, and agreement of the reduced, full and arrow forms on the same probl
 import numpy as np
 import pytest
 
-from rwhec_ros.core.lie import rotation_distance
-from rwhec_ros.core.relaxation import SdpOptions, evaluate_Z, so3_constraint_matrices
-from rwhec_ros.core.solve import SolveOptions, _form_costs, _prepare, solve
-from rwhec_ros.core.sparsity import (
+from rwhec_ros.core.certify.relaxation import SdpOptions, evaluate_Z, so3_constraint_matrices
+from rwhec_ros.core.certify.sparsity import (
     arrow_split,
     clique_weights,
     cone_cost,
     estimate_form_costs,
 )
-from rwhec_ros.core.synthetic import random_instance
+from rwhec_ros.core.lie import rotation_distance
+from rwhec_ros.core.pipeline.dense import _form_costs
+from rwhec_ros.core.pipeline.dense import prepare_dense as _prepare
+from rwhec_ros.core.solve import SolveOptions, solve
+from rwhec_ros.simulation.synthetic import random_instance
 
 # every target seen by every camera: the leaves' couplings are wider than 9 (the SVD basis)
 DENSE_4X3 = (4, 3, [(j, k) for j in range(4) for k in range(3)])

@@ -7,20 +7,20 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from rwhec_ros.core.cost import build_cost_matrices, direct_cost
-from rwhec_ros.core.gauge import GaugeOptions, TranslationPrior
+from rwhec_ros.core.analysis.information import information_from_cost_matrix, information_matrix
+from rwhec_ros.core.analysis.uncertainty import UncertaintyOptions, frame_uncertainty
 from rwhec_ros.core.identifiability import numeric_check
-from rwhec_ros.core.information import information_from_cost_matrix, information_matrix
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp, so3_log
+from rwhec_ros.core.model.cost import build_cost_matrices, direct_cost
+from rwhec_ros.core.model.gauge import GaugeOptions, TranslationPrior
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import (
+from rwhec_ros.simulation.synthetic import (
     perturb_measurements,
     planar_instance,
     random_instance,
     random_transforms,
 )
-from rwhec_ros.core.uncertainty import UncertaintyOptions, frame_uncertainty
 
 
 def _instance(seed, unknown_scale=False, sigma=0.05, kappa=10.0):
@@ -77,8 +77,8 @@ def test_information_from_the_cost_matrix_agrees(unknown_scale):
 def test_information_from_the_edge_blocks_agrees(unknown_scale, offset):
     """Edge-block assembly (the live path) against the pair-by-pair one, at the optimum and away
     from it (the curvature terms of a non-zero gradient), with precomputed blocks too."""
-    from rwhec_ros.core.edge_cache import EdgeBlockCache
-    from rwhec_ros.core.information import information_from_edge_blocks
+    from rwhec_ros.core.analysis.information import information_from_edge_blocks
+    from rwhec_ros.core.model.edge_cache import EdgeBlockCache
 
     problem, _ = _instance(5, unknown_scale)
     res = solve(problem)
@@ -303,7 +303,7 @@ def test_inverse_from_cholesky_is_the_inverse():
     """potri's inverse (both triangles filled) against solving for the identity's columns."""
     import scipy.linalg
 
-    from rwhec_ros.core.uncertainty import _inverse_from_cholesky
+    from rwhec_ros.core.analysis.uncertainty import _inverse_from_cholesky
 
     rng = np.random.default_rng(4)
     G = rng.normal(size=(40, 80))

@@ -9,23 +9,23 @@ blocks is the one scattered from the copies, bit for bit."""
 import numpy as np
 import pytest
 
-from rwhec_ros.core.cost import _blocks_from_sums, _finished_blocks
-from rwhec_ros.core.edge_cache import _finished
-from rwhec_ros.core.information import (
+from rwhec_ros.core.analysis.information import (
     _LOCAL_KNOWN,
     TangentLayout,
     _scatter_add,
     _scatter_blocks,
     information_from_edge_blocks,
 )
-from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import random_instance
-from rwhec_ros.core.uncertainty import (
+from rwhec_ros.core.analysis.uncertainty import (
     UncertaintyOptions,
     _clearly_above,
     _inverse_from_cholesky,
     covariance_of,
 )
+from rwhec_ros.core.model.cost import _blocks_from_sums, _finished_blocks
+from rwhec_ros.core.model.edge_cache import _finished
+from rwhec_ros.core.solve import solve
+from rwhec_ros.simulation.synthetic import random_instance
 
 
 def _solved(seed=2):

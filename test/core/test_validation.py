@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 import yaml
 
+from rwhec_ros.core.analysis.validation import cross_validate, fold_assignment
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import random_instance
-from rwhec_ros.core.validation import cross_validate, fold_assignment
+from rwhec_ros.simulation.synthetic import random_instance
 
 
 def _problem(seed=0, n=23, sigma=0.01, kappa=200.0):

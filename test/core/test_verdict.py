@@ -17,11 +17,11 @@ from rwhec_ros.config import GLOBAL_SPECS, load_config
 from rwhec_ros.core.lie import make_transform, so3_exp
 from rwhec_ros.core.problem import Edge, Problem
 from rwhec_ros.core.result import Status
-from rwhec_ros.core.scenarios import fixed_cameras_hand_target, hand_camera_sphere
 from rwhec_ros.core.solve import solve
-from rwhec_ros.core.synthetic import random_instance
 from rwhec_ros.core.verdict import VerdictOptions, assess, goodness_of_fit
 from rwhec_ros.core.verdict.scale_check import check_scale
+from rwhec_ros.simulation.scenarios import fixed_cameras_hand_target, hand_camera_sphere
+from rwhec_ros.simulation.synthetic import random_instance
 
 PAPER = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "paper_real_world"
 

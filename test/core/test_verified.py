@@ -4,8 +4,8 @@ on every path (full eigensolve, index range, shift-invert Lanczos), against know
 import numpy as np
 import pytest
 
-from rwhec_ros.core import verified
-from rwhec_ros.core.verified import (
+from rwhec_ros.core.numerics import verified
+from rwhec_ros.core.numerics.verified import (
     UNIT_ROUNDOFF,
     gamma,
     nonnegative_spectral_radius_bound,

@@ -1,4 +1,5 @@
-"""The rounding analysis of :mod:`rwhec_ros.core.verified`, pinned to its documented formulas.
+"""The rounding analysis of :mod:`rwhec_ros.core.numerics.verified`, pinned to its documented
+formulas.
 
 The factors ``(1 + gamma_k)``, the power iterations and the gap schedule of the shifted
 factorisation each move the proven bound by a few ulps or pick another shift: tests of the kind
@@ -16,8 +17,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from rwhec_ros.core import verified
-from rwhec_ros.core.verified import (
+from rwhec_ros.core.numerics import verified
+from rwhec_ros.core.numerics.verified import (
     UNIT_ROUNDOFF,
     VerifiedBound,
     gamma,

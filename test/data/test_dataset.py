@@ -10,8 +10,8 @@ import yaml
 
 from rwhec_ros import __version__
 from rwhec_ros.core.lie import make_transform, so3_exp
-from rwhec_ros.core.synthetic import random_instance, random_transforms
 from rwhec_ros.data.dataset import Dataset, DatasetEdge
+from rwhec_ros.simulation.synthetic import random_instance, random_transforms
 from rwhec_ros.sync.accumulator import PairAccumulator
 
 SHARED = Path(__file__).resolve().parents[2] / ".." / "shared"

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rwhec_ros.core.lie import make_transform
-from rwhec_ros.core.synthetic import random_rotations
+from rwhec_ros.simulation.synthetic import random_rotations
 from rwhec_ros.sync.accumulator import PairAccumulator
 
 FIELDS = ("stamps_ns", "A", "B", "sigma", "kappa")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rwhec_ros.core.lie import invert_transform, make_transform, rotation_distance, so3_exp
-from rwhec_ros.core.synthetic import perturb_measurements, random_transforms
+from rwhec_ros.simulation.synthetic import perturb_measurements, random_transforms
 from rwhec_ros.sync.accumulator import PairAccumulator, problem_from_edges
 
 MS = 1_000_000

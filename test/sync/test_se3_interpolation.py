@@ -11,7 +11,7 @@ from rwhec_ros.core.lie import (
     so3_exp,
     so3_log,
 )
-from rwhec_ros.core.synthetic import random_transforms
+from rwhec_ros.simulation.synthetic import random_transforms
 from rwhec_ros.sync.interpolation import (
     interpolate_se3,
     se3_exp,

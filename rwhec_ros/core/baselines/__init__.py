@@ -12,7 +12,8 @@ eq. (7)) to ``(X (M, 4, 4), Y (P, 4, 4), alpha)``; :func:`run_baseline` dispatch
 * ``wang``: Wang et al. (2022), generalized closed form (any connected graph, known scale (+)).
 * ``dornaika``: Dornaika & Horaud (1998), joint nonlinear least squares (any connected graph,
   known scale).
-* ``lom``: LOM of the paper's Appendix A, :mod:`rwhec_ros.core.lom` (any graph, both scales).
+* ``lom``: LOM of the paper's Appendix A, :mod:`rwhec_ros.core.baselines.lom_solver` (any graph,
+both scales).
 
 
 Modules: :mod:`.opencv` (the OpenCV methods and how ``A X = Y B`` maps onto them),

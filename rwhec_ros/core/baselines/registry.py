@@ -1,5 +1,5 @@
 """The baselines behind one interface: :data:`BASELINES` by name, :func:`run_baseline`, and the
-adapter of the paper's LOM (Appendix A, :mod:`rwhec_ros.core.lom`)."""
+adapter of the paper's LOM (Appendix A, :mod:`rwhec_ros.core.baselines.lom_solver`)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ __all__ = ["BaselineInfo", "BASELINES", "BaselineOutput", "baseline_names", "run
 
 
 # --------------------------------------------------------------------------------------------
-# LOM (paper Appendix A), implemented in rwhec_ros.core.lom
+# LOM (paper Appendix A), implemented in rwhec_ros.core.baselines.lom_solver
 # --------------------------------------------------------------------------------------------
 def lom(
     problem: Problem,
@@ -28,12 +28,13 @@ def lom(
     alpha0: float = 1.0,
     **kw,
 ) -> BaselineOutput:
-    """LOM of the paper's Appendix A via ``rwhec_ros.core.lom.solve_lom`` (imported lazily).
+    """LOM of the paper's Appendix A via ``rwhec_ros.core.baselines.lom_solver.solve_lom`` (imported
+    lazily).
 
     Defaults to the :func:`wang2022` initialisation (Tables 2 and 4) when ``X0``/``Y0`` are
     omitted. Extra keywords go to ``solve_lom``.
     """
-    mod = importlib.import_module("rwhec_ros.core.lom")
+    mod = importlib.import_module("rwhec_ros.core.baselines.lom_solver")
     if X0 is None or Y0 is None:
         Xw, Yw, aw = wang2022(problem)
         X0 = Xw if X0 is None else X0

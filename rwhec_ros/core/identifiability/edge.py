@@ -141,7 +141,8 @@ class EdgeIdentifiability:
     dominant_axis : ndarray (3,)
         Best-preserved direction of the A rotations (tag-carrier frame).
     rotation_std_deg : float
-        Predicted std of the least-determined rotation direction [deg] (``inf`` if singular).
+        Predicted std of the least-determined rotation direction [deg]; ``inf`` exactly when a
+        reason says the rotation is not determined (the same decision).
     rotation_sv_ratio, rotation_residual_ratio, rotation_gap : float
         ``sigma_17 / sigma_1``, ``sigma_18 / sigma_1`` and ``sigma_17 / sigma_18`` of eq. (60).
     translation_excitation_m : float
@@ -149,7 +150,9 @@ class EdgeIdentifiability:
     translation_sv_ratio : float
         ``sigma_min / sigma_max`` of the column-normalised system ``[R_A, -I, t_A]``.
     scale_rel_std : float
-        Predicted relative std of ``alpha`` (or of the homogenising ``s``) given the rotations.
+        Predicted relative std of ``alpha`` (or of the homogenising ``s``) given the rotations;
+        ``inf`` exactly when the edge does not determine the scale (the translation direction is
+        degenerate: the decision behind that reason).
     """
 
     x: str
@@ -230,8 +233,7 @@ def analyze_edge(
     # --- predicted rotation std (rotation terms only)
     sk1 = np.linalg.svd(stats.sum_kappa_RA, compute_uv=False)[0]
     info = 2.0 * (stats.sum_kappa - sk1)
-    rot_std = (float(np.degrees(1.0 / np.sqrt(info))) if info > 1e-12 * 2.0 * stats.sum_kappa
-               else float("inf"))
+    info_positive = info > 1e-12 * 2.0 * stats.sum_kappa  # rounding of s_1: ~eps N kappa
     # --- rotation system of eq. (60)
     k = np.linalg.svd(stats.K, compute_uv=False)
     s_max = np.sqrt(N + k[0])
@@ -245,8 +247,15 @@ def analyze_edge(
     d = np.sqrt(np.maximum(np.diag(stats.G), 1e-300))
     lam = np.linalg.eigvalsh(stats.G / np.outer(d, d))
     t_ratio = float(np.sqrt(max(lam[0], 0.0) / lam[-1])) if lam[-1] > 0 else 0.0
+    # One decision whether this edge determines the scale (``scale_determined``), from which
+    # both the reason and ``scale_rel_std`` follow, so that a scale reported undetermined never
+    # carries a finite std: the translation excitation against its threshold (the reported
+    # reason), and the weighted Schur complement numerically positive (rounding of the sums is
+    # ~eps times its diagonal; 1e-12 of it leaves a 4-digit margin).
     schur_w = _schur_last(stats.Gw)
-    scale_std = float(1.0 / np.sqrt(schur_w)) if schur_w > 0 else float("inf")
+    scale_determined = (excitation >= thr.min_translation_excitation_m
+                        and schur_w > 1e-12 * max(float(stats.Gw[-1, -1]), 1e-300))
+    scale_std = float(1.0 / np.sqrt(schur_w)) if scale_determined else float("inf")
 
     hard: list[str] = []
     weak: list[str] = []
@@ -271,12 +280,19 @@ def analyze_edge(
         hard.append(f"the rotation system of eq. (60) has a kernel of dimension > 1 "
                     f"(sigma_17/sigma_1 = {sv_ratio:.1e})")
         rotation_ok = False
+    if rotation_ok and not info_positive:
+        hard.append("rotation not determined: the rotation information of this edge is "
+                    "numerically zero")
+        rotation_ok = False
+    # the std follows the same decision as the reasons: a rotation reported undetermined (any of
+    # the hard rotation reasons above) has no finite std, on any machine's rounding
+    rot_std = float(np.degrees(1.0 / np.sqrt(info))) if rotation_ok else float("inf")
     if rotation_ok and rot_std > thr.max_rotation_std_deg:
         weak.append(f"rotation weakly determined for the noise level: predicted "
                     f"+-{rot_std:.2f} deg (rotation terms only; comfortable <= "
                     f"{thr.max_rotation_std_deg:g} deg)")
     if rotation_ok:
-        if excitation < thr.min_translation_excitation_m:
+        if not scale_determined:
             text = (f"translation direction degenerate: the A motion is a rotation about a fixed "
                     f"point (RMS deviation {1e3 * excitation:.3g} mm, e.g. a single sphere "
                     f"around the target)")

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..cost import StateLayout, build_cost_matrix, reduce_cost
 from ..lie import hat, project_to_so3, so3_exp, unvec, vec
+from ..model.cost import StateLayout, build_cost_matrix
+from ..model.reduction import reduce_cost
 from ..problem import Problem, check_transforms
 from .status import IdentifiabilityStatus, IdentifiabilityThresholds, worst_status
 
@@ -239,7 +240,7 @@ def _polish(cost: _ManifoldCost, R, t_abs, alpha, max_iterations: int, step_tol:
 
 def _null_axis(M: np.ndarray) -> str:
     """Words for the main direction of the columns of ``M`` (3, k): ``"z"`` or ``[...]``."""
-    from ..gauge import axis_words
+    from ..model.gauge import axis_words
 
     u, sv, _ = np.linalg.svd(M)
     v = u[:, 0]
@@ -261,12 +262,12 @@ def numeric_check(
 ) -> NumericCheck:
     """Noise-aware identifiability of the whole problem from the assembled cost.
 
-    Builds ``Q`` (:func:`~rwhec_ros.core.cost.build_cost_matrix`), starts from ``solution``
+    Builds ``Q`` (:func:`~rwhec_ros.core.model.cost.build_cost_matrix`), starts from ``solution``
     ``(X (M,4,4), Y (P,4,4), alpha)`` (metric) if given, else from the smallest eigenvector of the
-    reduced cost (:func:`~rwhec_ros.core.cost.reduce_cost`, eq. (48)) with optimal translations
-    (eq. (47)); polishes to a critical point with a damped Riemannian Newton method; and analyses
-    the exact Hessian there. ``x^T Q x`` is the negative log-likelihood, so the inverse Hessian
-    predicts the covariance of the estimate. Null directions (normalised eigenvalue below
+    reduced cost (:func:`~rwhec_ros.core.model.reduction.reduce_cost`, eq. (48)) with optimal
+    translations (eq. (47)); polishes to a critical point with a damped Riemannian Newton method;
+    and analyses the exact Hessian there. ``x^T Q x`` is the negative log-likelihood, so the inverse
+    Hessian predicts the covariance of the estimate. Null directions (normalised eigenvalue below
     ``null_tol``) are structural: insufficient; predicted standard deviations above the
     ``full_*`` thresholds: weak.
     """

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model.recentre import recentred_frames, recentred_problem, recentring_for
 from ..problem import Problem
-from ..recentre import recentred_frames, recentred_problem, recentring_for
 from .edge import EdgeIdentifiability, EdgeStatistics, analyze_edge
 from .numeric import NumericCheck, numeric_check
 from .status import (

@@ -56,7 +56,7 @@ def pair_residuals(
     """Residuals of every pair at ``X`` (M, 4, 4), ``Y`` (P, 4, 4) (problem order) and ``alpha``.
 
     Returns edge name -> :class:`PairResiduals`; ``0.5 * sum(normalised)`` over all edges equals
-    :func:`rwhec_ros.core.cost.direct_cost` (eq. (33)).
+    :func:`rwhec_ros.core.model.cost.direct_cost` (eq. (33)).
     """
     X = np.asarray(X, float)
     Y = np.asarray(Y, float)

@@ -1,12 +1,12 @@
 """How precisely each frame is determined: one source for the verdict, the summary and the YAML.
 
-The source is the per-frame covariance of :mod:`rwhec_ros.core.uncertainty`
-(:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`): the inverse of the exact Hessian of the
-MLE cost on the manifold, predicted from the **stated** noise, per frame the worst-direction
+The source is the per-frame covariance of :mod:`rwhec_ros.core.analysis.uncertainty`
+(:func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty`): the inverse of the exact Hessian
+of the MLE cost on the manifold, predicted from the **stated** noise, per frame the worst-direction
 standard deviation of the translation [m] and of the rotation [deg]
-(:meth:`~rwhec_ros.core.uncertainty.FrameUncertainty.worst_std`). The verdict uses the larger of
-that prediction and the prediction rescaled by the a-posteriori noise ratio ``s`` of the fit
-(:mod:`.fit`): a stated noise that is too small must not make a frame look precise, and one that
+(:meth:`~rwhec_ros.core.analysis.uncertainty.FrameUncertainty.worst_std`). The verdict uses the
+larger of that prediction and the prediction rescaled by the a-posteriori noise ratio ``s`` of the
+fit (:mod:`.fit`): a stated noise that is too small must not make a frame look precise, and one that
 is too large keeps its (conservative) prediction.
 """
 
@@ -64,7 +64,7 @@ def noise_factor(noise_ratio: float) -> float:
 def frame_precisions(uncertainty, noise_ratio: float = 1.0,
                      pinned: Iterable[str] = ()) -> dict[str, FramePrecision]:
     """Per frame, its predicted precision from an
-    :class:`~rwhec_ros.core.uncertainty.Uncertainty` at the solution, with the factor
+    :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty` at the solution, with the factor
     ``max(1, noise_ratio)``; empty when ``uncertainty`` is None. A frame in ``pinned`` (a
     translation direction fixed by the user's priors) whose translation is unobservable in
     ``uncertainty`` (computed without those priors) gets ``nan`` (unknown, not undetermined);

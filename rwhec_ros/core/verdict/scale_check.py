@@ -8,8 +8,8 @@ estimates. So the same data are solved with an unknown scale (mode ``fast``) and
 compared with 1.
 
 Its standard deviation comes from the information of ``alpha`` after the translations are
-eliminated at the optimal rotations: with the state layout of :mod:`rwhec_ros.core.cost` the cost
-is quadratic in ``e = [alpha t; alpha]`` with Hessian ``2 Q_ee``, so ``var(alpha) =
+eliminated at the optimal rotations: with the state layout of :mod:`rwhec_ros.core.model.cost` the
+cost is quadratic in ``e = [alpha t; alpha]`` with Hessian ``2 Q_ee``, so ``var(alpha) =
 [(2 Q_ee)^-1]_{alpha alpha}`` (the Schur complement of the translation block, eq. (47)); directions
 the data do not determine are left out (pseudo-inverse), and a scale inside such a direction is
 ``not determined``. The standard deviation is then rescaled by ``s_t`` (floored at
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cost import StateLayout, build_cost_matrix
+from ..model.cost import StateLayout, build_cost_matrix
+from ..model.recentre import recentred_problem, recentring_for
 from ..problem import Problem
-from ..recentre import recentred_problem, recentring_for
 from ..result import CalibrationResult, Status
 from .fit import goodness_of_fit
 

@@ -10,7 +10,7 @@ It combines, for a solution of a :class:`~rwhec_ros.core.problem.Problem`:
   the median edge are named);
 * the scale check of a known-scale problem (:mod:`.scale_check`);
 * the precision of each frame (:mod:`.precision`, from the per-frame covariance of
-  :mod:`rwhec_ros.core.uncertainty`);
+  :mod:`rwhec_ros.core.analysis.uncertainty`);
 * when the data keep the tag corners: the focal length each camera's corners fit
   (:mod:`.focal_check`);
 * the frames the user asked for that got no estimate at all.
@@ -89,7 +89,7 @@ def assess(
         A scale check already made (known scale); made here when None and enabled.
     uncertainty : Uncertainty, optional
         The per-frame covariance at the solution
-        (:func:`~rwhec_ros.core.uncertainty.frame_uncertainty`, ideally with the solve's
+        (:func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty`, ideally with the solve's
         ``GaugeOptions`` so that the priors count); computed here (without priors) when None.
     reprojection : mapping of str to CameraReprojection, optional
         The reprojection error per camera with its focal fit
@@ -154,7 +154,7 @@ def _analyze(problem: Problem, result: CalibrationResult):
 
 
 def _uncertainty(problem: Problem, result: CalibrationResult):
-    from ..uncertainty import frame_uncertainty
+    from ..analysis.uncertainty import frame_uncertainty
 
     try:
         return frame_uncertainty(problem, result)
