@@ -5,7 +5,8 @@ Run from the repository root (the data: ``../shared/data/real/`` beside the repo
 
     python benchmarks/real_data.py > benchmarks/real_data.md
 
-Per set (read by :mod:`rwhec_ros.data.real_layouts`, fed image by image with its pose to the
+Per set (read by :mod:`rwhec_ros.data.sample_layouts` as ``rwhec-calibrate samples`` reads it,
+see ``real_sets.py``; fed image by image with its pose to the
 same :class:`~rwhec_ros.session.CalibrationSession` the node and ``rwhec-calibrate bag`` use):
 
 * views offered / accepted by an independent OpenCV detector with its defaults
@@ -25,6 +26,7 @@ refinement on the real ChArUco markers, the circle-centre bias at 45 degrees on 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime as _dt
 import os
 import platform
@@ -44,13 +46,6 @@ from rwhec_ros.core.baselines.registry import run_baseline  # noqa: E402
 from rwhec_ros.core.lie import invert_transform  # noqa: E402
 from rwhec_ros.core.problem import Edge, Problem  # noqa: E402
 from rwhec_ros.core.solve import SolveOptions, solve  # noqa: E402
-from rwhec_ros.data.real_layouts import (  # noqa: E402
-    CAMERA,
-    TARGET,
-    SampleSet,
-    feed_session,
-    read_samples,
-)
 from rwhec_ros.session import CalibrationSession  # noqa: E402
 from rwhec_ros.vision.boards import CharucoSpec  # noqa: E402
 from rwhec_ros.vision.grids import ChessboardSpec, CircleGridSpec  # noqa: E402
@@ -60,6 +55,7 @@ from rwhec_ros.vision.targets import TargetSpec  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_data_defaults  # noqa: E402
+from real_sets import CAMERA, TARGET, RealSet, feed_session, load_set  # noqa: E402
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 SETS = ("ic_charuco", "ic_circle_10x10", "cct_chessboard_eye_in_hand")
@@ -83,7 +79,7 @@ def independent_accepts(gray: np.ndarray, target: TargetSpec) -> bool:
 
 
 # ------------------------------------------------------------------------------ the session
-def session_parameters(samples: SampleSet, *, from_reprojection: bool = False,
+def session_parameters(samples: RealSet, *, from_reprojection: bool = False,
                        gate_factor: float | None = None) -> dict:
     """The calibrator parameters of a sample set: every view searched (motion gate off) and
     kept (keyframe thresholds at a micro-radian and a micrometre), at least 3 pairs per edge."""
@@ -96,7 +92,7 @@ def session_parameters(samples: SampleSet, *, from_reprojection: bool = False,
     return flat
 
 
-def run_session(samples: SampleSet, flat: dict, out_dir: Path):
+def run_session(samples: RealSet, flat: dict, out_dir: Path):
     """Feed the set to a session, calibrate; returns (session, outcome, seconds)."""
     session = CalibrationSession(CalibratorConfig.from_parameters(flat), output_root=out_dir)
     t0 = time.perf_counter()
@@ -148,7 +144,7 @@ def held_out(problem: Problem, method: str, folds: int = FOLDS, seed: int = 0):
 
 
 # ------------------------------------------------------------------------------------ tables
-def set_rows(name: str, samples: SampleSet, tmp: Path, label: str = "") -> tuple[list, dict]:
+def set_rows(name: str, samples: RealSet, tmp: Path, label: str = "") -> tuple[list, dict]:
     """The per-set rows: counts, verdict, reprojection; and the held-out residuals."""
     grays = [v.gray() for v in samples.views]
     independent = sum(independent_accepts(g, samples.target) for g in grays)
@@ -179,7 +175,7 @@ def set_rows(name: str, samples: SampleSet, tmp: Path, label: str = "") -> tuple
     return row, held
 
 
-def refit_circle_intrinsics(samples: SampleSet) -> SampleSet:
+def refit_circle_intrinsics(samples: RealSet) -> RealSet:
     """The set with intrinsics refitted by ``cv2.calibrateCamera`` from the package's labelled
     grid points of the same views (plumb_bob)."""
     det = TargetDetector([samples.target])
@@ -193,15 +189,17 @@ def refit_circle_intrinsics(samples: SampleSet) -> SampleSet:
     rms, K, D, _, _ = cv2.calibrateCamera(obj, img, (w, h), samples.intrinsics.K.copy(), None,
                                           flags=cv2.CALIB_USE_INTRINSIC_GUESS)
     intr = CameraIntrinsics(w, h, K, np.asarray(D, dtype=float).reshape(-1)[:5], "plumb_bob")
-    return SampleSet(samples.name, samples.layout, samples.views, intr,
-                     f"refitted by cv2.calibrateCamera from the package's grid points of the "
-                     f"{len(obj)} views (RMS {rms:.2f} px)", samples.target,
-                     samples.camera_on_tool)
+    return dataclasses.replace(
+        samples, intrinsics=intr,
+        intrinsics_source=f"refitted by cv2.calibrateCamera from the package's grid points of "
+                          f"the {len(obj)} views (RMS {rms:.2f} px)")
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    ap.add_argument("--sets", nargs="+", choices=SETS, default=list(SETS),
+                    help="only these sets (default: all)")
     ap.add_argument("--no-defaults", action="store_true",
                     help="only the per-set table (skip the evidence of the defaults)")
     args = ap.parse_args(argv)
@@ -213,18 +211,19 @@ def main(argv=None) -> int:
           f"{np.__version__}")
     print("- generated by `python benchmarks/real_data.py > benchmarks/real_data.md`")
     print("- data: `../shared/data/real/` (third-party sets, see their READMEs); read by "
-          "`rwhec_ros.data.real_layouts`, fed to `CalibrationSession` (motion gate off, every "
-          "view a keyframe, `solver.min_pairs: 3`, the configuration's defaults otherwise: "
+          "`rwhec_ros.data.sample_layouts` (as `rwhec-calibrate samples`), fed to "
+          "`CalibrationSession` (motion gate off, every view a keyframe, `solver.min_pairs: 3`, "
+          "the configuration's defaults otherwise: "
           "`noise.sigma` 0.01 m, `noise.kappa` 125)\n")
     rows, helds = [], []
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
-        for name in SETS:
+        for name in args.sets:
             folder = args.data / name
             if not folder.is_dir():
                 print(f"_{name}: absent, skipped._\n")
                 continue
-            samples = read_samples(folder)
+            samples = load_set(folder)
             row, held = set_rows(name, samples, tmp)
             rows.append(row)
             helds.append(held)

@@ -12,7 +12,6 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from rwhec_ros.core.lie import invert_transform, rotation_distance  # noqa: E402
-from rwhec_ros.data.real_layouts import read_samples  # noqa: E402
 from rwhec_ros.vision.board_detection import charuco_detector  # noqa: E402
 from rwhec_ros.vision.detection import tag_object_points  # noqa: E402
 from rwhec_ros.vision.detector_config import DetectorConfig  # noqa: E402
@@ -25,6 +24,9 @@ from rwhec_ros.vision.planar_pose import solve_planar_pose  # noqa: E402
 from rwhec_ros.vision.render import RenderedBoard, look_at, render_tags  # noqa: E402
 from rwhec_ros.vision.target_detector import TargetDetector  # noqa: E402
 from rwhec_ros.vision.targets import TargetSpec  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from real_sets import load_set as read_samples  # noqa: E402
 
 SETS = ("ic_charuco", "ic_circle_10x10", "cct_chessboard_eye_in_hand")
 VGA = CameraIntrinsics.pinhole(640, 480, 500.0)
