@@ -193,10 +193,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cameras on the rig (default: %(default)s)")
     p.add_argument("--tags", type=int, default=6, help="tags in the room (default: %(default)s)")
     p.add_argument("--board", action="append", default=[], metavar="KIND",
-                   choices=("aprilgrid", "charuco"),
+                   choices=("aprilgrid", "charuco", "chessboard", "circles",
+                            "asymmetric_circles"),
                    help="put a board of this kind (aprilgrid: 3 x 3 tags of 7 cm; charuco: "
-                        "5 x 4 squares of 5 cm) in place of the next tag, from tag 0 on; "
-                        "repeatable, e.g. --board aprilgrid --board charuco (default: none)")
+                        "5 x 4 squares of 5 cm; chessboard: 8 x 5 inner corners, 3 cm squares; "
+                        "circles: 6 x 5 with an origin circle; asymmetric_circles: 4 x 7) in "
+                        "place of the next tag, from tag 0 on; repeatable, e.g. --board "
+                        "aprilgrid --board chessboard (default: none)")
     p.add_argument("--seconds", type=float, default=24.0,
                    help="simulated duration [s] (default: %(default)s, one full yaw turn)")
     p.add_argument("--rate", type=float, default=5.0, help="image rate [Hz] (default: %(default)s)")

@@ -11,6 +11,7 @@ from typing import Any
 
 import yaml
 
+from ..vision.detector_config import CHESSBOARD_REFINEMENTS
 from .sections import (
     AccuracyConfig,
     CameraConfig,
@@ -287,6 +288,9 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
             v, "detection.corner_refinement", ("edge", "subpix", "apriltag", "contour", "none")
         ),
         max_reprojection_rms_px=check_positive(v, "detection.max_reprojection_rms_px"),
+        reprojection_gate_factor=_gate_factor(v),
+        chessboard_refinement=check_choice(v, "detection.chessboard_refinement",
+                                           CHESSBOARD_REFINEMENTS),
         min_side_px=check_positive(v, "detection.min_side_px", allow_zero=True),
         max_obliquity_deg=check_positive(v, "detection.max_obliquity_deg"),
         decimate=check_int_or_auto(v, "detection.decimate", 1),
@@ -351,6 +355,16 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         targets=targets,
         capture=capture,
     )
+
+
+def _gate_factor(v: dict[str, Any]) -> float:
+    """``detection.reprojection_gate_factor``: finite and >= 1 (a gate below the camera's own
+    median noise would reject most of its images)."""
+    x = v["detection.reprojection_gate_factor"]
+    if not (math.isfinite(x) and x >= 1.0):
+        raise ValueError(f"detection.reprojection_gate_factor: must be finite and >= 1, got "
+                         f"{x!r}")
+    return x
 
 
 def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], x_names: list[str]

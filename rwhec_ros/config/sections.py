@@ -154,6 +154,8 @@ class DetectionConfig:
     decimate: int | str = "auto"
     motion_gate: bool = True
     discovery_step: float = 0.5
+    reprojection_gate_factor: float = 4.0
+    chessboard_refinement: str = "sb"
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,9 @@ Parameters: ``rate_hz`` (image rate, 5.0), ``pose_rate_hz`` (100.0), ``seed`` (0
 ``pose_noise_m`` / ``pose_noise_rad`` (pose-stream noise per axis, 0.0005), ``image_noise_std``
 (grey levels, 2.0), ``n_cameras`` (3), ``n_tags`` (6), ``boards`` (string array, default empty:
 board ``boards[j]``, ``aprilgrid`` or ``charuco``, in place of tag ``j``, as the CLI demo's
-``--board``; ``['aprilgrid', 'charuco']`` is what ``config/demo_boards.yaml`` describes).
+``--board``; also ``chessboard``, ``circles``, ``asymmetric_circles``; ``['aprilgrid', 'charuco']``
+is what ``config/demo_boards.yaml`` describes, ``['chessboard', 'circles', 'asymmetric_circles']``
+``config/demo_grids.yaml``).
 Rendering runs in its own callback group so the pose stream keeps its rate under the
 ``MultiThreadedExecutor``. No maths here: the model is
 :func:`rwhec_ros.simulation.demo_board_rig`. Stopping (Ctrl-C, also under ``ros2 launch``) cancels
@@ -45,6 +47,7 @@ from ..messages import (
 from ..simulation import (
     DEMO_POSE_TOPIC,
     DEMO_RIG_FRAME,
+    DEMO_SUPERSAMPLE,
     DEMO_WORLD_FRAME,
     demo_board_rig,
     demo_camera_topics,
@@ -75,7 +78,8 @@ class DemoSimulatorNode(Node):
         # unset, its value is None
         boards = self.declare_parameter(
             "boards", Parameter.Type.STRING_ARRAY,
-            ParameterDescriptor(description="board kinds (aprilgrid, charuco) in place of tags "
+            ParameterDescriptor(description="board kinds (aprilgrid, charuco, chessboard, "
+                                            "circles, asymmetric_circles) in place of tags "
                                             "0, 1, ... (default: none)")).value
         for name, value in (("rate_hz", rate), ("pose_rate_hz", pose_rate)):
             if not value > 0:
@@ -145,7 +149,8 @@ class DemoSimulatorNode(Node):
         T_world_rig = self.rig.T_world_rig(self._sim_time(stamp))
         for cam in self.rig.cameras:
             gray = self.rig.render(cam, T_world_rig, self._image_rng,
-                                   noise_std=self._image_noise, supersample=2)
+                                   noise_std=self._image_noise,
+                                   supersample=DEMO_SUPERSAMPLE, shift_pattern=True)
             if self._stopping.is_set():  # rendering takes a while: stop before publishing
                 return
             frame = f"{cam}_optical"

@@ -33,7 +33,13 @@ Order of the work for one image of camera ``c`` at stamp ``s``:
    <rwhec_ros.vision.target_detector.TargetDetector.detect>`; the others are counted
    ``tags_skipped_no_motion``);
 5. one pair per target -- a board is one ``B`` from all its corners -- is offered to the
-   accumulator (which applies the same keyframe test again);
+   accumulator (which applies the same keyframe test again). The corner noise each pose
+   measured goes to the camera's noise history, which scales the reprojection gate of its next
+   images (:meth:`DetectorConfig.reprojection_limit
+   <rwhec_ros.vision.detector_config.DetectorConfig.reprojection_limit>`). An image searched is
+   counted once by what it gave: ``images_used``, ``images_no_new_pairs``,
+   ``images_without_tags`` (no configured target found) or ``images_targets_rejected:<reason>``
+   (targets found, all rejected: the first whole-target reason);
 6. **look-back** (discovery step > 0): the targets this search found and the camera's previous
    search had not (they came into view meanwhile) are searched for in the images of the camera
    that the gate skipped in between (at most :data:`LOOK_BACK_IMAGES`, held undecoded), oldest
@@ -103,11 +109,23 @@ def safe_int(value: Any) -> int | None:
         return None
 
 
+def _first_target_rejection(detection) -> str | None:
+    """The reason an image whose configured targets were all rejected gave no pair: the first
+    whole-target rejection of a configured target, else its first marker's; None when no
+    configured target was found (markers of no target do not count)."""
+    own = [r for r in detection.rejections if r.name]
+    if not own:
+        return None
+    own.sort(key=lambda r: r.marker_id != -1)
+    return own[0].reason
+
+
 class ImageInput(ImageWait):
     """Mixin of :class:`~rwhec_ros.session.CalibrationSession`: the image path (see the module
     docstring; waiting for poses: :class:`~rwhec_ros.session.image_wait.ImageWait`). It uses the
     session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
     ``_pending``, ``_counters``, ``_camera_counts``, ``_rejections``, ``_intrinsics``,
+    ``_corner_noise``,
     ``_data_version``, ``_x_names``, ``_target_specs``, ``_local``, ``_detector_config``,
     ``_capture``, ``config`` and
     ``_pose_to_A``."""
@@ -282,8 +300,11 @@ class ImageInput(ImageWait):
         gray, reason, detail, words = self._decoded(image, intrinsics)
         if gray is None:
             return self._reject(camera, stamp, reason, detail, words=words)
+        with self._lock:
+            history = tuple(self._corner_noise[camera])
         try:  # outside the lock: detection is the expensive part
-            detection = self._detector().detect(gray, intrinsics, only=wanted)
+            detection = self._detector().detect(gray, intrinsics, only=wanted,
+                                                noise_history=history)
         except Exception as exc:  # noqa: BLE001 - the live path never raises
             return self._reject(camera, stamp, f"image_detector_error:{type(exc).__name__}",
                                 str(exc))
@@ -322,9 +343,12 @@ class ImageInput(ImageWait):
             if not wanted:
                 continue
             gray, *_ = self._decoded(image, intrinsics)
+            with self._lock:
+                history = tuple(self._corner_noise[camera])
             try:
                 detection = (None if gray is None
-                             else self._detector().detect(gray, intrinsics, only=wanted))
+                             else self._detector().detect(gray, intrinsics, only=wanted,
+                                                          noise_history=history))
             except Exception:  # noqa: BLE001 - the live path never raises
                 detection = None
             with self._lock:
@@ -332,6 +356,7 @@ class ImageInput(ImageWait):
                     self._count("look_back_bad_image")
                     continue
                 self._count("images_searched_back")
+                self._corner_noise[camera].extend(detection.corner_noise_px.values())
                 kept = self._offer(camera, stamp, A, detection.observations)
                 self._camera_count(camera, "pairs_kept", len(kept))
 
@@ -340,6 +365,7 @@ class ImageInput(ImageWait):
         with self._lock:
             self._camera_count(camera, "detected")
             self._remember_view(camera, A, detection)
+            self._corner_noise[camera].extend(detection.corner_noise_px.values())
             for r in detection.rejections:
                 key = (
                     "tag_not_in_config"
@@ -353,7 +379,9 @@ class ImageInput(ImageWait):
             obs = detection.observations
             self._count("tags_detected", len(obs))
             if not obs and not detection.skipped:
-                self._count("images_without_tags")
+                why = _first_target_rejection(detection)
+                self._count("images_without_tags" if why is None
+                            else f"images_targets_rejected:{why}")
                 return ImageOutcome(camera, stamp, "no_tags", reasons=reasons,
                                     detection=detection)
             names = self._offer(camera, stamp, A, obs)

@@ -54,6 +54,8 @@ from .solving import (
 __all__ = ["CalibrationSession"]
 
 _NS_PER_S = 1_000_000_000
+#: Poses per camera whose corner noise scales the reprojection gate (the median of the latest).
+NOISE_HISTORY = 64
 
 
 class CalibrationSession(ImageInput, CaptureMixin):
@@ -120,6 +122,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
             unknown_scale=config.tags.unknown_scale,
             corner_refinement=config.detection.corner_refinement,
             max_reprojection_rms_px=config.detection.max_reprojection_rms_px,
+            reprojection_gate_factor=config.detection.reprojection_gate_factor,
+            chessboard_refinement=config.detection.chessboard_refinement,
             min_side_px=config.detection.min_side_px,
             max_obliquity_deg=config.detection.max_obliquity_deg,
             estimate_precision=True,
@@ -169,6 +173,9 @@ class CalibrationSession(ImageInput, CaptureMixin):
         # camera -> (stamp, A, image, intrinsics) the gate skipped since its last search
         self._skipped_since_search = collections.defaultdict(
             lambda: collections.deque(maxlen=LOOK_BACK_IMAGES))
+        # camera -> corner noise [px] of its latest poses (the scaled reprojection gate)
+        self._corner_noise = collections.defaultdict(
+            lambda: collections.deque(maxlen=NOISE_HISTORY))
         self._counters: collections.Counter = collections.Counter()
         self._camera_counts = {name: collections.Counter(dict.fromkeys(CAMERA_COUNTERS, 0))
                                for name in c.camera_names}
