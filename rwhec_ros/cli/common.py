@@ -166,8 +166,8 @@ def check_positive(name: str, value: float) -> None:
 
 
 def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
-    """The flat parameters that ``--mode``, ``--min-pairs``, ``--robust``, ``--folds`` and
-    ``--no-guidance`` set (those given)."""
+    """The flat parameters that ``--mode``, ``--min-pairs``, ``--robust``, ``--folds``,
+    ``--no-guidance`` and ``--no-refine`` set (those given)."""
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
     out: dict[str, Any] = {}
@@ -184,6 +184,8 @@ def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["accuracy.cross_validation_folds"] = int(folds)
     if getattr(args, "no_guidance", False):
         out["accuracy.guidance"] = False
+    if getattr(args, "no_refine", False):
+        out["solver.refine"] = False
     return out
 
 
@@ -226,6 +228,7 @@ class SolveSettings:
     min_scale: float = 0.01
     folds: int = 5
     guidance: bool = True
+    refine: bool = True
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
@@ -243,7 +246,8 @@ class SolveSettings:
                              unobservable_std_m=float(p.get("solver.unobservable_std_m", 1.0)),
                              min_scale=float(p.get("solver.min_scale", 0.01)),
                              folds=int(p.get("accuracy.cross_validation_folds", 5)),
-                             guidance=bool(p.get("accuracy.guidance", True)))
+                             guidance=bool(p.get("accuracy.guidance", True)),
+                             refine=bool(p.get("solver.refine", True)))
 
     def parameters(self) -> dict[str, Any]:
         """The ``solver.*``, ``priors.*`` and ``accuracy.*`` parameters of these settings."""
@@ -399,7 +403,7 @@ def solve_and_write(
             carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
             accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,
                                      moving=_moving(config)),
-            corners=corner_data(dataset))
+            corners=corner_data(dataset), refine=settings.refine)
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
         say(f"no solution: the solver failed ({type(exc).__name__}: {exc}); try --mode sdp, "
             "or --robust if some pairs may be outliers")

@@ -302,6 +302,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
         min_scale=check_positive(v, "solver.min_scale"),
         live_period_s=check_positive(v, "solver.live_period_s", allow_zero=True),
+        refine=v["solver.refine"],
     )
     convergence = ConvergenceConfig(
         max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),

@@ -164,6 +164,7 @@ class SolverConfig:
     unobservable_std_m: float = 1.0
     min_scale: float = 0.01
     live_period_s: float = 2.0
+    refine: bool = True
 
 
 @dataclass(frozen=True)

@@ -391,7 +391,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 min_scale=c.solver.min_scale, thresholds=verdict_options(c.verdict),
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
-                accuracy=self._accuracy_options(), corners=corner_data(dataset))
+                accuracy=self._accuracy_options(), corners=corner_data(dataset),
+                refine=c.solver.refine)
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
                 False, f"the solver failed ({type(exc).__name__}: {exc}); all data kept: try "
