@@ -61,6 +61,7 @@ CORE_STAGES = (
     "pipeline",  # the dense and the large-problem path of a solve
     "solve",  # the one entry point
     "analysis",  # information, uncertainty, validation, guidance
+    "refine",  # the corner-level refinement of the certified optimum
     "identifiability",
     "outliers",
     "baselines",

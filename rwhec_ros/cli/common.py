@@ -183,7 +183,7 @@ def check_positive(name: str, value: float) -> None:
 
 def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """The flat parameters that ``--mode``, ``--sdp-backend``, ``--min-pairs``, ``--robust``,
-    ``--folds`` and ``--no-guidance`` set (those given)."""
+    ``--folds``, ``--no-guidance`` and ``--no-refine`` set (those given)."""
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
     out: dict[str, Any] = {}
@@ -202,6 +202,8 @@ def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["accuracy.cross_validation_folds"] = int(folds)
     if getattr(args, "no_guidance", False):
         out["accuracy.guidance"] = False
+    if getattr(args, "no_refine", False):
+        out["solver.refine"] = False
     return out
 
 
@@ -245,6 +247,7 @@ class SolveSettings:
     folds: int = 5
     guidance: bool = True
     sdp_backend: str = "auto"
+    refine: bool = True
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
@@ -268,7 +271,8 @@ class SolveSettings:
                              min_scale=float(p.get("solver.min_scale", 0.01)),
                              folds=int(p.get("accuracy.cross_validation_folds", 5)),
                              guidance=bool(p.get("accuracy.guidance", True)),
-                             sdp_backend=str(p.get("solver.sdp_backend", "auto")))
+                             sdp_backend=str(p.get("solver.sdp_backend", "auto")),
+                             refine=bool(p.get("solver.refine", True)))
 
     def resume_options(self, report: bool) -> list[str]:
         """The command-line options that give ``dataset`` these settings (for the resume
@@ -281,6 +285,8 @@ class SolveSettings:
         out += ["--folds", str(self.folds)]
         if not self.guidance:
             out.append("--no-guidance")
+        if not self.refine:
+            out.append("--no-refine")
         if report:
             out.append("--report")
         return out
@@ -468,7 +474,7 @@ def solve_and_write(
             carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
             accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,
                                      moving=_moving(config)),
-            corners=corner_data(dataset), on_phase=run.enter)
+            corners=corner_data(dataset), on_phase=run.enter, refine=settings.refine)
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
         raise NoSolution(
             f"the solver stopped with an error in mode {settings.mode} ({type(exc).__name__}: "

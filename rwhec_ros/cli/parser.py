@@ -3,7 +3,7 @@
 Every solving subcommand (``csv``, ``bag``, ``samples``, ``poses``, ``dataset``, ``demo``) takes
 the same options with the same meaning: ``-o/--output DIR``, ``--force``, ``--config FILE``
 (``--node-name``), ``--mode``, ``--min-pairs``, ``--robust``, ``--prior``, ``--folds``,
-``--no-guidance``, ``--report`` and ``-q/--quiet``; ``report`` takes ``-o`` and
+``--no-refine``, ``--no-guidance``, ``--report`` and ``-q/--quiet``; ``report`` takes ``-o`` and
 ``--force``. Help texts end with ``(default: ...)``; a default that comes from the configuration
 reads "the configuration's <parameter>, else <value>".
 """
@@ -65,6 +65,9 @@ def _add_solver(p: argparse.ArgumentParser) -> None:
                    help="k-fold cross-validation over the pairs, per edge held-out vs in-sample "
                         "residuals; 0: off (default: the configuration's "
                         "accuracy.cross_validation_folds, else 5)")
+    p.add_argument("--no-refine", action="store_true",
+                   help="publish the certified pose-level estimate without the corner-level "
+                        "refinement (default: the configuration's solver.refine, else on)")
     p.add_argument("--no-guidance", action="store_true",
                    help="do not compute the next-motion guidance (default: the configuration's "
                         "accuracy.guidance, else on)")

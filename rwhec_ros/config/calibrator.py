@@ -309,6 +309,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         min_scale=check_positive(v, "solver.min_scale"),
         live_period_s=check_positive(v, "solver.live_period_s", allow_zero=True),
         sdp_backend=check_choice(v, "solver.sdp_backend", SDP_BACKENDS),
+        refine=v["solver.refine"],
     )
     convergence = ConvergenceConfig(
         max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),

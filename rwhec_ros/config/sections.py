@@ -170,6 +170,7 @@ class SolverConfig:
     min_scale: float = 0.01
     live_period_s: float = 2.0
     sdp_backend: str = "auto"
+    refine: bool = True
 
 
 @dataclass(frozen=True)

@@ -420,7 +420,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
                 accuracy=self._accuracy_options(), corners=corner_data(dataset),
-                on_phase=on_phase)
+                on_phase=on_phase, refine=c.solver.refine)
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
                 False, f"the solver stopped with an error in mode {c.solver.mode} "

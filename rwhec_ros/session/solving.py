@@ -14,6 +14,7 @@ from ..core.result import CalibrationResult
 from ..core.verdict import Verdict, VerdictOptions, assess
 from ..data.results import plain
 from .accuracy import Accuracy, AccuracyOptions, assess_accuracy
+from .refinement import published_result, refine_solution
 
 __all__ = [
     "solve_options",
@@ -135,6 +136,9 @@ class Solved:
     Attributes
     ----------
     result : CalibrationResult
+        The published estimate: the certified solve, or its corner-level refinement when that
+        is published (``accuracy.refinement`` says which and why; the certificate is the
+        pose-level one either way).
     problem : Problem
         The pairs the result solves (with outlier rejection: the inlier problem).
     dropped : dict of str to str
@@ -194,6 +198,7 @@ def solve_and_assess(
     accuracy: AccuracyOptions | None = DEFAULT_ACCURACY,
     corners=None,
     on_phase: Callable[[str], None] | None = None,
+    refine: bool = True,
 ) -> Solved:
     """Solve ``problem`` (as :func:`solve_problem`: ``mode``, ``reject_outliers``, ``priors``,
     ``unobservable_std_m``, ``min_scale``, ``sdp_backend``), analyse identifiability at the
@@ -203,7 +208,9 @@ def solve_and_assess(
     names. ``accuracy`` says what of the per-frame uncertainty, cross-validation and guidance to
     compute (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the
     verdict's precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
-    reprojection error per camera and the verdict's focal check (with ``accuracy`` only).
+    reprojection error per camera and the verdict's focal check (with ``accuracy`` only), and
+    with ``refine`` the corner-level refinement (:mod:`.refinement`), whose estimate becomes the
+    result when it is published (the verdict judges the certified solve).
     ``on_phase`` is called with ``"analysing"`` when the solver returned. Exceptions of the
     solver propagate."""
     from ..core.solve import blas_threads
@@ -221,6 +228,9 @@ def solve_and_assess(
     if accuracy is not None:
         acc = assess_accuracy(solved, result, solve_options=options, options=accuracy,
                               carriers=carriers, corners=corners)
+    if acc is not None and corners is not None and refine:  # the corner-level refinement
+        acc.refinement = refine_solution(solved, result, corners, acc.uncertainty,
+                                         accuracy.moving)
     with blas_threads(1):
         verdict = assess(result, solved, identifiability=ident, options=thresholds,
                          uncertainty=None if acc is None else acc.uncertainty,
@@ -229,6 +239,7 @@ def solve_and_assess(
                          expected_x=[*expected_x, *problem.x_names],
                          expected_y=[*expected_y, *problem.y_names],
                          excluded={**dict(excluded or {}), **dropped}, carriers=carriers)
+    result = published_result(result, None if acc is None else acc.refinement)
     return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected)
 
 
