@@ -28,6 +28,8 @@ __all__ = [
     "EXIT_BAD_INPUT",
     "EXIT_NO_SOLUTION",
     "EXIT_UNUSABLE",
+    "EXIT_MOVED",
+    "EXIT_UNDECIDED",
     "EXIT_INTERRUPTED",
     "EXIT_PIPE_CLOSED",
     "exit_code",
@@ -61,6 +63,10 @@ EXIT_BAD_INPUT = 2
 EXIT_NO_SOLUTION = 3
 #: A solution was computed and written, but its verdict is ``unusable``: do not use it.
 EXIT_UNUSABLE = 4
+#: ``check``: a camera moved beyond the tolerance (the check's files are written).
+EXIT_MOVED = 5
+#: ``check``: not enough data yet to decide for some camera, none moved (record more).
+EXIT_UNDECIDED = 6
 #: Interrupted (Ctrl-C); ``bag`` saved the data set collected so far.
 EXIT_INTERRUPTED = 130
 #: The reader of the output went away (``| head``): 128 + SIGPIPE, as a shell reports it.

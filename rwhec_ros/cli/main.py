@@ -21,6 +21,7 @@ from .common import (
     NoSolution,
     Printer,
 )
+from .check import cmd_check
 from .files import cmd_csv, cmd_dataset, cmd_report
 from .parser import build_parser
 from .pose_list import cmd_poses
@@ -37,6 +38,7 @@ _COMMANDS: dict[str, Callable[[argparse.Namespace, Printer], int]] = {
     "dataset": cmd_dataset,
     "demo": cmd_demo,
     "report": cmd_report,
+    "check": cmd_check,
 }
 
 

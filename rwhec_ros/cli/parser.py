@@ -14,6 +14,7 @@ import argparse
 from pathlib import Path
 
 from .. import __version__
+from .check import add_check_parser
 from .common import DEFAULT_OUTPUT, MODES, PROG
 
 __all__ = ["build_parser"]
@@ -113,8 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "(A_i X_j = Y_k B_i) without ROS.",
         epilog="The first line printed is the verdict: GOOD, CAUTION or UNUSABLE, with the "
                "reason. Exit codes: 0 usable result (good or caution), 2 bad input or output, "
-               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted, 141 "
-               "output pipe closed (e.g. | head).",
+               "3 no solution, 4 result unusable (written, do not use it), 5 check: a camera "
+               "moved, 6 check: not enough data yet, 130 interrupted, 141 output pipe closed "
+               "(e.g. | head).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -196,6 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated duration [s] (default: %(default)s, one full yaw turn)")
     p.add_argument("--rate", type=float, default=5.0, help="image rate [Hz] (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+
+    add_check_parser(sub, _add_output, _add_config)
 
     p = sub.add_parser("report", help="report PNG + HTML of a written result")
     p.add_argument("result", metavar="RESULT.yaml", type=Path,

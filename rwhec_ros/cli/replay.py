@@ -99,8 +99,9 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
         say.warning("bag", sentence)
     if tf_failure and not counters.get("pairs_kept"):
         say.warning("bag", tf_failure)
-    code, _ = calibrate_session(say, session, paths, force=args.force, report=args.report,
-                                inputs=[input_line(counters)])
+    finish = getattr(args, "finish", None) or calibrate_session  # check: its own
+    code, _ = finish(say, session, paths, force=args.force, report=args.report,
+                     inputs=[input_line(counters)])
     return code
 
 

@@ -306,20 +306,20 @@ class BringupCheck:
         return report
 
 
-def reference_lookup_names(config) -> dict[str, tuple[str, list[str]]]:
+def reference_lookup_names(config, prefer: str | None = None) -> dict[str, tuple[str, list[str]]]:
     """Per frame of a :class:`~rwhec_ros.config.CalibratorConfig`: its carrier and the child
     names to look it up under in a frames.yaml, a URDF or tf: the published child
-    (``<frame><output.frame_suffix>`` or ``calibrated_frame``) first, then its own frame name
-    (a camera's ``frame``, a target's name)."""
+    (``<frame><output.frame_suffix>`` or ``calibrated_frame``) and its own frame name (a
+    camera's ``frame``, a target's name), in the order ``prefer`` says (``"calibrated"``: the
+    published one first, ``"sensor"``: its own first; default ``check.tf_frames``)."""
+    prefer = prefer or getattr(getattr(config, "check", None), "tf_frames", "calibrated")
     out: dict[str, tuple[str, list[str]]] = {}
     published = config.published_frames()
-    for name in config.y_names:
+    for name in (*config.y_names, *config.x_names):
         parent, child = published[name]
-        own = config.camera(name).frame or name
-        out[name] = (parent, list(dict.fromkeys([child, own])))
-    for name in config.x_names:
-        parent, child = published[name]
-        out[name] = (parent, list(dict.fromkeys([child, name])))
+        own = (config.camera(name).frame or name) if name in config.y_names else name
+        order = [child, own] if prefer != "sensor" else [own, child]
+        out[name] = (parent, list(dict.fromkeys(order)))
     return out
 
 

@@ -244,12 +244,12 @@ def check_document(report: CheckReport, naming: FrameNaming, *,
 
 
 def write_check_outputs(out: Path, report: CheckReport, naming: FrameNaming, *,
-                        dataset=None, force: bool = False, source: dict | None = None,
+                        force: bool = False, source: dict | None = None,
                         config: dict | None = None) -> dict[str, str]:
-    """Write :data:`CHECK_FILES` into ``out`` (``dataset.yaml`` only with a ``dataset``):
-    ``check.yaml``, and the reference frames with the moved ones replaced as a launch file, a
-    URDF/xacro snippet and a frames YAML. Existing files are refused (``FileExistsError``)
-    unless ``force``; returns what -> path."""
+    """Write ``check.yaml`` and the reference frames with the moved ones replaced as a launch
+    file, a URDF/xacro snippet and a frames YAML into ``out`` (:data:`CHECK_FILES` but the data
+    set, which the caller saves). Existing files are refused (``FileExistsError``) unless
+    ``force``; returns what -> path."""
     out = Path(out)
     transforms, left_out = check_transforms(report, naming)
     head = check_message(report).splitlines()
@@ -264,8 +264,6 @@ def write_check_outputs(out: Path, report: CheckReport, naming: FrameNaming, *,
     texts["urdf"] = ("calibration.urdf.xacro", urdf)
     texts["frames"] = ("frames.yaml", frames)
     targets = [out / name for name, _ in texts.values()]
-    if dataset is not None:
-        targets += [out / "dataset.yaml", out / "dataset.npz"]
     existing = [str(p) for p in targets if p.exists()]
     if existing and not force:
         raise FileExistsError(f"refusing to overwrite existing file(s) {existing} (use --force "
@@ -276,6 +274,4 @@ def write_check_outputs(out: Path, report: CheckReport, naming: FrameNaming, *,
         with open(out / name, "w" if force else "x", encoding="utf-8") as fh:
             fh.write(text)
         files[key] = str(out / name)
-    if dataset is not None:
-        files["dataset"] = str(dataset.save(out / "dataset.yaml"))
     return files

@@ -435,7 +435,7 @@ def frame_changes(
         if Cr.shape != (6, 6):
             raise ValueError(f"reference covariance of {name}: expected shape (6, 6), got "
                              f"{Cr.shape}")
-        no_ref = ~np.isfinite(Cr).all(axis=0) | ~np.isfinite(Cr).all(axis=1)
+        no_ref = ~np.isfinite(np.diag(Cr))
         tested = ~undetermined & ~no_ref
         Sigma = Cf + np.where(np.isfinite(Cr), Cr, 0.0)
         Sigma[~tested, :] = np.nan

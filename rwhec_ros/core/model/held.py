@@ -22,9 +22,11 @@ three axes, so its rotation is ``I`` and its translation is fixed by ``(R_G - I)
 Every pseudo-pair has ``t_B = 0``, so it does not involve the unknown scale of Problem 3 (its
 translation residual is ``alpha`` times a metric one). Its precision is ``strength`` times the
 whole data set's: ``sigma_p = min(sigma) / sqrt(strength N)`` and
-``kappa_p = strength N max(kappa)`` (``N`` pairs), so that a held frame moves by about
-``1 / strength`` of what the data alone would pull it by (``strength = 1e4``: 1e-4; measured in
-``test/core/test_held.py``) while the cost stays well conditioned for the certificate.
+``kappa_p = strength N max(kappa, |t_B|^2 / sigma^2)`` (``N`` pairs; the second term is the
+rotation information a pair's translation carries through its lever arm ``t_B``), so that a held
+frame moves by about ``1 / strength`` of what the data alone would pull it by (``strength =
+1e4``: a 5 mm / 0.3 deg offset moves by < 1 um / < 1e-3 deg in ``test/core/test_held.py``) while
+the cost stays well conditioned for the certificate.
 """
 
 from __future__ import annotations
@@ -107,7 +109,11 @@ def hold_frames(data: Problem, held: Mapping[str, np.ndarray], *,
     st = data.stacked()
     n = data.n_measurements
     sigma_p = float(st["sigma"].min()) / np.sqrt(strength * n)
-    kappa_p = float(st["kappa"].max()) * strength * n
+    # rotation information per pair: kappa, or the lever arm |t_B|^2 / sigma^2 of the
+    # translation residual, whichever is larger (module docstring)
+    lever = float(np.max(np.einsum("ni,ni->n", st["B"][:, :3, 3], st["B"][:, :3, 3])
+                         / st["sigma"] ** 2))
+    kappa_p = max(float(st["kappa"].max()), lever) * strength * n
     turns = _quarter_turns()
     edges = list(data.edges)
     edges.append(Edge.build(ANCHOR_X, ANCHOR_Y, turns, turns, sigma=sigma_p, kappa=kappa_p))
