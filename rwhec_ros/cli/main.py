@@ -10,6 +10,7 @@ from collections.abc import Callable, Sequence
 from typing import TextIO
 
 from ..errors import describe_os_error
+from .check import cmd_check
 from .common import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -21,7 +22,6 @@ from .common import (
     NoSolution,
     Printer,
 )
-from .check import cmd_check
 from .files import cmd_csv, cmd_dataset, cmd_report
 from .parser import build_parser
 from .pose_list import cmd_poses

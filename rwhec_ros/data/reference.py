@@ -5,8 +5,12 @@ estimates it: cameras (Y) in the camera carrier, targets (X) in the tag carrier)
 
 * a previous result (``result.yaml`` of the node or the CLI, or a ``check.yaml`` of an earlier
   check, :func:`reference_from_result`): the frames by name, with each frame's covariance
-  (``a_posteriori`` where given, else the predicted one; ``null`` entries: that axis is unknown);
-  frames marked ``usable: false`` are left out (with a note);
+  (``null`` entries: that axis is unknown): the predicted one times the larger of the squared
+  noise ratios of the result's fit (``verdict_details.fit``: the translation and the rotation
+  noise the residuals showed against the stated noise); without them the ``a_posteriori`` one
+  (one variance factor for both, which understates the translation's when the stated
+  translation noise is off by more than the rotation's), else the predicted one. Frames marked
+  ``usable: false`` are left out (with a note);
 * the frames as a robot description holds them (:func:`reference_from_transforms`): a
   ``frames.yaml`` written by :mod:`rwhec_ros.data.export`, a URDF / xacro file (its fixed joints,
   composed from the carrier down to the frame, :func:`fixed_chain`), or the transforms the node
@@ -85,12 +89,28 @@ def _covariance(value) -> np.ndarray | None:
     return C if C.shape == (6, 6) else None
 
 
+def _noise_scale(doc: Mapping) -> float | None:
+    """The larger squared noise ratio of a result's fit (``verdict_details.fit``), or None."""
+    fit = (doc.get("verdict_details") or {}).get("fit") if isinstance(
+        doc.get("verdict_details"), Mapping) else None
+    if not isinstance(fit, Mapping):
+        return None
+    try:
+        ratios = [float(fit["noise_ratio_translation"]), float(fit["noise_ratio_rotation"])]
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not all(np.isfinite(r) and r > 0 for r in ratios):
+        return None
+    return max(ratios) ** 2
+
+
 def reference_from_result(doc: Mapping, where: str = "result", *,
                           a_posteriori: bool = True) -> Reference:
     """The frames of a result mapping (:func:`rwhec_ros.data.results.load_result`'s): ``matrix``
-    per frame by ``name``, its ``parent``, and its covariance (the ``a_posteriori`` one when
-    ``a_posteriori`` and given, else ``covariance``). ``ValueError`` naming ``where`` and the
+    per frame by ``name``, its ``parent``, and its covariance (module docstring; with
+    ``a_posteriori`` False the predicted one as it is). ``ValueError`` naming ``where`` and the
     frame for a malformed entry."""
+    scale = _noise_scale(doc) if a_posteriori else None
     frames_in = doc.get("frames")
     if not isinstance(frames_in, list) or not frames_in:
         raise ValueError(f"{where}: no frames (key 'frames' missing or empty)")
@@ -106,10 +126,13 @@ def reference_from_result(doc: Mapping, where: str = "result", *,
             continue
         ref.frames[name] = _matrix(f["matrix"], f"{where}: frame {name} matrix")
         ref.parents[name] = str(f.get("parent", ""))
+        predicted = _covariance(f.get("covariance"))
         post = f.get("a_posteriori") if a_posteriori else None
         C = _covariance(post.get("covariance") if isinstance(post, Mapping) else None)
-        if C is None or not np.isfinite(C).any():
-            C = _covariance(f.get("covariance"))
+        if scale is not None and predicted is not None:
+            C = scale * predicted
+        elif C is None or not np.isfinite(C).any():
+            C = predicted
         if C is not None:
             ref.covariance[name] = C
     if not ref.frames:

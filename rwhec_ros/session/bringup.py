@@ -47,6 +47,7 @@ from ..core.analysis.change import (
     FrameChange,
     frame_changes,
     look_level,
+    noise_reweighted,
 )
 from ..core.model.held import ANCHOR_X, ANCHOR_Y, DEFAULT_STRENGTH, hold_frames, without_anchors
 from ..core.problem import Problem
@@ -191,6 +192,29 @@ def _solve_held(problem: Problem, held: Mapping[str, np.ndarray], opts: CheckOpt
     return without_anchors(res), res, hp.problem, hp.describe()
 
 
+def _noise_from_data(problem: Problem, held: Mapping[str, np.ndarray], opts: CheckOptions):
+    """The solve of ``problem`` with ``held`` frames held, with the noise the data show: solved
+    at the stated noise, each camera's ``sigma`` and ``kappa`` rescaled by its variance factors
+    (:func:`~rwhec_ros.core.analysis.change.noise_reweighted`), solved again. An estimate
+    weighted with the wrong ratio of translation to rotation noise is not the MLE its
+    information describes (its covariance is larger): the second solve is. Returns
+    ``(_solve_held's four, the reweighted problem, the factors)``."""
+    first = _solve_held(problem, held, opts)
+    res = first[0]
+    n_free = 6 * (problem.n_frames - len(held)) + (1 if problem.unknown_scale else 0)
+    weighted, factors = noise_reweighted(problem, res.X, res.Y, res.scale, n_free)
+    out = _solve_held(weighted, held, opts)
+    words = out[3].replace("the data's", "the data's (noise per camera from the residuals)")
+    return (*out[:3], words), weighted, factors
+
+
+def _stated_twin(solved: Problem, data: Problem) -> Problem:
+    """``solved`` (the data reweighted, then the pseudo-measurements of held frames, if any)
+    with the data's edges as stated."""
+    edges = [*data.edges, *solved.edges[len(data.edges):]]
+    return Problem(solved.x_names, solved.y_names, edges, unknown_scale=solved.unknown_scale)
+
+
 def _assess(result: CalibrationResult, problem: Problem, thresholds, expected_x, expected_y,
             carriers) -> Verdict:
     verdict = assess(result, problem, options=thresholds,
@@ -228,7 +252,12 @@ def run_check(
                          f"({reference.source}: frames {sorted(ref)})")
     held_test = ({n: ref[n] for n in problem.x_names if n in ref} if opts.hold == "targets"
                  else {})
-    test_res, solved, solved_problem, words = _solve_held(problem, held_test, opts)
+    weighted, factors = problem, {}
+    if opts.noise == "data":
+        (test_res, solved, solved_problem, words), weighted, factors = _noise_from_data(
+            problem, held_test, opts)
+    else:
+        test_res, solved, solved_problem, words = _solve_held(problem, held_test, opts)
     free = [n for n in problem.frame_names if n not in held_test]
     a = look_level(opts.false_alarm_rate, look, sequential=opts.sequential)
     tags = [n for n in problem.x_names if n in ref and n not in held_test]
@@ -236,16 +265,18 @@ def run_check(
     change_opts = ChangeOptions(tolerance=opts.tolerance, noise=opts.noise)
     changes: dict[str, FrameChange] = {}
     notes = list(reference.notes)
-    factors: dict[str, tuple[float, float]] = {}
+    second: dict[str, tuple[float, float]] = {}
     for group in (cams, tags):
         if not group:
             continue
-        ct = frame_changes(problem, test_res.X, test_res.Y, test_res.scale, free=free,
+        ct = frame_changes(weighted, test_res.X, test_res.Y, test_res.scale, free=free,
                            reference={n: ref[n] for n in group}, level=a / len(group),
                            reference_covariance=cov, options=change_opts)
         changes.update(ct.frames)
         notes += ct.notes
-        factors = ct.variance_factors or factors
+        second = ct.variance_factors or second
+    factors = {k: (f[0] * second.get(k, (1.0, 1.0))[0], f[1] * second.get(k, (1.0, 1.0))[1])
+               for k, f in factors.items()} or second
     if not test_res.certified:
         notes.append(f"the test's solve is not certified ({test_res.certificate.status.value}):"
                      " its decisions rest on a local solution")
@@ -254,14 +285,17 @@ def run_check(
     if moved_frames:
         held = {n: ref[n] for n, c in changes.items() if c.decision == "consistent"}
         held.update(held_test)
-        final_res, final_solved, final_problem, words = _solve_held(problem, held, opts)
+        final_res, final_solved, final_problem, words = _solve_held(weighted, held, opts)
+        if opts.noise == "data":
+            words = words.replace("the data's", "the data's (noise per camera from the residuals)")
     frames = {n: np.array(T, float) for n, T in ref.items()}
     updated = [n for n in moved_frames if n in final_res.x_names + final_res.y_names]
     for n in updated:
         frames[n] = np.array(final_res.transform(n), float)
     v = None
-    if verdict:
-        v = _assess(final_solved, final_problem, thresholds, problem.x_names,
+    if verdict:  # as for any calibration: the fit judged against the stated noise
+        stated = final_problem if weighted is problem else _stated_twin(final_problem, problem)
+        v = _assess(final_solved, stated, thresholds, problem.x_names,
                     [*expected, *problem.y_names], carriers)
     checked = [n for n in dict.fromkeys([*expected, *cams]) if n in ref]
     unseen = [n for n in checked if n not in problem.frame_names]

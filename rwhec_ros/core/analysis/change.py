@@ -39,7 +39,8 @@ an ellipsoid, :func:`norm_bounds`).
 
 Both wrong decisions ("moved" for a change within the tolerance, "consistent" for one beyond it)
 need the true change outside the region: each has probability at most ``a``. With ``tol = 0``
-"moved" is exactly the level-``a`` test of "no change" (``W > c``). ``a`` is the family's rate
+"moved" implies the level-``a`` test of "no change" rejects (``W > c``: the region excludes 0),
+not conversely (the projections are coarser than the region). ``a`` is the family's rate
 ``alpha`` split by Bonferroni over the frames tested together and, for repeated looks at growing
 data, spent over the looks (:func:`look_level`): the probability of any wrong decision, over all
 frames and looks, is at most ``alpha`` (to the first order the test is exact to).
