@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from test_bringup import _data, _moved, _truth
 
 from rwhec_ros.cli import main
 from rwhec_ros.cli.check import input_kind
 from rwhec_ros.cli.common import EXIT_BAD_INPUT, EXIT_MOVED, EXIT_OK, EXIT_UNDECIDED
 from rwhec_ros.data.dataset import Dataset
-from test_bringup import _data, _moved, _truth  # noqa: E402
 
 
 def _run(*argv: str) -> tuple[int, str, str]:

@@ -12,8 +12,8 @@ session's pairs, the words and files :mod:`rwhec_ros.session.bringup_outputs`.
   broadcaster) when ``output.publish_tf`` and the verdict finds them usable.
 * ``/diagnostics``: a ``<node>: check`` row and one ``<node>: check <camera>`` row per camera
   (OK consistent, ERROR moved, WARN not enough data yet), every ``ros.diagnostics_period_s``.
-* ``check.period_s`` > 0: the node also checks that often while new pairs arrive (each a new
-  look; the false-alarm rate is spent over the looks).
+* ``check.period_s`` > 0 (live): the node also checks that often while new pairs arrive (each
+  a new look; the false-alarm rate is spent over the looks).
 
 Registered by :func:`add_check_service` from :class:`~rwhec_ros.ros.node.CalibratorNode`; its
 callbacks have their own mutually exclusive group.
@@ -22,6 +22,7 @@ callbacks have their own mutually exclusive group.
 from __future__ import annotations
 
 import threading
+import time
 from pathlib import Path
 
 import tf2_ros
@@ -49,7 +50,10 @@ from ..session.bringup import (
 from ..session.bringup_outputs import check_message, check_rows, check_transforms
 from ..session.solving import verdict_options
 
-__all__ = ["NodeCheck", "add_check_service", "check_options"]
+__all__ = ["NodeCheck", "add_check_service", "check_options", "PERIOD_TICK_S"]
+
+#: Seconds between two looks at ``check.period_s`` (a live parameter: read at every tick).
+PERIOD_TICK_S = 0.5
 
 
 def check_options(config) -> CheckOptions:
@@ -83,10 +87,9 @@ class NodeCheck:
         self._diag_pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._diag_timer = node.create_timer(node.config.ros.diagnostics_period_s,
                                              self.publish_diagnostics, callback_group=group)
-        self._period_timer = None
-        if node.config.check.period_s > 0:
-            self._period_timer = node.create_timer(node.config.check.period_s, self._periodic,
-                                                   callback_group=group)
+        self._last_periodic = time.monotonic()
+        self._period_timer = node.create_timer(PERIOD_TICK_S, self._periodic,
+                                               callback_group=group)
 
     # --- the reference ----------------------------------------------------------------------
     def _reference(self):
@@ -192,6 +195,12 @@ class NodeCheck:
             self._static_tf.sendTransform(msgs)
 
     def _periodic(self) -> None:
+        """Every :data:`PERIOD_TICK_S`: a look when ``check.period_s`` (live) has passed."""
+        c = self.node.config.check
+        now = time.monotonic()
+        if c.period_s <= 0 or now - self._last_periodic < c.period_s or not c.reference:
+            return
+        self._last_periodic = now
         with self._lock:
             try:
                 report, why = self.run()

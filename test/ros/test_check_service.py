@@ -147,3 +147,21 @@ def test_check_without_a_reference_says_how_to_set_one(context, tmp_path):
         response = call(helper, "/calibrator/check")
         assert response.success is False
         assert "set check.reference" in response.message
+
+
+def test_periodic_checks_fill_the_diagnostics_without_a_call(context, tmp_path):
+    rig = demo_rig(3, 6)
+    params = overrides(tmp_path, **{"check.reference": str(_reference_file(tmp_path, rig)),
+                                    "check.period_s": 0.5, "solver.live_period_s": 0.0})
+    with spinning(context, params) as (node, helper, _):
+        rows: list = []
+        helper.create_subscription(DiagnosticArray, "/diagnostics",
+                                   lambda m: rows.extend(m.status), 10)
+        assert wait_for(lambda: any(r.name == "calibrator: check" for r in rows), timeout=10.0)
+        waiting = [r for r in rows if r.name == "calibrator: check"][-1]
+        assert waiting.level == bytes([1]) and waiting.message.startswith("not enough data yet")
+        _feed(node.session, rig, 24.0, seed=2)
+        assert wait_for(lambda: any(r.name == "calibrator: check cam2" for r in rows),
+                        timeout=120.0)
+        assert node._bringup._check.looks >= 1
+        assert not list((tmp_path).glob("check_*"))  # periodic looks write no files
