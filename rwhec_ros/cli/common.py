@@ -28,6 +28,8 @@ __all__ = [
     "EXIT_BAD_INPUT",
     "EXIT_NO_SOLUTION",
     "EXIT_UNUSABLE",
+    "EXIT_MOVED",
+    "EXIT_UNDECIDED",
     "EXIT_INTERRUPTED",
     "EXIT_TERMINATED",
     "EXIT_PIPE_CLOSED",
@@ -63,6 +65,10 @@ EXIT_BAD_INPUT = 2
 EXIT_NO_SOLUTION = 3
 #: A solution was computed and written, but its verdict is ``unusable``: do not use it.
 EXIT_UNUSABLE = 4
+#: ``check``: a camera moved beyond the tolerance (the check's files are written).
+EXIT_MOVED = 5
+#: ``check``: not enough data yet to decide for some camera, none moved (record more).
+EXIT_UNDECIDED = 6
 #: Interrupted (Ctrl-C, SIGINT): 128 + 2; the pairs gathered are kept (``dataset.yaml``).
 EXIT_INTERRUPTED = 130
 #: Terminated (SIGTERM: ``timeout``, a closing terminal, systemd): 128 + 15; as Ctrl-C.

@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from typing import TextIO
 
 from ..errors import describe_os_error
+from .check import cmd_check
 from .common import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -40,6 +41,7 @@ _COMMANDS: dict[str, Callable[[argparse.Namespace, Printer], int]] = {
     "dataset": cmd_dataset,
     "demo": cmd_demo,
     "report": cmd_report,
+    "check": cmd_check,
 }
 
 

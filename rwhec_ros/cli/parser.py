@@ -14,6 +14,7 @@ import argparse
 from pathlib import Path
 
 from .. import __version__
+from .check import add_check_parser
 from .common import DEFAULT_OUTPUT, MODES, PROG, SDP_BACKENDS
 
 __all__ = ["build_parser"]
@@ -120,9 +121,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "(A_i X_j = Y_k B_i) without ROS.",
         epilog="The first line printed is the verdict: GOOD, CAUTION or UNUSABLE, with the "
                "reason. Exit codes: 0 usable result (good or caution), 2 bad input or output, "
-               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted "
-               "(Ctrl-C), 143 terminated (SIGTERM), 141 output pipe closed (e.g. | head); "
-               "the pairs gathered are kept in dataset.yaml however a run ends.",
+               "3 no solution, 4 result unusable (written, do not use it), 5 check: a camera "
+               "moved, 6 check: not enough data yet, 130 interrupted (Ctrl-C), 143 terminated "
+               "(SIGTERM), 141 output pipe closed (e.g. | head); the pairs gathered are kept in "
+               "dataset.yaml however a run ends.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -214,6 +216,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: calibrate)")
     p.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3",
                    help="storage of --bag (default: %(default)s)")
+
+    add_check_parser(sub, _add_output, _add_config)
 
     p = sub.add_parser("report", help="report PNG + HTML of a written result")
     p.add_argument("result", metavar="RESULT.yaml", type=Path,

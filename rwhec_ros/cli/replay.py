@@ -102,8 +102,8 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
             say.warning("bag", sentence)
         if tf_failure and not counters.get("pairs_kept"):
             say.warning("bag", tf_failure)
-        code, _ = calibrate_session(say, session, run, report=args.report,
-                                    inputs=[input_line(counters)])
+        finish = getattr(args, "finish", None) or calibrate_session  # check: its own
+        code, _ = finish(say, session, run, report=args.report, inputs=[input_line(counters)])
         return code
     except KeyboardInterrupt as exc:
         session.close()

@@ -284,8 +284,9 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
             say.warning("samples", sentence)
         line = (f"samples: {len(samples.views)} views, {len(samples.cameras)} camera(s), "
                 f"{samples.layout} {samples.source}")
-        code, _ = calibrate_session(say, session, run, report=args.report,
-                                    inputs=[input_line(counters), line])
+        finish = getattr(args, "finish", None) or calibrate_session  # check: its own
+        code, _ = finish(say, session, run, report=args.report,
+                         inputs=[input_line(counters), line])
         return code
     except KeyboardInterrupt as exc:
         session.close()

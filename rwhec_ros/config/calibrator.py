@@ -17,6 +17,7 @@ from .sections import (
     CameraConfig,
     CaptureConfig,
     CarrierConfig,
+    CheckConfig,
     ConvergenceConfig,
     DetectionConfig,
     KeyframeConfig,
@@ -32,6 +33,8 @@ from .sections import (
 )
 from .specs import (
     CAPTURE_MODES,
+    CHECK_HOLDS,
+    CHECK_NOISE,
     GLOBAL_SPECS,
     IMAGE_QOS,
     IMAGE_TRANSPORTS,
@@ -81,6 +84,7 @@ class CalibratorConfig:
     convergence: ConvergenceConfig = field(default_factory=ConvergenceConfig)
     targets: TargetsConfig = field(default_factory=TargetsConfig)
     capture: CaptureConfig = field(default_factory=CaptureConfig)
+    check: CheckConfig = field(default_factory=CheckConfig)
 
     # --- names ------------------------------------------------------------------------------
     @property
@@ -329,6 +333,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         image_queue_depth=check_positive_int(v, "ros.image_queue_depth", 1),
         detections_rate_hz=check_positive(v, "ros.detections_rate_hz", allow_zero=True),
     )
+    check = _build_check(v)
     folds = v["accuracy.cross_validation_folds"]
     if folds < 0 or folds == 1:
         raise ValueError(f"accuracy.cross_validation_folds: must be 0 (off) or >= 2, got "
@@ -355,6 +360,26 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         convergence=convergence,
         targets=targets,
         capture=capture,
+        check=check,
+    )
+
+
+def _build_check(v: dict[str, Any]) -> CheckConfig:
+    """``check.*``: tolerances >= 0, a false-alarm rate in (0, 1), the choices."""
+    rate = float(v["check.false_alarm_rate"])
+    if not (math.isfinite(rate) and 0.0 < rate < 1.0):
+        raise ValueError(f"check.false_alarm_rate: must be in (0, 1), got {rate!r}")
+    return CheckConfig(
+        reference=str(v["check.reference"]),
+        tolerance_translation_m=check_positive(v, "check.tolerance_translation_m",
+                                               allow_zero=True),
+        tolerance_rotation_deg=check_positive(v, "check.tolerance_rotation_deg",
+                                              allow_zero=True),
+        false_alarm_rate=rate,
+        hold=check_choice(v, "check.hold", CHECK_HOLDS),
+        noise=check_choice(v, "check.noise", CHECK_NOISE),
+        tf_frames=check_choice(v, "check.tf_frames", ("calibrated", "sensor")),
+        period_s=check_positive(v, "check.period_s", allow_zero=True),
     )
 
 

@@ -22,7 +22,9 @@ What a live change does (the text also goes into the callback's answer and the l
 * ``solver.live_period_s`` (0 turns the live re-solve off), ``convergence.*`` -- used by the next
   live re-solve (:mod:`rwhec_ros.session.live_solve`);
 * ``capture.*`` -- used for the images from now on (:mod:`rwhec_ros.session.capture`), so an
-  arm's operator can switch between continuous keyframing and ``~/capture``.
+  arm's operator can switch between continuous keyframing and ``~/capture``;
+* ``check.*`` -- used by the next ``~/check`` (a new ``check.reference`` is read then, and the
+  looks start again at 1).
 
 Everything else is read once at start-up (subscriptions, queues, worker threads, detectors, the
 frames of the problem) and needs a restart. A new parameter is restart-only until it is added to
@@ -66,6 +68,7 @@ LIVE_PARAMETERS: dict[str, str] = {
     "priors.": _NEXT_SOLVE,
     "accuracy.": _NEXT_SOLVE,
     "capture.": "used for the images from now on (a running ~/capture keeps its cameras)",
+    "check.": "used by the next ~/check (a new reference starts the looks again)",
     "output.directory": "used by the next calibrate and save_dataset",
     "output.": _NEXT_SOLVE,
 }

@@ -232,3 +232,20 @@ class CaptureConfig:
     mode: str = "continuous"
     rest_s: float = 0.5
     timeout_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class CheckConfig:
+    """The bring-up check (:mod:`rwhec_ros.session.bringup`, the node's ``~/check``): the
+    ``reference`` (a file, ``"tf"`` or ``""``), the tolerance, the false-alarm rate, the gauge
+    (``hold``), the test's ``noise``, where frames are looked up (``tf_frames``) and the node's
+    checking period (``period_s``, 0: only on ``~/check``)."""
+
+    reference: str = ""
+    tolerance_translation_m: float = 0.002
+    tolerance_rotation_deg: float = 0.2
+    false_alarm_rate: float = 0.01
+    hold: str = "none"
+    noise: str = "data"
+    tf_frames: str = "calibrated"
+    period_s: float = 0.0

@@ -29,6 +29,8 @@ __all__ = [
     "IMAGE_QOS",
     "IMAGE_TRANSPORTS",
     "CAPTURE_MODES",
+    "CHECK_HOLDS",
+    "CHECK_NOISE",
 ]
 
 #: Node name used by the console script, the launch files and the example configurations.
@@ -59,6 +61,11 @@ CAPTURE_MODES = ("continuous", "capture", "both")
 #: circle grid with a larger origin circle, OpenCV's asymmetric circle grid
 #: (:mod:`rwhec_ros.vision.grids`).
 TARGET_TYPES = ("tag", "aprilgrid", "charuco", "chessboard", "circles", "asymmetric_circles")
+#: ``check.hold`` values: what holds the reference while a frame is tested
+#: (:mod:`rwhec_ros.session.bringup`).
+CHECK_HOLDS = ("none", "targets")
+#: ``check.noise`` values: the noise of the bring-up check's test.
+CHECK_NOISE = ("data", "stated")
 
 
 @dataclass(frozen=True)
@@ -312,6 +319,32 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("accuracy.guidance", "bool", True,
               doc="suggest the next motion at calibrate (the one that most reduces the largest "
                   "std)"),
+    ParamSpec("check.reference", "string", "",
+              doc="bring-up check (~/check): the stored calibration to test the data against: a "
+                  "result.yaml, check.yaml, frames.yaml or URDF file, or 'tf' (the frames as tf "
+                  "has them now, e.g. robot_state_publisher from the URDF); '' = no reference"),
+    ParamSpec("check.tolerance_translation_m", "double", 0.002,
+              doc="a camera is consistent when its change is within this [m] (and the rotation "
+                  "tolerance) with confidence, moved when beyond it with confidence"),
+    ParamSpec("check.tolerance_rotation_deg", "double", 0.2,
+              doc="... and this rotation [deg]"),
+    ParamSpec("check.false_alarm_rate", "double", 0.01,
+              doc="probability of any wrong camera decision (moved / consistent), over the "
+                  "cameras (Bonferroni) and over every look of the node"),
+    ParamSpec("check.hold", "string", "none",
+              doc="what holds the reference while a camera is tested: 'none' (the pose stream "
+                  "defines the carriers; targets are tested too) or 'targets' (the targets "
+                  "are held at the reference: tags fixed in the room that were not touched)"),
+    ParamSpec("check.noise", "string", "data",
+              doc="noise of the test: 'data' (per camera from the residuals) or 'stated' "
+                  "(noise.sigma / noise.kappa or each pair's own)"),
+    ParamSpec("check.tf_frames", "string", "calibrated",
+              doc="check.reference 'tf', a frames.yaml or a URDF: look each frame up under its "
+                  "published name first ('calibrated': <frame><output.frame_suffix>) or under "
+                  "its own frame name first ('sensor')"),
+    ParamSpec("check.period_s", "double", 0.0,
+              doc="node: also check every this many seconds while new pairs arrive (each a new "
+                  "look; /diagnostics shows the answer); 0 = only on ~/check"),
     ParamSpec("ros.image_qos", "string", "sensor_data",
               doc="image/camera_info QoS: 'sensor_data' (best effort) or 'reliable'"),
     ParamSpec("ros.diagnostics_period_s", "double", 1.0, doc="period of /diagnostics [s]"),

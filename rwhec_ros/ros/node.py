@@ -16,8 +16,9 @@ Interfaces (relative names, so the node can be namespaced):
   subscription), history depth ``ros.image_queue_depth``, and
   ``pose_source.topic`` (``geometry_msgs/PoseStamped``) or, with ``pose_source.type: tf``, looks
   ``T_parent_child`` up on tf at every image stamp (tf2 ``Buffer`` + ``TransformListener``);
-* services ``calibrate``, ``~/reset``, ``~/save_dataset`` and ``~/capture`` (``std_srvs/Trigger``;
-  ``~/capture`` takes one view now, :mod:`rwhec_ros.ros.capture`);
+* services ``calibrate``, ``~/reset``, ``~/save_dataset``, ``~/capture`` and ``~/check``
+  (``std_srvs/Trigger``; ``~/capture`` takes one view now, :mod:`rwhec_ros.ros.capture`;
+  ``~/check`` tests the data against a stored calibration, :mod:`rwhec_ros.ros.check`);
 * publishes the extrinsics on ``/tf_static`` (``StaticTransformBroadcaster``, child frames from
   the configuration; only the frames the verdict finds usable unless ``output.publish_unusable``,
   the others named in the ``calibrate`` response and the log), ``~/suboptimality_bound``
@@ -108,6 +109,7 @@ from ..session.responses import (
 )
 from ..vision.annotate import annotate_detections
 from .capture import add_capture_service
+from .check import add_check_service
 from .params import config_from_node
 from .process import rclpy_main
 
@@ -223,6 +225,7 @@ class CalibratorNode(Node):
         self.create_service(Trigger, "~/save_dataset", self._on_save_dataset,
                             callback_group=self._service_group)
         add_capture_service(self)  # ~/capture (rwhec_ros.ros.capture): one view now, for arms
+        self._bringup = add_check_service(self)  # ~/check (rwhec_ros.ros.check): bring-up
 
         # --- publishers ---------------------------------------------------------------------------
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
@@ -530,6 +533,8 @@ class CalibratorNode(Node):
         deadline = time.monotonic() + WORKER_STOP_TIMEOUT_S
         for worker in workers:
             worker.join(max(0.0, deadline - time.monotonic()))
+        if getattr(self, "_bringup", None) is not None:
+            self._bringup.stop()
         session = getattr(self, "session", None)
         if session is not None:
             session.close()
