@@ -381,6 +381,7 @@ def solve_and_write(
     from ..session.accuracy import AccuracyOptions
     from ..session.outputs import description_texts, launch_header, publishable
     from ..session.solving import solve_and_assess, verdict_options
+    from ..session.time_offsets import add_offset_reasons, correct_time_offsets
 
     frames = list(dataset.y_names) + list(dataset.x_names)
     for f, a, x in settings.priors:
@@ -391,6 +392,9 @@ def solve_and_write(
     cam_carrier = next((naming.frames[n][0] for n in naming.y_names if n in naming.frames), "")
     tag_carrier = next((naming.frames[n][0] for n in naming.x_names if n in naming.frames), "")
     try:
+        problem, dataset, offsets = correct_time_offsets(
+            problem, dataset, config, mode=settings.mode, priors=settings.priors,
+            unobservable_std_m=settings.unobservable_std_m, min_scale=settings.min_scale)
         solved = solve_and_assess(
             problem, mode=settings.mode, reject_outliers=settings.robust,
             priors=settings.priors, unobservable_std_m=settings.unobservable_std_m,
@@ -405,12 +409,14 @@ def solve_and_write(
             "or --robust if some pairs may be outliers")
         return EXIT_NO_SOLUTION
     result, verdict = solved.result, solved.verdict
+    add_offset_reasons(verdict, offsets)
     excluded.update(solved.dropped)
     ident = solved.identifiability
     doc = result_document(result, naming, excluded=excluded,
                           identifiability=solved.identifiability_dict, config=config,
                           source=source, verdict=verdict, accuracy=solved.accuracy,
                           rejected_pairs=solved.rejected_pairs)
+    doc["time_offsets"] = offsets.to_dict()
     names = list(result.y_names) + list(result.x_names)
     transforms, left_out = publishable(naming.transforms(result), names, verdict,
                                        publish_unusable=publish_unusable)
@@ -430,7 +436,8 @@ def solve_and_write(
         if isinstance(exc, FileExistsError) and not exc.strerror:
             raise
         raise BadInput(f"cannot write the outputs: {describe_os_error(exc)}") from None
-    say.summary(summary(result, solved.problem, excluded, naming, verdict, solved.accuracy))
+    say.summary("\n".join([summary(result, solved.problem, excluded, naming, verdict,
+                                    solved.accuracy), *offsets.lines()]))
     say.files(files)
     if report:
         write_report(say, doc, solved.problem, paths.report_png, paths.report_html, ident)

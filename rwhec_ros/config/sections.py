@@ -115,7 +115,9 @@ class SyncConfig:
 
     ``image_queue_size`` counts per camera; ``detection_threads`` is an integer or ``"auto"``
     (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`). ``at_rest_*``: the
-    stop-and-go rule of :mod:`rwhec_ros.sync.at_rest`.
+    stop-and-go rule of :mod:`rwhec_ros.sync.at_rest`. ``estimate_time_offset``,
+    ``time_offset_*`` and ``time_offsets``: the time offsets of
+    :mod:`rwhec_ros.session.time_offsets`.
     """
 
     max_gap_s: float
@@ -128,6 +130,15 @@ class SyncConfig:
     at_rest_max_gap_s: float = 2.0
     at_rest_translation_m: float = 0.0005
     at_rest_rotation_rad: float = 0.001
+    estimate_time_offset: bool = True
+    time_offset_range_s: float = 0.1
+    time_offset_max_std_s: float = 0.005
+    #: ``sync.time_offset.<camera>`` as ``(camera, seconds)`` pairs (configuration order).
+    time_offsets: tuple[tuple[str, float], ...] = ()
+
+    def time_offset_s(self, camera: str) -> float:
+        """``sync.time_offset.<camera>`` [s] (0 for a camera without one)."""
+        return float(dict(self.time_offsets).get(camera, 0.0))
 
 
 @dataclass(frozen=True)

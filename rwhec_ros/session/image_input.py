@@ -153,6 +153,8 @@ class ImageInput:
             return self._reject(camera, safe_int(stamp_ns), "image_missing_camera_info",
                                 words="no CameraInfo had arrived for this camera")
         stamp = safe_int(stamp_ns)
+        if stamp is not None:  # sync.time_offset.<camera>: the session works in pose time
+            stamp += int(round(self.config.sync.time_offset_s(camera) * 1e9))
         if stamp is None or stamp < 0:
             return self._reject(camera, stamp, "image_bad_stamp")
         if not callable(image):
@@ -448,6 +450,7 @@ class ImageInput:
                         self._count("identifiability_rejected_pair")
         self._count("pairs_kept", len(kept))
         if kept:
+            self._track.mark(stamp)  # the pose stream around it (time offsets)
             self._data_version += 1
             self._gate_epochs[camera] += 1
         return kept

@@ -31,6 +31,7 @@ from ..data.results import (
 from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
 from ..sync.buffer import PoseBuffer
+from ..sync.pose_track import PoseTrack, track_window_ns
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .accuracy import AccuracyOptions
@@ -42,6 +43,7 @@ from .outputs import publishable, session_dataset, summary, write_session_output
 from .paths import plain_output_root
 from .rejections import RejectionLog
 from .solving import make_tracker, report_dict, solve_and_assess, verdict_options
+from .time_offsets import add_offset_reasons, correct_time_offsets
 
 __all__ = ["CalibrationSession"]
 
@@ -141,6 +143,9 @@ class CalibrationSession(ImageInput, CaptureMixin):
                                if t.board is not None), default=0),
         )
         self._tracker = make_tracker(c.tags.unknown_scale)
+        # the pose stream around the kept pairs, for time offsets (rwhec_ros.sync.pose_track)
+        self._track = PoseTrack(track_window_ns(c.sync.time_offset_range_s),
+                                self._buffer.max_gap_ns, recent=c.sync.pose_buffer_size)
         self._pending: collections.deque = collections.deque()
         self._views: dict = {}  # camera -> (A, targets found) of its last searched image
         # the motion gate's remembered verdicts (image_input.gate_would_skip), valid while the
@@ -272,6 +277,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 ok = False
             if not ok:
                 self._count("pose_rejected_buffer")
+            else:
+                self._track.add(int(stamp_ns), A)
             return bool(ok)
 
     def rejections(self) -> list[str]:
@@ -370,6 +377,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
     def _calibrate(self, output_dir: str | Path | None, force: bool) -> SolveOutcome:
         c = self.config
         problem, excluded, err, report, dataset, counts = self._snapshot()
+        offsets = None
         ident = report_dict(report)
         excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         if problem is None:
@@ -385,6 +393,9 @@ class CalibrationSession(ImageInput, CaptureMixin):
                            "pairs are kept: record more and calibrate again")
             return SolveOutcome(False, message, excluded=excl, identifiability=ident)
         try:
+            problem, dataset, offsets = correct_time_offsets(
+                problem, dataset, c, mode=c.solver.mode, priors=c.priors.entries,
+                unobservable_std_m=c.solver.unobservable_std_m, min_scale=c.solver.min_scale)
             solved = solve_and_assess(
                 problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
                 priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
@@ -399,19 +410,22 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 excluded=excl, identifiability=ident,
             )
         result, verdict = solved.result, solved.verdict
+        add_offset_reasons(verdict, offsets)
         excl.update(solved.dropped)
         ident = solved.identifiability_dict or ident
-        text = dump_document(self.result_document(result, excl, ident, verdict,
-                                                  solved.accuracy, solved.rejected_pairs))
+        doc = self.result_document(result, excl, ident, verdict, solved.accuracy,
+                                   solved.rejected_pairs)
+        doc["time_offsets"] = offsets.to_dict()
+        text = dump_document(doc)
         try:
             files = self._write_outputs(result, text, dataset, output_dir, force, verdict)
             write_error = ""
         except OSError as exc:
             files, write_error = {}, f"\nWRITING THE OUTPUTS FAILED: {describe_os_error(exc)}"
-        message = summary(result, solved.problem, excl, self.config, verdict,
-                          solved.accuracy) + write_error
+        message = "\n".join([summary(result, solved.problem, excl, self.config, verdict,
+                                      solved.accuracy), *offsets.lines()]) + write_error
         return SolveOutcome(True, message, result, excl, files, ident, text, verdict,
-                            solved.accuracy)
+                            solved.accuracy, time_offsets=offsets)
 
     def _accuracy_options(self) -> AccuracyOptions:
         """``accuracy.*`` of the configuration; the guidance moves the carrier that moves (the
@@ -481,7 +495,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
 
     def _dataset_locked(self):
         """A data-set object of the kept pairs (lock held), or None if unavailable."""
-        return session_dataset(self._acc, self.config, self._intrinsics)
+        return session_dataset(self._acc, self.config, self._intrinsics,
+                               pose_stream=self._track.data())
 
     def save_dataset(self, path: str | Path | None = None) -> str:
         """Save the kept pairs (format of :mod:`rwhec_ros.data.dataset`) and return the path.
@@ -522,7 +537,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         outside, :func:`~rwhec_ros.sync.accumulator.problem_from_edges`)."""
         with self._lock:
             return PairsSnapshot(self._data_version, self._acc.kept_pairs(),
-                                 self._acc.rotation_tol)
+                                 self._acc.rotation_tol, self._track.data())
 
     def live_counts(self) -> tuple[int, int, int, bool]:
         """``(data version, calibrations started, resets, calibrate running)``: what the live

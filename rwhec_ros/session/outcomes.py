@@ -82,6 +82,9 @@ class SolveOutcome:
     accuracy : Accuracy or None
         Per-frame uncertainty, cross-validation and guidance
         (:class:`~rwhec_ros.session.accuracy.Accuracy`); None on failure.
+    time_offsets : TimeOffsetReport or None
+        Each camera's time offset to the pose stream
+        (:class:`~rwhec_ros.session.time_offsets.TimeOffsetReport`); None on failure.
     """
 
     success: bool
@@ -93,6 +96,7 @@ class SolveOutcome:
     result_yaml: str = ""
     verdict: Verdict | None = None
     accuracy: Any = None
+    time_offsets: Any = None
 
     @property
     def usable(self) -> bool:
