@@ -116,8 +116,8 @@ def ms(v) -> str:
     return "-" if v is None else f"{1e3 * v:+.2f}"
 
 
-def run(quick: bool) -> tuple[list[str], list[str], list[str]]:
-    rows, summary_rows, sg_rows = [], [], []
+def run(quick: bool) -> tuple[list[str], list[str], list[str], list[str]]:
+    rows, summary_rows, sg_rows, live_rows = [], [], [], []
     tmp = Path(tempfile.mkdtemp(prefix="rwhec_time_offset_"))
     for sc in scenarios(quick):
         rig = demo_rig(3, 6, room_radius=sc["room"], trajectory=sc["trajectory"])
@@ -134,6 +134,10 @@ def run(quick: bool) -> tuple[list[str], list[str], list[str]]:
             err_on, err_off = frame_errors(on, rig), frame_errors(off, rig)
             if base is None:
                 base = err_on
+                n, solve_ms, step_ms, cached_ms = live_cost(
+                    tmp / f"on_{sc['room']}_{i}_out" / "dataset.yaml", demo_parameters(rig))
+                live_rows.append(f"| {sc['name']} | {n} | {solve_ms:.1f} | {step_ms:.1f} | "
+                                 f"{cached_ms:.1f} ({cached_ms / solve_ms:.2f}x) |")
             ok_all = True
             for cam in rig.cameras:
                 o = offsets_of(on)[cam]
@@ -181,7 +185,41 @@ def run(quick: bool) -> tuple[list[str], list[str], list[str]]:
         sg_rows.append(f"| {i}: {planted or 'none'} | {status_words} ({'yes' if nd else 'NO'}) "
                        f"| {moving_words} | {err_on[0]:.2f} mm, {err_on[1]:.3f} deg | "
                        f"{err_off[0]:.2f} mm, {err_off[1]:.3f} deg | {'yes' if same else 'NO'} |")
-    return rows, summary_rows, sg_rows
+    return rows, summary_rows, sg_rows, live_rows
+
+
+def live_cost(dataset_path: Path, config_flat: dict, repeat: int = 5) -> tuple[int, float, float]:
+    """``(pairs, live re-solve [ms], its one-step offsets [ms], again with every pair's rate
+    cached [ms])``, CPU time of this thread (the
+    machine is shared: wall times vary 5x), best of ``repeat``: the
+    session's live re-solve (:func:`~rwhec_ros.session.live_solve.solve_with_uncertainty`, on
+    the problem of the data set with its edge blocks, as the live solver builds it) and the
+    offsets it adds (:func:`~rwhec_ros.session.time_offsets.one_step_offsets`)."""
+    from rwhec_ros.core.model.edge_cache import EdgeBlockCache
+    from rwhec_ros.data.dataset import Dataset
+    from rwhec_ros.session.live_solve import solve_with_uncertainty
+    from rwhec_ros.session.time_offsets import TimeOffsetOptions, one_step_offsets
+
+    data = Dataset.load(dataset_path)
+    config = CalibratorConfig.from_parameters(config_flat)
+    stamps = {(e.x, e.y): e.stamps_ns for e in data.edges}
+    solve_ms, step_ms, cached_ms = [], [], []
+    for _ in range(repeat):
+        problem = data.to_problem(min_pairs=3)
+        problem.precomputed_blocks = EdgeBlockCache().blocks(problem)
+        t0 = time.thread_time()
+        result, _ = solve_with_uncertainty(problem, config)
+        t1 = time.thread_time()
+        cache: dict = {}
+        options = TimeOffsetOptions.from_config(config)
+        one_step_offsets(problem, result, stamps, data.pose_stream, options, cache)
+        t2 = time.thread_time()
+        one_step_offsets(problem, result, stamps, data.pose_stream, options, cache)
+        t3 = time.thread_time()
+        solve_ms.append(1e3 * (t1 - t0))
+        step_ms.append(1e3 * (t2 - t1))
+        cached_ms.append(1e3 * (t3 - t2))
+    return problem.n_measurements, min(solve_ms), min(step_ms), min(cached_ms)
 
 
 def main_() -> None:
@@ -190,7 +228,7 @@ def main_() -> None:
     args = parser.parse_args()
     t0 = time.time()
     load0 = os.getloadavg()
-    rows, summary_rows, sg_rows = run(args.quick)
+    rows, summary_rows, sg_rows, live_rows = run(args.quick)
     load1 = os.getloadavg()
     print("# Time offsets: planted in rendered bags, estimated and applied\n")
     print(f"`python benchmarks/time_offset.py{' --quick' if args.quick else ''}`, "
@@ -221,6 +259,15 @@ def main_() -> None:
           "error (off) | same result |")
     print("|---|---|---|---|---|---|")
     print("\n".join(sg_rows))
+    print("\n## Live cost\n")
+    print("The live re-solve (`solve_with_uncertainty`: fast solve and every frame's "
+          "uncertainty, from the edge blocks) of the zero-offset run's data set, and the "
+          "offsets it adds (`one_step_offsets`: one Newton step, no solve); the second time "
+          "with every pair's stream rate cached, as the live solver keeps them between "
+          "re-solves. CPU time of the thread [ms], best of 5.\n")
+    print("| data | pairs | live re-solve | + offsets, first | + offsets, rates cached |")
+    print("|---|---|---|---|---|")
+    print("\n".join(live_rows))
 
 
 if __name__ == "__main__":

@@ -342,9 +342,9 @@ class Dataset:
         """Whether :meth:`save` with these arguments writes the arrays to ``<stem>.npz``."""
         if arrays not in ("auto", "inline", "npz"):
             raise ValueError(f"arrays: expected 'auto', 'inline' or 'npz', got {arrays!r}")
-        if arrays == "auto":  # a stream sample weighs about what a pair does
+        if arrays == "auto":  # a stream sample weighs a third of a pair (its A only)
             stream = 0 if self.pose_stream is None else self.pose_stream.n
-            return self.n_pairs + stream > inline_max_pairs
+            return self.n_pairs > inline_max_pairs or stream > 10 * inline_max_pairs
         return arrays == "npz"
 
     def save(self, path: str | Path, *, arrays: str = "auto", inline_max_pairs: int = 2000) -> Path:
@@ -355,7 +355,8 @@ class Dataset:
         path : str or Path
             The YAML file to write.
         arrays : {"auto", "inline", "npz"}
-            Where the arrays go; ``"auto"`` is ``"inline"`` up to ``inline_max_pairs`` pairs.
+            Where the arrays go; ``"auto"`` is ``"inline"`` up to ``inline_max_pairs`` pairs
+            and ten times that many samples of the ``pose_stream``.
         inline_max_pairs : int
             Threshold of ``"auto"``.
 

@@ -155,7 +155,8 @@ def warm_start_of(estimate: LiveEstimate | None, problem: Problem) -> tuple | No
     return r.X, r.Y
 
 
-def _live_offsets(problem: Problem, result: CalibrationResult, snap: PairsSnapshot, config):
+def _live_offsets(problem: Problem, result: CalibrationResult, snap: PairsSnapshot, config,
+                  cache: dict):
     """The live time offsets (:func:`~rwhec_ros.session.time_offsets.one_step_offsets`) of the
     re-solved ``problem``, or None when they cannot be had (an injected re-solve's result of
     another kind, a failure: the live estimate stands without them)."""
@@ -166,7 +167,9 @@ def _live_offsets(problem: Problem, result: CalibrationResult, snap: PairsSnapsh
         return None
     try:
         stamps = {k: e.stamps_ns for k, e in snap.edges.items()}
-        return one_step_offsets(problem, result, stamps, snap.track, options)
+        if len(cache) > 4 * max(problem.n_measurements, 1000):  # pairs replaced over time
+            cache.clear()
+        return one_step_offsets(problem, result, stamps, snap.track, options, cache)
     except Exception:  # noqa: BLE001 - an extra of the live estimate, never its failure
         return None
 
@@ -376,6 +379,7 @@ class LiveSolver:
         self._s = _State()
         self._s.idle.set()
         self._blocks = EdgeBlockCache()  # used by the worker thread only
+        self._rate_cache: dict = {}  # the pairs' stream rates by stamp (worker thread only)
 
     # --- driving -------------------------------------------------------------------------------
     def tick(self, now: float | None = None) -> str:
@@ -480,7 +484,7 @@ class LiveSolver:
             conv = convergence_of(unc, [*y_names, *x_names],
                                   c.convergence.max_std_translation_m,
                                   c.convergence.max_std_rotation_deg)
-            offsets = _live_offsets(problem, result, snap, c)
+            offsets = _live_offsets(problem, result, snap, c, self._rate_cache)
             t1, cpu = self._clock(), time.thread_time() - cpu0
             excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         except Exception as exc:  # noqa: BLE001 - a live solve never raises; the data stay
@@ -550,6 +554,7 @@ class LiveSolver:
     # --- session events ------------------------------------------------------------------------
     def forget(self) -> None:
         """Drop the estimate and the error (the session was reset)."""
+        self._rate_cache = {}  # a new dict: a running re-solve keeps the old one
         with self._lock:
             self._s.estimate = None
             self._s.last_error = ""

@@ -40,6 +40,7 @@ import numpy as np
 
 from ..core.analysis.information import information_from_edge_blocks, information_matrix
 from ..core.analysis.time_offset import offset_step, offset_terms
+from ..core.numerics.blas import blas_threads
 from ..core.problem import Edge, Problem
 from ..sync.pose_track import MOTION_HALF_WINDOW_NS, PoseTrackData
 
@@ -266,15 +267,24 @@ def _reinterpolated(problem: Problem, stamps: list[np.ndarray], track: PoseTrack
                     delta_ns: np.ndarray) -> tuple[Problem, list[np.ndarray]]:
     """``problem`` with each edge's ``A`` re-interpolated at its stamps shifted by its camera's
     ``delta_ns`` (cameras with 0 keep their pairs), and per edge the mask of the pairs kept
-    (pairs the stream does not cover at the shifted stamp are left out)."""
+    (pairs the stream does not cover at the shifted stamp are left out). One batched lookup:
+    the per-call cost of the SE(3) logarithm dominates small batches."""
+    shift = [int(delta_ns[k]) for k in problem.edge_y]
+    moved = [i for i, d in enumerate(shift) if d]
+    looked = {}
+    if moved:
+        q = np.concatenate([stamps[i] + shift[i] for i in moved])
+        A, ok = track.lookup(q)
+        ends = np.cumsum([stamps[i].shape[0] for i in moved])[:-1]
+        looked = dict(zip(moved, zip(np.split(A, ends), np.split(ok, ends), strict=True),
+                          strict=True))
     edges, masks = [], []
-    for e, s, k in zip(problem.edges, stamps, problem.edge_y, strict=True):
-        d = int(delta_ns[k])
-        if d == 0:
+    for i, e in enumerate(problem.edges):
+        if i not in looked:
             edges.append(e)
             masks.append(np.ones(e.n, dtype=bool))
             continue
-        A, ok = track.lookup(s + d)
+        A, ok = looked[i]
         masks.append(ok)
         if ok.any():
             edges.append(Edge._of(e.x, e.y, A[ok], e.B[ok], e.sigma[ok], e.kappa[ok]))
@@ -282,21 +292,30 @@ def _reinterpolated(problem: Problem, stamps: list[np.ndarray], track: PoseTrack
 
 
 def _rates(problem: Problem, stamps: list[np.ndarray], track: PoseTrackData,
-           delta_ns: np.ndarray, moving: list[np.ndarray]) -> np.ndarray:
-    """Twist rates (N, 6) at the shifted stamps of the moving pairs (NaN elsewhere)."""
-    out = []
-    for s, k, mv in zip(stamps, problem.edge_y, moving, strict=True):
-        xi, ok = track.rates(s + int(delta_ns[k]))
-        xi[~(ok & mv)] = np.nan
-        out.append(xi)
-    return np.concatenate(out) if out else np.zeros((0, 6))
+           delta_ns: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """Twist rates (N, 6) at the shifted stamps of the ``moving`` (N,) pairs (NaN elsewhere),
+    in one batch."""
+    if not stamps:
+        return np.zeros((0, 6))
+    q = np.concatenate([s + int(delta_ns[k]) for s, k in zip(stamps, problem.edge_y,
+                                                              strict=True)])
+    xi, ok = track.rates(q)
+    xi[~(ok & moving)] = np.nan
+    return xi
 
 
-def _moving(track: PoseTrackData, stamps: np.ndarray) -> np.ndarray:
-    shift, angle = track.motion(stamps, MOTION_HALF_WINDOW_NS)
+def _moving(track: PoseTrackData, q: np.ndarray) -> np.ndarray:
+    """Whether the stream moved around each stamp of ``q`` (N,) (module docstring)."""
+    shift, angle = track.motion(q, MOTION_HALF_WINDOW_NS)
     window = 2 * MOTION_HALF_WINDOW_NS / _NS
     with np.errstate(invalid="ignore"):
         return (shift > MOVING_SPEED_M_S * window) | (angle > MOVING_RATE_RAD_S * window)
+
+
+def _per_camera(problem: Problem, stamps: list[np.ndarray], flags: np.ndarray) -> np.ndarray:
+    """How many of the pairs ``flags`` (N,) marks each camera (P,) has."""
+    camera = np.repeat(problem.edge_y, [s.shape[0] for s in stamps])
+    return np.bincount(camera, weights=flags, minlength=problem.P).astype(int)
 
 
 def _check_stamps(problem: Problem, stamps: Mapping[tuple[str, str], np.ndarray]
@@ -393,15 +412,18 @@ def estimate_offsets(
         corrected stamps of the cameras whose offset is applied (pairs the stream does not
         reach there left out, counted in :attr:`CameraOffset.dropped`).
     """
+    with blas_threads(1):  # small dense matrices: threads only add contention
+        return _estimate_offsets(problem, stamps, track, options, solve_fn)
+
+
+def _estimate_offsets(problem, stamps, track, options, solve_fn):
     t0 = time.perf_counter()
     missing = _unavailable(problem, stamps, track, options)
     if missing is not None:
         return missing, problem
     st = _check_stamps(problem, stamps)
-    moving = [_moving(track, s) for s in st]
-    moving_counts = np.zeros(problem.P, dtype=int)
-    for mv, k in zip(moving, problem.edge_y, strict=True):
-        moving_counts[k] += int(mv.sum())
+    moving = _moving(track, np.concatenate(st))
+    moving_counts = _per_camera(problem, st, moving)
     delta = np.zeros(problem.P)
     dns = np.zeros(problem.P, dtype=np.int64)
     current, kept = problem, np.ones(problem.n_measurements, dtype=bool)
@@ -452,23 +474,59 @@ def estimate_offsets(
 
 
 def one_step_offsets(problem: Problem, result, stamps: Mapping[tuple[str, str], np.ndarray],
-                     track: PoseTrackData | None, options: TimeOffsetOptions
-                     ) -> TimeOffsetReport:
+                     track: PoseTrackData | None, options: TimeOffsetOptions,
+                     cache: dict | None = None) -> TimeOffsetReport:
     """The live estimate: one profile Newton step from the live solution (no further solve),
     each camera's offset judged as by :func:`estimate_offsets` (for offsets of tens of
     milliseconds one step lands within a fraction of a millisecond of the converged estimate,
     see ``benchmarks/time_offset.md``). The live problem's edge blocks
-    (``problem.precomputed_blocks``) give the information of ``X, Y`` when set."""
+    (``problem.precomputed_blocks``) give the information of ``X, Y`` when set.
+
+    ``cache`` (a dict kept by the caller from one call to the next, e.g. the live solver's):
+    each pair's rate and motion by stamp, computed once when the recorded stream covers it (the
+    stream around a kept pair does not change afterwards; a sample arriving out of order inside
+    a window already used is the exception, and shifts a rate by its own jitter at most):
+    halves the live cost (``benchmarks/time_offset.md``)."""
+    with blas_threads(1):
+        return _one_step_offsets(problem, result, stamps, track, options, cache)
+
+
+def _cached_rates(st, track, cache) -> tuple[np.ndarray, np.ndarray]:
+    """``(rates (N, 6), moving (N,))`` at the stamps ``st``, from ``cache`` where it has them."""
+    q = np.concatenate(st)
+    rates = np.full((q.shape[0], 6), np.nan)
+    moving = np.zeros(q.shape[0], dtype=bool)
+    todo = []
+    for i, stamp in enumerate(q.tolist()):
+        hit = cache.get(stamp)
+        if hit is None:
+            todo.append(i)
+        else:
+            rates[i], moving[i] = hit
+    if todo:
+        idx = np.array(todo)
+        mv = _moving(track, q[idx])
+        xi, ok = track.rates(q[idx])
+        _, okm = track.lookup(np.concatenate([q[idx] + MOTION_HALF_WINDOW_NS,
+                                              q[idx] - MOTION_HALF_WINDOW_NS]))
+        okm = okm[: idx.shape[0]] & okm[idx.shape[0]:]
+        xi[~(ok & mv)] = np.nan
+        rates[idx], moving[idx] = xi, mv
+        passed = track.stamps_ns[-1] - MOTION_HALF_WINDOW_NS - 2 * track.max_gap_ns
+        for j, i in enumerate(todo):
+            if (ok[j] and okm[j]) or q[i] < passed:  # the stream around it is final
+                cache[int(q[i])] = (xi[j].copy(), bool(mv[j]))
+    return rates, moving
+
+
+def _one_step_offsets(problem, result, stamps, track, options, cache) -> TimeOffsetReport:
     t0 = time.perf_counter()
     missing = _unavailable(problem, stamps, track, options)
     if missing is not None:
         return missing
     st = _check_stamps(problem, stamps)
-    moving = [_moving(track, s) for s in st]
-    moving_counts = np.zeros(problem.P, dtype=int)
-    for mv, k in zip(moving, problem.edge_y, strict=True):
-        moving_counts[k] += int(mv.sum())
-    rates = _rates(problem, st, track, np.zeros(problem.P, dtype=np.int64), moving)
+    rates, moving = _cached_rates(st, track, {} if cache is None else cache)
+    moving_counts = _per_camera(problem, st, moving)
     info = (information_from_edge_blocks if getattr(problem, "precomputed_blocks", None)
             is not None else information_matrix)
     step = offset_step(offset_terms(problem, result.X, result.Y, result.scale, rates),

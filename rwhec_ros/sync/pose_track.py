@@ -126,9 +126,9 @@ class PoseTrackData:
         ``log(A(s + h) A(s - h)^-1) / (2 h)``; NaN where either end cannot be looked up."""
         q = np.atleast_1d(np.asarray(stamps_ns)).astype(np.int64)
         h = int(half_step_ns)
-        Ap, okp = self.lookup(q + h)
-        Am, okm = self.lookup(q - h)
-        ok = okp & okm
+        A, both = self.lookup(np.concatenate([q + h, q - h]))  # one batch: one log, one exp
+        Ap, Am = A[: q.shape[0]], A[q.shape[0]:]
+        ok = both[: q.shape[0]] & both[q.shape[0]:]
         xi = np.full(q.shape + (6,), np.nan)
         if ok.any():
             xi[ok] = se3_log(Ap[ok] @ invert_transform(Am[ok])) * (_NS / (2.0 * h))
@@ -140,8 +140,9 @@ class PoseTrackData:
         test measures a change of ``A``); NaN where either end cannot be looked up."""
         q = np.atleast_1d(np.asarray(stamps_ns)).astype(np.int64)
         w = int(half_window_ns)
-        Ap, okp = self.lookup(q + w)
-        Am, okm = self.lookup(q - w)
+        A, both = self.lookup(np.concatenate([q + w, q - w]))
+        Ap, Am = A[: q.shape[0]], A[q.shape[0]:]
+        okp, okm = both[: q.shape[0]], both[q.shape[0]:]
         shift = np.linalg.norm(Ap[:, :3, 3] - Am[:, :3, 3], axis=-1)
         rel = np.swapaxes(Am[:, :3, :3], 1, 2) @ Ap[:, :3, :3]
         c = np.clip(0.5 * (np.trace(rel, axis1=1, axis2=2) - 1.0), -1.0, 1.0)

@@ -43,6 +43,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from ..lie import hat
 from ..problem import Problem
@@ -186,17 +187,17 @@ def offset_terms(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float,
     J[:, 0, 3] = J[:, 1, 4] = J[:, 2, 5] = -a * ws
     J[:, :3, 6] = p * ws[:, None]
     J[:, :3, 10:13] = (RY @ hat(tB)) * ws[:, None, None]
-    J[:, 3:, 7:10] = np.einsum("nij,ljk->nikl", C, _E).reshape(N, 9, 3) * wk[:, None, None]
-    J[:, 3:, 10:13] = -np.einsum("nij,ljk,nkm->niml", RY, _E, RB).reshape(N, 9, 3) * \
-        wk[:, None, None]
+    for v in range(3):  # columns vec(R_A R_X e_v^) and -vec(R_Y e_v^ R_B), scaled
+        J[:, 3:, 7 + v] = (C @ _E[v]).reshape(N, 9) * wk[:, None]
+        J[:, 3:, 10 + v] = -((RY @ _E[v]) @ RB).reshape(N, 9) * wk[:, None]
     rho, om = xi[:, :3], xi[:, 3:]
     Jd = np.empty((N, 12))
     Jd[:, :3] = a * (np.cross(om, u) + rho) * ws[:, None]
     Jd[:, 3:] = (hat(om) @ C * wk[:, None, None]).reshape(N, 9)
     starts = np.r_[0, np.cumsum([ed.n for ed in problem.edges])[:-1]].astype(int)
-    Jt = np.swapaxes(J, 1, 2)
-    cross = np.add.reduceat(np.einsum("nij,nj->ni", Jt, Jd), starts, axis=0)  # (E, 13)
-    grad = np.add.reduceat(np.einsum("nij,nj->ni", Jt, e), starts, axis=0)
+    both = (np.stack([Jd, e], axis=1) @ J)  # (N, 2, 13): J^T J_delta and J^T e per pair
+    cross = np.add.reduceat(both[:, 0], starts, axis=0)  # (E, 13)
+    grad = np.add.reduceat(both[:, 1], starts, axis=0)
     dd = np.add.reduceat((Jd * Jd).sum(axis=1), starts)
     gd = np.add.reduceat((Jd * e).sum(axis=1), starts)
     moving = np.add.reduceat((np.abs(xi) > 0).any(axis=1).astype(int), starts)
@@ -224,10 +225,17 @@ def _pinv_solve(H: np.ndarray, B: np.ndarray) -> np.ndarray:
     d = np.sqrt(np.clip(np.diag(H), 0.0, None))
     d = np.where(d > 0, d, 1.0)
     Hn = H / np.outer(d, d)
+    Bn = B / d.reshape((-1,) + (1,) * (B.ndim - 1))
+    try:  # the usual case, every direction determined: a Cholesky factor, well conditioned
+        L = np.linalg.cholesky(Hn)
+        if np.diag(L).min() ** 2 > _NULL_TOL ** 0.5:
+            x = scipy.linalg.cho_solve((L, True), Bn)
+            return x / d.reshape((-1,) + (1,) * (B.ndim - 1))
+    except np.linalg.LinAlgError:
+        pass
     w, V = np.linalg.eigh(0.5 * (Hn + Hn.T))
     keep = w > _NULL_TOL * max(float(w.max(initial=0.0)), 1e-300)
     Vk = V[:, keep]
-    Bn = B / d.reshape((-1,) + (1,) * (B.ndim - 1))
     out = Vk @ ((Vk.T @ Bn) / w[keep].reshape((-1,) + (1,) * (B.ndim - 1)))
     return out / d.reshape((-1,) + (1,) * (B.ndim - 1))
 
