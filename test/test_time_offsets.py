@@ -42,7 +42,7 @@ def stop_and_go(t: float) -> np.ndarray:
     return moving(2.0 * (k + u * u * (3 - 2 * u)))
 
 
-def scene(rng, motion, offsets, *, image_times, pose_noise=2e-4):
+def scene(rng, motion, offsets, *, image_times, pose_noise=2e-4, names=("x", "y")):
     """A data set and problem as the session keeps them: the stream sampled at 100 Hz with
     noise, two cameras and three targets, camera ``k``'s image taken at ``t`` stamped
     ``t - offsets[k]`` and paired with the stream at its stamp (interpolated)."""
@@ -53,9 +53,9 @@ def scene(rng, motion, offsets, *, image_times, pose_noise=2e-4):
         poses.append(make_transform(T[:3, :3] @ so3_exp(pose_noise * rng.normal(size=3)),
                                     T[:3, 3] + pose_noise * rng.normal(size=3)))
     track = PoseTrackData(ts, np.array(poses), 100_000_000)
-    X = {f"x{j}": make_transform(so3_exp(rng.normal(size=3)), rng.normal(size=3))
+    X = {f"{names[0]}{j}": make_transform(so3_exp(rng.normal(size=3)), rng.normal(size=3))
          for j in range(3)}
-    Y = {f"y{k}": make_transform(so3_exp(rng.normal(size=3)), 0.2 * rng.normal(size=3))
+    Y = {f"{names[1]}{k}": make_transform(so3_exp(rng.normal(size=3)), 0.2 * rng.normal(size=3))
          for k in range(2)}
     edges = []
     for x, Xj in X.items():
@@ -196,6 +196,47 @@ def test_configuration_and_the_session_shift_the_image_stamps(tmp_path):
     # after 120 ms: the session looks its pose up at stamp + offset
     assert session.add_image("cam0", NS + 70 * NS // 1000, gray).status == "no_tags"
     assert session.add_image("cam1", NS + 70 * NS // 1000, gray).status == "pending"
+
+
+def test_the_live_estimate_shows_the_offsets(tmp_path):
+    """The live re-solve adds one Newton step's offsets (not applied): on /diagnostics, in the
+    ~/estimate document, within 2 ms (or 3 std) of the planted ones."""
+    from types import SimpleNamespace
+
+    from rwhec_ros.session.live_solve import LiveSolver, PairsSnapshot
+    from rwhec_ros.sync.accumulator import KeptPairs
+
+    rng = np.random.default_rng(5)
+    data, _, _ = scene(rng, moving, [0.0, -0.03], image_times=np.arange(0.5, 39.5, 0.05),
+                       names=("tag_", "cam"))
+    flat = {k: v for k, v in read_parameter_file(DEMO_YAML).items()
+            if not k.startswith("cameras.")}
+    flat.update({"output.directory": str(tmp_path), "cameras.names": ["cam0", "cam1"],
+                 "tags.ids": [0, 1, 2], "solver.live_period_s": 1.0})
+    for cam in ("cam0", "cam1"):
+        flat[f"cameras.{cam}.image_topic"] = f"/{cam}/image"
+        flat[f"cameras.{cam}.camera_info_topic"] = f"/{cam}/info"
+    config = CalibratorConfig.from_parameters(flat)
+    edges = {(e.x, e.y): KeptPairs(e.x, e.y, e.stamps_ns, e.A, e.B, e.sigma, e.kappa)
+             for e in data.edges}
+    session = SimpleNamespace(
+        config=config, live_counts=lambda: (1, 0, 0, False),
+        pairs_snapshot=lambda: PairsSnapshot(1, edges, 1e-6, data.pose_stream))
+    live = LiveSolver(session)
+    assert live.tick(now=10.0) == "started"
+    assert live.wait_idle(120.0)
+    est = live.estimate
+    assert est is not None, live.status().last_error
+    offsets = est.time_offsets
+    for cam, truth in (("cam0", 0.0), ("cam1", -0.03)):
+        o = offsets.cameras[cam]
+        assert o.determined and not o.applied, o
+        assert abs(o.offset_s - truth) <= max(0.002, 3 * o.std_s), o
+    values = dict(live.status().diagnostic_row("calibrator")["values"])
+    assert values["time_offset cam1"] == (f"{1e3 * offsets.cameras['cam1'].offset_s:+.1f} +- "
+                                          f"{1e3 * offsets.cameras['cam1'].std_s:.1f} ms")
+    assert est.document["time_offsets"]["cameras"]["cam1"]["status"] == "estimated"
+    live.stop()
 
 
 @pytest.mark.slow

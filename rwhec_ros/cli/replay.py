@@ -144,7 +144,8 @@ def _replay(args, say: Printer, session, handlers, routes,
         T = None
         if tf is not None:
             try:
-                T = tf.lookup(ps.parent, ps.child, stamp_to_ns(msg.header.stamp))
+                T = tf.lookup(ps.parent, ps.child, stamp_to_ns(msg.header.stamp)
+                              + int(round(config.sync.time_offset_s(cam) * 1e9)))
             except LookupError as exc:
                 session.record("no_tf_at_stamp")
                 failure = failure or (

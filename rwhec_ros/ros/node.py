@@ -352,7 +352,8 @@ class CalibratorNode(Node):
     def _lookup_pose(self, camera: str, msg):
         ps = self.config.pose_source
         try:
-            stamp_ns = stamp_to_ns(msg.header.stamp)
+            stamp_ns = stamp_to_ns(msg.header.stamp)  # + sync.time_offset.<camera>
+            stamp_ns += int(round(self.config.sync.time_offset_s(camera) * 1e9))
             tfm = self._tf_buffer.lookup_transform(
                 ps.parent, ps.child, Time(nanoseconds=stamp_ns),
                 timeout=Duration(seconds=self.config.sync.tf_timeout_s),

@@ -234,8 +234,11 @@ class LiveEstimate:
         live = {"pairs": self.n_pairs, "edges": self.n_edges, "data_version": self.version,
                 "solve_s": self.solve_s, "cpu_s": self.cpu_s,
                 "period_s": self.config.solver.live_period_s}
-        return estimate_document(self.result, self.uncertainty, self.config, self.convergence,
-                                 excluded=self.excluded, live=live)
+        doc = estimate_document(self.result, self.uncertainty, self.config, self.convergence,
+                                excluded=self.excluded, live=live)
+        if self.time_offsets is not None:
+            doc["time_offsets"] = self.time_offsets.to_dict()
+        return doc
 
 
 @dataclass(frozen=True)

@@ -389,7 +389,8 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
     the final solve does but without SDP fallback (``sdp`` mode: ``fast``); returns ``(problem,
     dataset, report)`` with the significant offsets applied to both (the same objects when none
     is). With ``solver.reject_outliers`` the offsets are estimated on all pairs (before the
-    outlier rejection of the final solve)."""
+    outlier rejection of the final solve). An unexpected error of the estimate is reported as
+    ``not_estimated`` with its message; the calibration goes on with the pairs as they are."""
     from ..core.solve import solve
     from .solving import solve_options
 
@@ -406,5 +407,9 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
     if dataset is not None and dict(options.configured_s) != dataset.time_offsets_s:
         options = TimeOffsetOptions(options.estimate, options.range_s, options.max_std_s,
                                     tuple(dataset.time_offsets_s.items()), options.configured_s)
-    report, out = estimate_offsets(problem, stamps, track, options, solve_fn)
-    return out, shift_dataset(dataset, report, track), report
+    try:
+        report, out = estimate_offsets(problem, stamps, track, options, solve_fn)
+        return out, shift_dataset(dataset, report, track), report
+    except Exception as exc:  # noqa: BLE001 - an extra of the calibration, never its failure
+        why = f"the estimate failed: {type(exc).__name__}: {exc}"
+        return problem, dataset, _not(problem, options, "not_estimated", why)
