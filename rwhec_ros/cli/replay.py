@@ -30,9 +30,10 @@ __all__ = ["cmd_bag", "cmd_demo", "demo_parameters", "LiveWatch"]
 
 #: Seconds ``bag`` waits for the live re-solve of the whole recording before calibrating.
 LIVE_FINAL_TIMEOUT_S = 60.0
-#: Prefixes of the parameters that describe the simulated rig itself (kept by ``demo --config``).
+#: Prefixes of the parameters that describe the simulated rig itself (kept by ``demo --config``);
+#: ``sync.time_offset.<camera>`` names the configuration's cameras, not the rig's.
 RIG_PARAMETER_PREFIXES = ("camera_carrier.", "tag_carrier.", "pose_source.", "cameras.", "tags.",
-                          "targets.")
+                          "targets.", "sync.time_offset.")
 
 
 def cmd_bag(args: argparse.Namespace, say: Printer) -> int:

@@ -41,6 +41,7 @@ import numpy as np
 from ..core.analysis.information import information_from_edge_blocks, information_matrix
 from ..core.analysis.time_offset import offset_step, offset_terms
 from ..core.numerics.blas import blas_threads
+from ..core.outliers.pairs import pair_residuals
 from ..core.problem import Edge, Problem
 from ..sync.pose_track import MOTION_HALF_WINDOW_NS, PoseTrackData
 from .time_offset_report import (
@@ -64,6 +65,16 @@ MOVING_SPEED_M_S = 0.05
 MOVING_RATE_RAD_S = 0.1
 #: Fewest moving pairs of a camera for its offset to count as determined.
 MIN_MOVING_PAIRS = 6
+#: A stream rate beyond these [m/s, rad/s] is a glitch of the stream (a wrong sample between
+#: good ones), not motion: the pair is left out of the offsets (1,700 deg/s; the translation rate
+#: of ``A`` includes the lever arm of the far carrier's origin, hence the generous bound).
+MAX_SPEED_M_S = 50.0
+MAX_RATE_RAD_S = 30.0
+#: A pair whose ``J_i`` (eq. (33)) exceeds this many times the median of its camera's pairs is
+#: left out of the offsets at that step (an outlier: wrong tag pose, glitch of the stream); the
+#: residuals of a camera whose offset is still uncorrected grow with each pair's speed squared
+#: (a factor ~10 between the median and the fastest pair in the benchmark's motions).
+OUTLIER_RATIO = 30.0
 #: Newton steps at most (each a re-interpolation and a solve); 2-3 suffice in the benchmark.
 MAX_ITERATIONS = 6
 #: Stop when every step is below this fraction of its offset's std (or below 50 us).
@@ -109,8 +120,30 @@ def _rates(problem: Problem, stamps: list[np.ndarray], track: PoseTrackData,
     q = np.concatenate([s + int(delta_ns[k]) for s, k in zip(stamps, problem.edge_y,
                                                               strict=True)])
     xi, ok = track.rates(q)
-    xi[~(ok & moving)] = np.nan
+    xi[~(ok & moving & _plausible(xi))] = np.nan
     return xi
+
+
+def _plausible(xi: np.ndarray) -> np.ndarray:
+    """Rates (N, 6) within :data:`MAX_SPEED_M_S` and :data:`MAX_RATE_RAD_S` (NaN: False)."""
+    with np.errstate(invalid="ignore"):
+        return ((np.linalg.norm(xi[:, :3], axis=1) <= MAX_SPEED_M_S)
+                & (np.linalg.norm(xi[:, 3:], axis=1) <= MAX_RATE_RAD_S))
+
+
+def _fitting(problem: Problem, result, rates: np.ndarray) -> np.ndarray:
+    """``rates`` with the pairs that fit far worse than their camera's others (:data:`
+    OUTLIER_RATIO`) set to NaN: outliers say nothing reliable about an offset."""
+    res = pair_residuals(problem, result.X, result.Y, result.scale)
+    J = np.concatenate([res[e.name].normalised for e in problem.edges])
+    camera = np.repeat(problem.edge_y, [e.n for e in problem.edges])
+    out = rates.copy()
+    for k in range(problem.P):
+        mine = (camera == k) & np.isfinite(rates).all(axis=1)
+        if mine.any():
+            limit = OUTLIER_RATIO * float(np.median(J[mine]))
+            out[mine & (J > limit)] = np.nan
+    return out
 
 
 def _moving(track: PoseTrackData, q: np.ndarray) -> np.ndarray:
@@ -240,7 +273,7 @@ def _estimate_offsets(problem, stamps, track, options, solve_fn):
     clipped = np.zeros(problem.P, dtype=bool)
     step, change, notes = None, np.zeros(problem.P), []
     for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 - reported
-        rates = _rates(problem, st, track, dns, moving)[kept]
+        rates = _fitting(current, result, _rates(problem, st, track, dns, moving)[kept])
         step = offset_step(offset_terms(current, result.X, result.Y, result.scale, rates),
                            information_matrix(current, result.X, result.Y, result.scale).H)
         new = np.where(step.determined, delta + step.step_s, 0.0)
@@ -319,7 +352,7 @@ def _cached_rates(st, track, cache) -> tuple[np.ndarray, np.ndarray]:
         _, okm = track.lookup(np.concatenate([q[idx] + MOTION_HALF_WINDOW_NS,
                                               q[idx] - MOTION_HALF_WINDOW_NS]))
         okm = okm[: idx.shape[0]] & okm[idx.shape[0]:]
-        xi[~(ok & mv)] = np.nan
+        xi[~(ok & mv & _plausible(xi))] = np.nan
         rates[idx], moving[idx] = xi, mv
         passed = track.stamps_ns[-1] - MOTION_HALF_WINDOW_NS - 2 * track.max_gap_ns
         for j, i in enumerate(todo):
@@ -335,6 +368,7 @@ def _one_step_offsets(problem, result, stamps, track, options, cache) -> TimeOff
         return missing
     st = _check_stamps(problem, stamps)
     rates, moving = _cached_rates(st, track, {} if cache is None else cache)
+    rates = _fitting(problem, result, rates)
     moving_counts = _per_camera(problem, st, moving)
     info = (information_from_edge_blocks if getattr(problem, "precomputed_blocks", None)
             is not None else information_matrix)
