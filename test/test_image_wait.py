@@ -231,3 +231,22 @@ def test_a_stream_at_rest_that_stops_keeps_images_waiting_for_the_next_sample(tm
     session2.add_pose(100 * NS + 895 * MS, np.eye(4))
     assert image.calls == 1 and no_pose(session2) == {}
     assert session2.counters()["pose_at_rest"] == 1
+
+
+def test_an_image_waits_in_pose_time_with_a_known_time_offset(tmp_path):
+    """sync.time_offset.<camera> (t_pose = t_image + offset) moves the stamp the wait is
+    about: the node's queue and the bag replay ask pose_ready with session.pose_time."""
+    session, clock, intr = session_with_clock(tmp_path, **{"sync.time_offset.cam0": 0.05})
+    for k in range(20):  # poses up to 100.095 s
+        session.add_pose(100 * NS + k * 5 * MS, moving(100 * NS + k * 5 * MS))
+    raw = 100 * NS + 60 * MS
+    assert session.pose_time("cam0", raw) == 100 * NS + 110 * MS
+    assert session.pose_time("cam0", "x") is None
+    clock.t = raw + 30 * MS
+    assert session.pose_ready(raw, clock.t)  # bracketed in image time ...
+    assert not session.pose_ready(session.pose_time("cam0", raw), clock.t)  # ... not in pose time
+    image = Blank(intr)
+    assert session.add_image("cam0", raw, image, arrived_ns=clock.t).status == "pending"
+    for k in range(20, 30):
+        session.add_pose(100 * NS + k * 5 * MS, moving(100 * NS + k * 5 * MS))
+    assert image.calls == 1 and no_pose(session) == {}

@@ -24,36 +24,12 @@ import yaml
 from ..errors import describe_os_error
 
 __all__ = [
-    "EXIT_OK",
-    "EXIT_BAD_INPUT",
-    "EXIT_NO_SOLUTION",
-    "EXIT_UNUSABLE",
-    "EXIT_MOVED",
-    "EXIT_UNDECIDED",
-    "EXIT_INTERRUPTED",
-    "EXIT_TERMINATED",
-    "EXIT_PIPE_CLOSED",
-    "Terminated",
-    "exit_code",
-    "Interrupted",
-    "PROG",
-    "MODES",
-    "DEFAULT_OUTPUT",
-    "BadInput",
-    "NoSolution",
-    "Printer",
-    "Progress",
-    "SolveSettings",
-    "check_positive",
-    "solver_overrides",
-    "prior_overrides",
-    "config_from_parameters",
-    "read_config",
-    "output_paths",
-    "refuse_existing",
-    "solve_and_write",
-    "calibrate_session",
-    "write_report",
+    "EXIT_OK", "EXIT_BAD_INPUT", "EXIT_NO_SOLUTION", "EXIT_UNUSABLE", "EXIT_MOVED",
+    "EXIT_UNDECIDED", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "EXIT_PIPE_CLOSED", "Terminated",
+    "exit_code", "Interrupted", "PROG", "MODES", "DEFAULT_OUTPUT", "BadInput", "NoSolution",
+    "Printer", "Progress", "SolveSettings", "check_positive", "solver_overrides",
+    "prior_overrides", "config_from_parameters", "read_config", "output_paths", "refuse_existing",
+    "solve_and_write", "calibrate_session", "write_report"
 ]
 
 #: A usable result: the verdict is ``good`` or ``caution`` (files written).
@@ -459,6 +435,7 @@ def solve_and_write(
     from ..session.accuracy import AccuracyOptions
     from ..session.outputs import description_texts, launch_header, publishable
     from ..session.solving import solve_and_assess, solver_alternatives, verdict_options
+    from ..session.time_offsets import add_offset_reasons, correct_time_offsets
 
     frames = list(dataset.y_names) + list(dataset.x_names)
     for f, a, x in settings.priors:
@@ -471,6 +448,10 @@ def solve_and_write(
     cam_carrier = next((naming.frames[n][0] for n in naming.y_names if n in naming.frames), "")
     tag_carrier = next((naming.frames[n][0] for n in naming.x_names if n in naming.frames), "")
     try:
+        problem, dataset, offsets = correct_time_offsets(
+            problem, dataset, config, mode=settings.mode, priors=settings.priors,
+            unobservable_std_m=settings.unobservable_std_m, min_scale=settings.min_scale,
+            reject_outliers=settings.robust)
         solved = solve_and_assess(
             problem, mode=settings.mode, reject_outliers=settings.robust,
             priors=settings.priors, unobservable_std_m=settings.unobservable_std_m,
@@ -488,6 +469,7 @@ def solve_and_write(
             + solver_alternatives(settings.mode, settings.robust)
             + _kept(run)) from None
     result, verdict = solved.result, solved.verdict
+    add_offset_reasons(verdict, offsets)
     excluded.update(solved.dropped)
     ident = solved.identifiability
     doc = result_document(result, naming, excluded=excluded,
@@ -495,6 +477,7 @@ def solve_and_write(
                           source=source, verdict=verdict, accuracy=solved.accuracy,
                           rejected_pairs=solved.rejected_pairs,
                           fingerprint=dataset_fingerprint(dataset))
+    doc["time_offsets"] = offsets.to_dict()
     names = list(result.y_names) + list(result.x_names)
     transforms, left_out = publishable(naming.transforms(result), names, verdict,
                                        publish_unusable=publish_unusable)
@@ -515,7 +498,8 @@ def solve_and_write(
     files.update(_kept_files(run, dataset))
     if not report:
         remove_stale_reports(say, paths)
-    say.summary(summary(result, solved.problem, excluded, naming, verdict, solved.accuracy))
+    say.summary("\n".join([summary(result, solved.problem, excluded, naming, verdict,
+                                    solved.accuracy), *offsets.lines()]))
     say.files(files)
     if report:
         write_report(say, doc, solved.problem, paths.report_png, paths.report_html, ident)

@@ -30,9 +30,10 @@ from .run import Run, pause_for_test
 
 __all__ = ["cmd_bag", "cmd_demo", "demo_parameters", "LiveWatch"]
 
-#: Prefixes of the parameters that describe the simulated rig itself (kept by ``demo --config``).
+#: Prefixes of the parameters that describe the simulated rig itself (kept by ``demo --config``);
+#: ``sync.time_offset.<camera>`` names the configuration's cameras, not the rig's.
 RIG_PARAMETER_PREFIXES = ("camera_carrier.", "tag_carrier.", "pose_source.", "cameras.", "tags.",
-                          "targets.")
+                          "targets.", "sync.time_offset.")
 
 
 def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
@@ -150,7 +151,8 @@ def _replay(args, say: Printer, session, handlers, routes,
         T = None
         if tf is not None:
             try:
-                T = tf.lookup(ps.parent, ps.child, stamp_to_ns(msg.header.stamp))
+                T = tf.lookup(ps.parent, ps.child, stamp_to_ns(msg.header.stamp)
+                              + int(round(config.sync.time_offset_s(cam) * 1e9)))
             except LookupError as exc:
                 session.record("no_tf_at_stamp")
                 failure = failure or (

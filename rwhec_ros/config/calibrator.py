@@ -276,6 +276,10 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         at_rest_rotation_rad=check_positive(v, "sync.at_rest_rotation_rad", allow_zero=True),
         max_pose_wait_s=check_positive(v, "sync.max_pose_wait_s", allow_zero=True),
         max_waiting_mb=check_positive(v, "sync.max_waiting_mb"),
+        estimate_time_offset=v["sync.estimate_time_offset"],
+        time_offset_range_s=_check_range(v, "sync.time_offset_range_s"),
+        time_offset_max_std_s=check_positive(v, "sync.time_offset_max_std_s"),
+        time_offsets=tuple((n, _check_offset(v, f"sync.time_offset.{n}")) for n in names),
     )
     capture = CaptureConfig(
         mode=check_choice(v, "capture.mode", CAPTURE_MODES),
@@ -391,6 +395,23 @@ def _gate_factor(v: dict[str, Any]) -> float:
         raise ValueError(f"detection.reprojection_gate_factor: must be finite and >= 1, got "
                          f"{x!r}")
     return x
+
+
+def _check_range(v: dict[str, Any], name: str) -> float:
+    """A time offset search range: > 0 and at most 1 s (the pairs' recorded stream windows grow
+    with it)."""
+    x = check_positive(v, name)
+    if x > 1.0:
+        raise ValueError(f"{name}: must be at most 1.0 s, got {x!r}")
+    return x
+
+
+def _check_offset(v: dict[str, Any], name: str) -> float:
+    """A known time offset: finite, at most 10 s either way (a larger one is a clock problem)."""
+    x = v[name]
+    if not (math.isfinite(x) and abs(x) <= 10.0):
+        raise ValueError(f"{name}: must be finite and within +-10 s, got {x!r}")
+    return float(x)
 
 
 def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], x_names: list[str]

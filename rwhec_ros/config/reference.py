@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 from .live_parameters import live_effect
-from .specs import CAMERA_SPECS, GLOBAL_SPECS, TARGET_SPECS, ParamSpec
+from .specs import CAMERA_SPECS, GLOBAL_SPECS, TARGET_SPECS, TIME_OFFSET_SPEC, ParamSpec
 
 __all__ = [
     "REFERENCE_PATH",
@@ -65,6 +65,8 @@ def reference_specs() -> list[ParamSpec]:
     for prefix, specs in (("cameras", CAMERA_SPECS), ("targets", TARGET_SPECS)):
         out += [ParamSpec(f"{prefix}.<name>.{s.name}", s.kind, s.default, s.required, s.doc)
                 for s in specs]
+    t = TIME_OFFSET_SPEC
+    out.append(ParamSpec(f"sync.{t.name}.<name>", t.kind, t.default, t.required, t.doc))
     return out
 
 

@@ -117,7 +117,9 @@ class SyncConfig:
     (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`); an image waits for
     the pose at its stamp at most ``max_pose_wait_s``, the waiting images of one holder take at
     most ``max_waiting_mb`` megabytes (:mod:`rwhec_ros.sync.pose_wait`). ``at_rest_*``: the
-    stop-and-go rule of :mod:`rwhec_ros.sync.at_rest`.
+    stop-and-go rule of :mod:`rwhec_ros.sync.at_rest`. ``estimate_time_offset``,
+    ``time_offset_*`` and ``time_offsets``: the time offsets of
+    :mod:`rwhec_ros.session.time_offsets`.
     """
 
     max_gap_s: float
@@ -131,6 +133,15 @@ class SyncConfig:
     at_rest_rotation_rad: float = 0.001
     max_pose_wait_s: float = 1.0
     max_waiting_mb: float = 256.0
+    estimate_time_offset: bool = True
+    time_offset_range_s: float = 0.1
+    time_offset_max_std_s: float = 0.005
+    #: ``sync.time_offset.<camera>`` as ``(camera, seconds)`` pairs (configuration order).
+    time_offsets: tuple[tuple[str, float], ...] = ()
+
+    def time_offset_s(self, camera: str) -> float:
+        """``sync.time_offset.<camera>`` [s] (0 for a camera without one)."""
+        return float(dict(self.time_offsets).get(camera, 0.0))
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ __all__ = [
     "ParamSpec",
     "GLOBAL_SPECS",
     "CAMERA_SPECS",
+    "TIME_OFFSET_SPEC",
     "TARGET_SPECS",
     "TARGET_TYPES",
     "parameter_specs",
@@ -165,6 +166,16 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "by at most this [m] ..."),
     ParamSpec("sync.at_rest_rotation_rad", "double", 0.001,
               doc="... and their rotations by at most this [rad]"),
+    ParamSpec("sync.estimate_time_offset", "bool", True,
+              doc="estimate each camera's time offset to the pose stream (t_pose = t_image + "
+                  "offset) from the motion at calibrate (and in the live estimate), apply a "
+                  "significant one (beyond 3 std) and report each with its std; needs "
+                  "pose_source.type 'topic' (the stream around each pair is recorded)"),
+    ParamSpec("sync.time_offset_range_s", "double", 0.1,
+              doc="time offsets are searched within +- this [s]"),
+    ParamSpec("sync.time_offset_max_std_s", "double", 0.005,
+              doc="an estimated time offset with a larger std [s] is reported as not "
+                  "determined (too little motion)"),
     ParamSpec("keyframe.min_rotation_rad", "double", 0.05,
               doc="a new pair needs this rotation [rad] from the last kept one (same edge)"),
     ParamSpec("keyframe.min_translation_m", "double", 0.02,
@@ -357,6 +368,13 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "uncounted"),
 )
 
+#: Per-camera ``sync.time_offset.<name>`` (the known delay of a camera's stamps).
+TIME_OFFSET_SPEC = ParamSpec(
+    "time_offset", "double", 0.0,
+    doc="the known time offset [s] of this camera's image stamps to the pose stream: the pose "
+        "of an image is looked up at its stamp + this (t_pose = t_image + offset; positive "
+        "when the images are stamped early); estimated on top with sync.estimate_time_offset")
+
 CAMERA_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("image_topic", "string", required=True, doc="sensor_msgs/Image topic"),
     ParamSpec("camera_info_topic", "string", required=True, doc="sensor_msgs/CameraInfo topic"),
@@ -438,6 +456,9 @@ def parameter_specs(camera_names: tuple[str, ...] | list[str] = (),
             for s in specs:
                 out.append(ParamSpec(f"{prefix}.{name}.{s.name}", s.kind, s.default, s.required,
                                      s.doc))
+    t = TIME_OFFSET_SPEC
+    out += [ParamSpec(f"sync.{t.name}.{name}", t.kind, t.default, t.required, t.doc)
+            for name in camera_names]
     return out
 
 

@@ -24,6 +24,13 @@ which give the reprojection error per camera. Files written before boards kept c
 edges with four corners per pair, board edges with none) have no ``corner_points_m`` and load
 as before.
 
+Optional keys for time offsets (:mod:`rwhec_ros.session.time_offsets`; files without them load
+as before and their offsets cannot be estimated): ``time_offsets_s`` (camera -> the offset [s]
+already in its pairs: their ``stamps_ns`` are pose-stream times, image stamp + offset) and
+``pose_stream`` (``stamps_ns``, ``A``, ``max_gap_ns``: the recorded stream around the pairs,
+:mod:`rwhec_ros.sync.pose_track`; inline, or in the ``.npz`` as ``pose_stream_stamps_ns`` and
+``pose_stream_A``), from which a re-solve re-interpolates the pairs at shifted stamps.
+
 Inline edge layout (``A``/``B``: one 4x4 matrix per pair, rows as flow lists)::
 
     edges:
@@ -125,6 +132,11 @@ class Dataset:
         Optional: camera (Y frame) -> its intrinsics (for the reprojection error).
     tag_sizes_m : dict[str, float]
         Optional: tag (X frame) -> edge length [m] (nominal for unknown scale).
+    time_offsets_s : dict[str, float]
+        Optional: camera -> the time offset [s] in its pairs' stamps (``t_pose = t_image +
+        offset``; the stamps are pose-stream times).
+    pose_stream : PoseTrackData or None
+        Optional: the pose stream recorded around the pairs (time offsets).
     """
 
     x_names: tuple[str, ...]
@@ -135,6 +147,8 @@ class Dataset:
     carriers: dict[str, str] = field(default_factory=dict)
     intrinsics: dict[str, Any] = field(default_factory=dict)
     tag_sizes_m: dict[str, float] = field(default_factory=dict)
+    time_offsets_s: dict[str, float] = field(default_factory=dict)
+    pose_stream: Any = None
 
     def __post_init__(self) -> None:
         self.x_names = tuple(check_name(n, f"x_names[{i}]") for i, n in enumerate(self.x_names))
@@ -169,6 +183,30 @@ class Dataset:
             check_name(carrier, f"carriers[{frame!r}]")
         self.carriers = dict(self.carriers)
         self._check_corner_data()
+        self._check_time_data()
+
+    def _check_time_data(self) -> None:
+        """``time_offsets_s`` of cameras of the data set (finite seconds), ``pose_stream`` a
+        :class:`~rwhec_ros.sync.pose_track.PoseTrackData` or None."""
+        from ..sync.pose_track import PoseTrackData
+
+        if not isinstance(self.time_offsets_s, Mapping):
+            raise ValueError(f"time_offsets_s: expected a mapping camera -> seconds, got "
+                             f"{self.time_offsets_s!r}")
+        out = {}
+        for cam, value in self.time_offsets_s.items():
+            if cam not in self.y_names:
+                raise ValueError(f"time_offsets_s: {cam!r} is not a camera (Y frame) of the "
+                                 "data set")
+            if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(
+                    value):
+                raise ValueError(f"time_offsets_s[{cam!r}]: expected finite seconds, got "
+                                 f"{value!r}")
+            out[cam] = float(value)
+        self.time_offsets_s = out
+        if self.pose_stream is not None and not isinstance(self.pose_stream, PoseTrackData):
+            raise ValueError(f"pose_stream: expected PoseTrackData or None, got "
+                             f"{type(self.pose_stream).__name__}")
 
     def _check_corner_data(self) -> None:
         """``intrinsics`` of cameras of the data set (mappings converted), ``tag_sizes_m`` of its
@@ -265,6 +303,8 @@ class Dataset:
         carriers: Mapping[str, str] | None = None,
         intrinsics: Mapping[str, Any] | None = None,
         tag_sizes_m: Mapping[str, float] | None = None,
+        time_offsets_s: Mapping[str, float] | None = None,
+        pose_stream=None,
     ) -> Dataset:
         """Every kept pair of a :class:`~rwhec_ros.sync.accumulator.PairAccumulator` (with their
         corners when the accumulator kept them; ``intrinsics`` and ``tag_sizes_m`` of the frames
@@ -294,6 +334,8 @@ class Dataset:
             carriers=dict(carriers or {}),
             intrinsics={k: v for k, v in dict(intrinsics or {}).items() if k in ys},
             tag_sizes_m={k: v for k, v in dict(tag_sizes_m or {}).items() if k in xs},
+            time_offsets_s={k: v for k, v in dict(time_offsets_s or {}).items() if k in ys},
+            pose_stream=pose_stream,
         )
 
     # --- files -------------------------------------------------------------------------------
@@ -301,8 +343,9 @@ class Dataset:
         """Whether :meth:`save` with these arguments writes the arrays to ``<stem>.npz``."""
         if arrays not in ("auto", "inline", "npz"):
             raise ValueError(f"arrays: expected 'auto', 'inline' or 'npz', got {arrays!r}")
-        if arrays == "auto":
-            return self.n_pairs > inline_max_pairs
+        if arrays == "auto":  # a stream sample weighs a third of a pair (its A only)
+            stream = 0 if self.pose_stream is None else self.pose_stream.n
+            return self.n_pairs > inline_max_pairs or stream > 10 * inline_max_pairs
         return arrays == "npz"
 
     def save(self, path: str | Path, *, arrays: str = "auto", inline_max_pairs: int = 2000) -> Path:
@@ -313,7 +356,8 @@ class Dataset:
         path : str or Path
             The YAML file to write.
         arrays : {"auto", "inline", "npz"}
-            Where the arrays go; ``"auto"`` is ``"inline"`` up to ``inline_max_pairs`` pairs.
+            Where the arrays go; ``"auto"`` is ``"inline"`` up to ``inline_max_pairs`` pairs
+            and ten times that many samples of the ``pose_stream``.
         inline_max_pairs : int
             Threshold of ``"auto"``.
 
@@ -339,6 +383,14 @@ class Dataset:
             doc["intrinsics"] = {k: intrinsics_to_dict(v) for k, v in self.intrinsics.items()}
         if self.tag_sizes_m:
             doc["tag_sizes_m"] = dict(self.tag_sizes_m)
+        if self.time_offsets_s:
+            doc["time_offsets_s"] = dict(self.time_offsets_s)
+        stream = self.pose_stream
+        if stream is not None:
+            doc["pose_stream"] = {"n": stream.n, "max_gap_ns": stream.max_gap_ns}
+            if arrays != "npz":
+                doc["pose_stream"].update(stamps_ns=stream.stamps_ns.tolist(),
+                                          A=stream.poses.tolist())
         edges_doc = []
         if arrays == "npz":
             npz_path = path.with_suffix(".npz")
@@ -349,6 +401,8 @@ class Dataset:
             for i, e in enumerate(self.edges):
                 named.update({f"e{i}_{k}": getattr(e, k) for k in _CORNER_KEYS
                               if getattr(e, k) is not None})
+            if stream is not None:
+                named.update(pose_stream_stamps_ns=stream.stamps_ns, pose_stream_A=stream.poses)
             np.savez(buffer, **named)
             payload = buffer.getvalue()
             atomic_write_bytes(npz_path, payload)  # whole or absent (module atomic)
@@ -441,6 +495,7 @@ class Dataset:
                 edges.append(DatasetEdge(ed["x"], ed["y"], **values))
             except ValueError as exc:
                 raise ValueError(f"{label}: {exc}") from None
+        stream = _pose_stream_of(doc.get("pose_stream"), npz, path)
         try:
             return Dataset(
                 x_names=tuple(doc["x_names"]),
@@ -451,9 +506,41 @@ class Dataset:
                 carriers=doc.get("carriers") or {},
                 intrinsics=doc.get("intrinsics") or {},
                 tag_sizes_m=doc.get("tag_sizes_m") or {},
+                time_offsets_s=doc.get("time_offsets_s") or {},
+                pose_stream=stream,
             )
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
+
+
+def _pose_stream_of(value: Any, npz: dict | None, path: Path):
+    """The ``pose_stream`` key (inline or in the ``.npz``) as a
+    :class:`~rwhec_ros.sync.pose_track.PoseTrackData`, or None when absent."""
+    if value is None:
+        return None
+    from ..sync.pose_track import PoseTrackData
+
+    label = f"{path}: pose_stream"
+    if not isinstance(value, dict) or "max_gap_ns" not in value:
+        raise ValueError(f"{label}: expected a mapping with n, max_gap_ns, stamps_ns, A, got "
+                         f"{value!r}"[:300])
+    if npz is not None:
+        if "pose_stream_stamps_ns" not in npz or "pose_stream_A" not in npz:
+            raise ValueError(f"{label}: arrays 'pose_stream_stamps_ns', 'pose_stream_A' missing "
+                             "from the .npz file")
+        stamps, poses = npz["pose_stream_stamps_ns"], npz["pose_stream_A"]
+    else:
+        for key in ("stamps_ns", "A"):
+            if key not in value:
+                raise ValueError(f"{label}: missing key {key!r}")
+        stamps = _array_from_yaml(value["stamps_ns"], "stamps_ns", label)
+        poses = _array_from_yaml(value["A"], "A", label)
+        if poses.size == 0:
+            poses = poses.reshape(0, 4, 4)
+    try:
+        return PoseTrackData(stamps, poses, value["max_gap_ns"])
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{label}: {exc}") from None
 
 
 def _array_from_yaml(value: Any, key: str, label: str) -> np.ndarray:

@@ -165,6 +165,7 @@ def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeRe
                 "translation max [mm]", "rotation RMS [deg]", "rotation max [deg]",
                 "vs. median edge", "outlier"), rows),
         *_accuracy_html(doc, sections),
+        *_time_offset_html(doc),
         "<h2>Edges left out</h2>",
         _table(("edge", "reason"), excluded) if excluded else "<p>none</p>",
     ]
@@ -185,3 +186,28 @@ def _accuracy_html(doc: Mapping[str, Any], sections: Mapping[str, Path]) -> list
         if rows:
             parts.append(_table(header, rows))
     return parts
+
+
+def _time_offset_html(doc: Mapping[str, Any]) -> list[str]:
+    """Each camera's time offset to the pose stream (``time_offsets`` of the result,
+    :mod:`rwhec_ros.session.time_offsets`); nothing for a result without them."""
+    section = doc.get("time_offsets") or {}
+    rows = []
+    for cam, o in sorted((section.get("cameras") or {}).items(), key=lambda kv: natural_key(kv[0])):
+        if o.get("status") == "estimated":
+            value = f"{1e3 * o['offset_s']:+.2f} +- {1e3 * o['std_s']:.2f}"
+        else:
+            value = f"{str(o.get('status', '')).replace('_', ' ')}: {o.get('why', '')}"
+        rows.append((cam, value, f"{1e3 * float(o.get('configured_s', 0.0)):+.2f}",
+                     "yes" if o.get("applied") else "no",
+                     f"{o.get('moving_pairs', 0)} / {o.get('pairs', 0)}"))
+    if not rows:
+        return []
+    return ["<h2>Time offsets to the pose stream</h2>",
+            "<p>t_pose = t_image + offset, per camera: estimated from the motion (pairs taken "
+            "while the pose stream moved), applied when beyond 3 standard deviations (the pairs "
+            "re-interpolated at the corrected stamps and solved again); 'in the pairs': the "
+            "offset the pairs' stamps carried already (sync.time_offset.&lt;camera&gt;, or a "
+            "data set's).</p>",
+            _table(("camera", "offset +- std [ms]", "in the pairs [ms]", "applied",
+                    "moving pairs"), rows)]

@@ -328,6 +328,7 @@ class CalibratorNode(Node):
             stamp_ns = arrived = None  # rejected and counted by the handlers
         else:
             self._camera_diagnostics.record(camera, stamp_ns)
+            stamp_ns = self.session.pose_time(camera, stamp_ns)  # + sync.time_offset.<camera>
             arrived = self.session.image_arrival(stamp_ns)
         if not self._queue.put(camera, (msg, stamp_ns, compressed, arrived)):
             self.session.record("image_queue_dropped")
@@ -384,7 +385,8 @@ class CalibratorNode(Node):
     def _lookup_pose(self, camera: str, msg):
         ps = self.config.pose_source
         try:
-            stamp_ns = stamp_to_ns(msg.header.stamp)
+            stamp_ns = stamp_to_ns(msg.header.stamp)  # + sync.time_offset.<camera>
+            stamp_ns += int(round(self.config.sync.time_offset_s(camera) * 1e9))
             tfm = self._tf_buffer.lookup_transform(
                 ps.parent, ps.child, Time(nanoseconds=stamp_ns),
                 timeout=Duration(seconds=self.config.sync.tf_timeout_s),
@@ -485,6 +487,8 @@ class CalibratorNode(Node):
             calibration = (last.verdict.level, last.verdict.headline())
         if last is not None and last.accuracy is not None:
             accuracy = last.accuracy.diagnostic_values()
+        if last is not None and getattr(last, "time_offsets", None) is not None:
+            accuracy = [*accuracy, *last.time_offsets.diagnostic_values()]
         rows = diagnostic_rows(
             self.session.diagnostics(), counters, prefix=self.get_name(),
             identifiable=None if report is None else bool(report.identifiable),

@@ -176,7 +176,7 @@ class ImageInput(ImageWait):
         if intrinsics is None:
             return self._reject(camera, safe_int(stamp_ns), "image_missing_camera_info",
                                 words="no CameraInfo had arrived for this camera")
-        stamp = safe_int(stamp_ns)
+        stamp = self.pose_time(camera, stamp_ns)
         if stamp is None or stamp < 0:
             return self._reject(camera, stamp, "image_bad_stamp")
         if not callable(image):
@@ -206,6 +206,16 @@ class ImageInput(ImageWait):
             outcome = self._examine(camera, stamp, image, intrinsics, A)
         self._serve_pending()
         return outcome
+
+    def pose_time(self, camera: str, stamp_ns: Any) -> int | None:
+        """An image stamp of ``camera`` [ns] on the pose stream's clock: plus
+        ``sync.time_offset.<camera>`` (``t_pose = t_image + offset``; the session works in pose
+        time). None for an invalid stamp. What callers give :meth:`pose_ready`,
+        :meth:`image_arrival` and :meth:`gate_would_skip` for the image."""
+        stamp = safe_int(stamp_ns)
+        if stamp is None:
+            return None
+        return stamp + int(round(self.config.sync.time_offset_s(str(camera)) * 1e9))
 
     def gate_would_skip(self, camera: str, stamp_ns: int) -> bool:
         """True when the motion gate would skip an image of ``camera`` stamped ``stamp_ns``
@@ -419,6 +429,7 @@ class ImageInput(ImageWait):
                         self._count("identifiability_rejected_pair")
         self._count("pairs_kept", len(kept))
         if kept:
+            self._track.mark(stamp)  # the pose stream around it (time offsets)
             self._data_version += 1
             self._gate_epochs[camera] += 1
         return kept

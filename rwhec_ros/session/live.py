@@ -32,6 +32,7 @@ from ..data.results import (
 from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
 from ..sync.buffer import PoseBuffer
+from ..sync.pose_track import PoseTrack, track_window_ns
 from ..sync.pose_wait import PoseLatency
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
@@ -43,13 +44,8 @@ from .outcomes import SolveOutcome, edge_rows, no_pairs_words, too_few_pairs_wor
 from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
 from .rejections import RejectionLog
-from .solving import (
-    make_tracker,
-    report_dict,
-    solve_and_assess,
-    solver_alternatives,
-    verdict_options,
-)
+from .solving import make_tracker, report_dict, solve_and_assess, verdict_options
+from .time_offsets import add_offset_reasons, correct_time_offsets
 
 __all__ = ["CalibrationSession"]
 
@@ -160,6 +156,9 @@ class CalibrationSession(ImageInput, CaptureMixin):
                                if t.board is not None), default=0),
         )
         self._tracker = make_tracker(c.tags.unknown_scale)
+        # the pose stream around the kept pairs, for time offsets (rwhec_ros.sync.pose_track)
+        self._track = PoseTrack(track_window_ns(c.sync.time_offset_range_s),
+                                self._buffer.max_gap_ns, recent=c.sync.pose_buffer_size)
         self._pending: collections.deque = collections.deque()
         self._pending_bytes = 0
         self._latency = PoseLatency()  # the pose stream's ages (image_wait)
@@ -295,6 +294,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 ok = False
             if not ok:
                 self._count("pose_rejected_buffer")
+            else:
+                self._track.add(int(stamp_ns), A)
             if ok or resets != self._buffer.resets:
                 self._note_pose(int(stamp_ns), bool(ok), resets)
             return bool(ok)
@@ -398,8 +399,11 @@ class CalibrationSession(ImageInput, CaptureMixin):
 
     def _calibrate(self, output_dir: str | Path | None, force: bool,
                    on_phase: Callable[[str], None] | None = None) -> SolveOutcome:
+        from .solving import solver_alternatives
+
         c = self.config
         problem, excluded, err, report, dataset, counts = self._snapshot()
+        offsets = None
         ident = report_dict(report)
         excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         if problem is None:
@@ -412,6 +416,10 @@ class CalibrationSession(ImageInput, CaptureMixin):
                     + f"; the {n} pairs are kept"
             return SolveOutcome(False, message, excluded=excl, identifiability=ident)
         try:
+            problem, dataset, offsets = correct_time_offsets(
+                problem, dataset, c, mode=c.solver.mode, priors=c.priors.entries,
+                unobservable_std_m=c.solver.unobservable_std_m, min_scale=c.solver.min_scale,
+                reject_outliers=c.solver.reject_outliers)
             solved = solve_and_assess(
                 problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
                 priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
@@ -430,11 +438,14 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 excluded=excl, identifiability=ident,
             )
         result, verdict = solved.result, solved.verdict
+        add_offset_reasons(verdict, offsets)
         excl.update(solved.dropped)
         ident = solved.identifiability_dict or ident
-        text = dump_document(self.result_document(
+        doc = self.result_document(
             result, excl, ident, verdict, solved.accuracy, solved.rejected_pairs,
-            fingerprint=None if dataset is None else dataset_fingerprint(dataset)))
+            fingerprint=None if dataset is None else dataset_fingerprint(dataset))
+        doc["time_offsets"] = offsets.to_dict()
+        text = dump_document(doc)
         if on_phase is not None:
             on_phase("writing")
         try:
@@ -444,11 +455,11 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 self._saved_sha = dataset_fingerprint(dataset)["sha256"]
         except OSError as exc:
             files, write_error = {}, describe_os_error(exc)
-        message = summary(result, solved.problem, excl, self.config, verdict,
-                          solved.accuracy) + (
+        message = "\n".join([summary(result, solved.problem, excl, self.config, verdict,
+                                      solved.accuracy), *offsets.lines()]) + (
             f"\nWRITING THE OUTPUTS FAILED: {write_error}" if write_error else "")
         return SolveOutcome(True, message, result, excl, files, ident, text, verdict,
-                            solved.accuracy, write_error)
+                            solved.accuracy, write_error, time_offsets=offsets)
 
     def _accuracy_options(self) -> AccuracyOptions:
         """``accuracy.*`` of the configuration; the guidance moves the carrier that moves (the
@@ -519,7 +530,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
 
     def _dataset_locked(self):
         """A data-set object of the kept pairs (lock held), or None if unavailable."""
-        return session_dataset(self._acc, self.config, self._intrinsics)
+        return session_dataset(self._acc, self.config, self._intrinsics,
+                               pose_stream=self._track.data())
 
     def save_dataset(self, path: str | Path | None = None) -> str:
         """Save the kept pairs (format of :mod:`rwhec_ros.data.dataset`) and return the path.
@@ -578,7 +590,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         outside, :func:`~rwhec_ros.sync.accumulator.problem_from_edges`)."""
         with self._lock:
             return PairsSnapshot(self._data_version, self._acc.kept_pairs(),
-                                 self._acc.rotation_tol)
+                                 self._acc.rotation_tol, self._track.data())
 
     def live_counts(self) -> tuple[int, int, int, bool]:
         """``(data version, calibrations started, resets, calibrate running)``: what the live

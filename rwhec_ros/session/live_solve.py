@@ -87,11 +87,14 @@ class PairsSnapshot:
         Kept pairs per edge (:meth:`~rwhec_ros.sync.accumulator.PairAccumulator.kept_pairs`).
     rotation_tol : float
         Tolerance for building the problem's edges.
+    track : PoseTrackData or None
+        The pose stream recorded around the kept pairs (time offsets).
     """
 
     version: int
     edges: dict
     rotation_tol: float
+    track: Any = None
 
     @property
     def n_pairs(self) -> int:
@@ -152,6 +155,25 @@ def warm_start_of(estimate: LiveEstimate | None, problem: Problem) -> tuple | No
     return r.X, r.Y
 
 
+def _live_offsets(problem: Problem, result: CalibrationResult, snap: PairsSnapshot, config,
+                  cache: dict):
+    """The live time offsets (:func:`~rwhec_ros.session.time_offsets.one_step_offsets`) of the
+    re-solved ``problem``, or None when they cannot be had (an injected re-solve's result of
+    another kind, a failure: the live estimate stands without them)."""
+    from .time_offsets import TimeOffsetOptions, one_step_offsets
+
+    options = TimeOffsetOptions.from_config(config)
+    if not options.estimate or snap.track is None:
+        return None
+    try:
+        stamps = {k: e.stamps_ns for k, e in snap.edges.items()}
+        if len(cache) > 4 * max(problem.n_measurements, 1000):  # pairs replaced over time
+            cache.clear()
+        return one_step_offsets(problem, result, stamps, snap.track, options, cache)
+    except Exception:  # noqa: BLE001 - an extra of the live estimate, never its failure
+        return None
+
+
 @dataclass(frozen=True)
 class LiveEstimate:
     """One live re-solve's outcome.
@@ -177,6 +199,10 @@ class LiveEstimate:
         The solver's clock when it finished.
     sequence : int
         1 for the first estimate, then counting up (to publish each one once).
+    time_offsets : TimeOffsetReport or None
+        Each camera's time offset, one Newton step from this estimate
+        (:func:`~rwhec_ros.session.time_offsets.one_step_offsets`; shown, not applied); None
+        when the re-solve was injected or failed to give it.
     """
 
     result: CalibrationResult
@@ -191,6 +217,7 @@ class LiveEstimate:
     cpu_s: float
     finished: float
     sequence: int
+    time_offsets: Any = None
 
     @property
     def converged(self) -> bool:
@@ -207,8 +234,11 @@ class LiveEstimate:
         live = {"pairs": self.n_pairs, "edges": self.n_edges, "data_version": self.version,
                 "solve_s": self.solve_s, "cpu_s": self.cpu_s,
                 "period_s": self.config.solver.live_period_s}
-        return estimate_document(self.result, self.uncertainty, self.config, self.convergence,
-                                 excluded=self.excluded, live=live)
+        doc = estimate_document(self.result, self.uncertainty, self.config, self.convergence,
+                                excluded=self.excluded, live=live)
+        if self.time_offsets is not None:
+            doc["time_offsets"] = self.time_offsets.to_dict()
+        return doc
 
 
 @dataclass(frozen=True)
@@ -278,6 +308,8 @@ class LiveStatus:
                        ("max_std_rotation_deg", f"{c.max_std_rotation_deg:g}"),
                        ("certified", str(bool(est.result.certified)).lower()),
                        ("solve_ms", f"{1e3 * est.solve_s:.1f}")]
+            if est.time_offsets is not None:
+                values += est.time_offsets.diagnostic_values()
         if self.last_error:
             values.append(("last_error", self.last_error))
         level = (LEVEL_OK if (not self.enabled or self.converged) and not self.last_error
@@ -350,6 +382,7 @@ class LiveSolver:
         self._s = _State()
         self._s.idle.set()
         self._blocks = EdgeBlockCache()  # used by the worker thread only
+        self._rate_cache: dict = {}  # the pairs' stream rates by stamp (worker thread only)
 
     # --- driving -------------------------------------------------------------------------------
     def tick(self, now: float | None = None) -> str:
@@ -454,6 +487,7 @@ class LiveSolver:
             conv = convergence_of(unc, [*y_names, *x_names],
                                   c.convergence.max_std_translation_m,
                                   c.convergence.max_std_rotation_deg)
+            offsets = _live_offsets(problem, result, snap, c, self._rate_cache)
             t1, cpu = self._clock(), time.thread_time() - cpu0
             excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         except Exception as exc:  # noqa: BLE001 - a live solve never raises; the data stay
@@ -478,7 +512,7 @@ class LiveSolver:
             s.solves += 1
             s.estimate = LiveEstimate(result, unc, conv, c, excl, snap.version,
                                       problem.n_measurements, len(problem.edges), t1 - t0, cpu,
-                                      t1, s.solves)
+                                      t1, s.solves, offsets)
 
     # --- reading -------------------------------------------------------------------------------
     def status(self) -> LiveStatus:
@@ -523,6 +557,7 @@ class LiveSolver:
     # --- session events ------------------------------------------------------------------------
     def forget(self) -> None:
         """Drop the estimate and the error (the session was reset)."""
+        self._rate_cache = {}  # a new dict: a running re-solve keeps the old one
         with self._lock:
             self._s.estimate = None
             self._s.last_error = ""

@@ -86,6 +86,9 @@ class SolveOutcome:
     write_error : str
         Why the outputs could not be written (in words, also the end of ``message``); empty
         when they were (or nothing was to be written).
+    time_offsets : TimeOffsetReport or None
+        Each camera's time offset to the pose stream
+        (:class:`~rwhec_ros.session.time_offsets.TimeOffsetReport`); None on failure.
     """
 
     success: bool
@@ -98,6 +101,7 @@ class SolveOutcome:
     verdict: Verdict | None = None
     accuracy: Any = None
     write_error: str = ""
+    time_offsets: Any = None
 
     @property
     def usable(self) -> bool:

@@ -174,12 +174,13 @@ def static_transforms_launch(
     return "\n".join(lines)
 
 
-def session_dataset(acc, config, intrinsics=None) -> Dataset | None:
+def session_dataset(acc, config, intrinsics=None, *, pose_stream=None) -> Dataset | None:
     """A data set of the kept pairs of ``acc`` (a :class:`~rwhec_ros.sync.PairAccumulator`)
     named by ``config`` (a :class:`~rwhec_ros.config.CalibratorConfig`), with the pairs' tag
     corners, the cameras' ``intrinsics`` (camera -> CameraIntrinsics) and the configured tag
-    sizes (for the reprojection error per camera), or None if it cannot be built (call with
-    the session's lock held)."""
+    sizes (for the reprojection error per camera), the configured time offsets and the
+    recorded ``pose_stream`` (:class:`~rwhec_ros.sync.pose_track.PoseTrackData`, for time
+    offsets), or None if it cannot be built (call with the session's lock held)."""
     c = config
     carriers = {n: c.camera_carrier.frame for n in c.y_names}
     carriers.update({n: c.tag_carrier.frame for n in c.x_names})
@@ -193,6 +194,8 @@ def session_dataset(acc, config, intrinsics=None) -> Dataset | None:
             carriers=carriers,
             intrinsics=dict(intrinsics or {}),
             tag_sizes_m={c.tags.frame_name(t): s for t, s in c.tags.sizes.items()},
+            time_offsets_s={n: s for n, s in c.sync.time_offsets if s},
+            pose_stream=pose_stream,
         )
     except ValueError:
         return None

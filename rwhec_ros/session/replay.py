@@ -74,7 +74,8 @@ class ReplayFeeder:
         """An image of ``camera`` (``sensor_msgs/Image``, or ``CompressedImage`` when
         ``compressed``), with the pose at its stamp when it is known (tf)."""
         try:
-            arrived = self.session.image_arrival(stamp_to_ns(msg.header.stamp))
+            arrived = self.session.image_arrival(
+                self.session.pose_time(camera, stamp_to_ns(msg.header.stamp)))
         except (ValueError, TypeError, AttributeError):
             arrived = None  # a bad stamp: rejected and counted by the handlers
         item = (msg, compressed, T_parent_child, arrived)
@@ -106,16 +107,17 @@ class ReplayFeeder:
             w.stop()
 
     # --- internals -----------------------------------------------------------------------------
-    def _ready(self, item: tuple) -> bool:
+    def _ready(self, camera: str, item: tuple) -> bool:
         msg, _, T, arrived = item
         if T is not None or arrived is None:
             return True  # arrived None: a bad stamp, rejected and counted by the handlers
-        return self.session.pose_ready(stamp_to_ns(msg.header.stamp), arrived)
+        return self.session.pose_ready(
+            self.session.pose_time(camera, stamp_to_ns(msg.header.stamp)), arrived)
 
     def _release(self, *, final: bool) -> None:
         """Queue each camera's held images, oldest first, while their pose is there."""
         for camera, held in self._held.items():
-            while held and (final or self._ready(held[0])):
+            while held and (final or self._ready(camera, held[0])):
                 self._queue.put(camera, held.popleft())
 
     def _examine(self, entry: tuple) -> None:

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.lie import invert_transform, make_transform, so3_exp
+from ..sync.interpolation import interpolate_se3
 from ..vision.boards import AprilGridSpec, CharucoSpec
 from ..vision.grids import ChessboardSpec, CircleGridSpec
 from ..vision.intrinsics import CameraIntrinsics
@@ -36,6 +37,7 @@ __all__ = [
     "DEMO_RIG_FRAME",
     "demo_camera_topics",
     "Trajectory",
+    "StopAndGo",
     "SimulatedRig",
     "demo_rig",
     "demo_board",
@@ -61,17 +63,19 @@ class Trajectory:
 
     Yaw turns at ``yaw_rate`` [rad/s]; roll and pitch oscillate with amplitude
     ``tilt_amplitude`` [rad] at incommensurate periods; the position oscillates by
-    ``translation_amplitude`` [m] around ``centre`` [m].
+    ``translation_amplitude`` [m] around ``centre`` [m]. ``time_scale`` runs the same path that
+    many times faster (every speed times it; 1: about 0.1 m/s and 15-20 deg/s).
     """
 
     yaw_rate: float = 2.0 * np.pi / 24.0
     tilt_amplitude: float = 0.25
     translation_amplitude: float = 0.15
     centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    time_scale: float = 1.0
 
     def pose(self, t: float) -> np.ndarray:
         """``T_world_rig`` (4, 4) at time ``t`` [s]."""
-        t = float(t)
+        t = float(t) * self.time_scale
         yaw = self.yaw_rate * t
         roll = self.tilt_amplitude * np.sin(2.0 * np.pi * t / 7.0)
         pitch = self.tilt_amplitude * np.sin(2.0 * np.pi * t / 5.0 + 1.0)
@@ -92,6 +96,37 @@ class Trajectory:
 
 
 @dataclass(frozen=True)
+class StopAndGo:
+    """Stop-and-go motion along ``path`` (a :class:`Trajectory`): from rest at the path's pose
+    of ``k * step_s`` to the one of ``(k + 1) * step_s`` in ``move_s`` seconds (a smooth step,
+    at rest at both ends), then at rest for ``rest_s`` seconds; ``k = 0, 1, ...``."""
+
+    path: Trajectory = field(default_factory=Trajectory)
+    step_s: float = 2.0
+    move_s: float = 1.0
+    rest_s: float = 1.0
+
+    def _phase(self, t: float) -> tuple[int, float]:
+        period = self.move_s + self.rest_s
+        k = int(np.floor(float(t) / period))
+        return k, float(t) - k * period
+
+    def pose(self, t: float) -> np.ndarray:
+        """``T_world_rig`` (4, 4) at time ``t`` [s] (interpolated on SE(3) along the move)."""
+        k, tau = self._phase(t)
+        T0, T1 = self.path.pose(k * self.step_s), self.path.pose((k + 1) * self.step_s)
+        if tau >= self.move_s:
+            return T1
+        u = tau / self.move_s
+        return interpolate_se3(T0, T1, u * u * (3.0 - 2.0 * u))
+
+    def at_rest(self, t: float, margin_s: float = 0.0) -> bool:
+        """Whether the rig rests at ``t`` and for ``margin_s`` seconds either side."""
+        _, tau = self._phase(t)
+        return self.move_s + margin_s <= tau <= self.move_s + self.rest_s - margin_s
+
+
+@dataclass(frozen=True)
 class SimulatedRig:
     """Ground truth and sensors of the simulation.
 
@@ -108,7 +143,7 @@ class SimulatedRig:
         Edge length of every tag's black square [m].
     family : str
         AprilTag family.
-    trajectory : Trajectory
+    trajectory : Trajectory or StopAndGo
     boards : dict of int to a board layout
         Positions ``j`` that hold a board instead of tag ``j`` (board frame at
         ``T_world_tag[j]``); drawn by :meth:`render`, named ``board_<j>``.

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from typing import NamedTuple
 
 import numpy as np
@@ -42,6 +42,8 @@ def simulated_stream(
     supersample: int = DEMO_SUPERSAMPLE,
     shift_pattern: bool = True,
     start_ns: int = _NS,
+    stamp_offsets_s: Mapping[str, float] | None = None,
+    image_times: Callable[[float], bool] | None = None,
 ) -> Iterator[SimulatedSample]:
     """The sensor stream of a :class:`~rwhec_ros.simulation.rig.SimulatedRig` in stamp order.
 
@@ -53,24 +55,51 @@ def simulated_stream(
     Images are rendered with ``supersample**2`` samples per pixel (:data:`DEMO_SUPERSAMPLE`),
     the pattern shifted in every pixel (``shift_pattern``, :func:`~rwhec_ros.vision.render.
     pixel_shifts`).
+
+    ``stamp_offsets_s`` (camera -> ``delta`` [s]) plants time offsets: that camera's image taken
+    at simulation time ``t`` is stamped ``t - delta``, so that ``t_pose = t_image + delta`` finds
+    its pose (``delta < 0``: stamped late). Given (even empty), every image's noise comes from
+    its own generator seeded from ``rng`` before anything else, in the order the images are
+    taken, so that the same ``rng`` gives the same images and poses whatever the offsets (only
+    the stamps differ); without it, one generator in stamp order (as before). ``image_times``
+    (``t -> bool``) keeps only the images taken at the times it accepts (e.g. those at rest of
+    a stop-and-go trajectory).
     """
     for name, value in (("seconds", seconds), ("image_rate_hz", image_rate_hz),
                         ("pose_rate_hz", pose_rate_hz)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
+    offsets = dict(stamp_offsets_s or {})
+    for cam, value in offsets.items():
+        if cam not in rig.cameras:
+            raise ValueError(f"stamp_offsets_s: {cam!r} is not a camera of the rig "
+                             f"{list(rig.cameras)}")
+        if not (np.isfinite(value) and abs(value) < 1.0):
+            raise ValueError(f"stamp_offsets_s[{cam!r}]: must be finite and within +-1 s, "
+                             f"got {value!r}")
     pose_period_ns = int(round(_NS / pose_rate_hz))
     image_period_ns = int(round(_NS / image_rate_hz))
     end_ns = int(round(seconds * _NS))
-    poses = [(s, 0) for s in range(0, end_ns + 1, pose_period_ns)]
-    images = [(s, 1) for s in range(pose_period_ns // 2, end_ns, image_period_ns)]
-    for s, kind in sorted(poses + images):
+    events = [(s, 0, -1, s) for s in range(0, end_ns + 1, pose_period_ns)]
+    for s in range(pose_period_ns // 2, end_ns, image_period_ns):
+        if image_times is not None and not image_times(s / _NS):
+            continue
+        for k, cam in enumerate(rig.cameras):
+            stamp = s - int(round(offsets.get(cam, 0.0) * _NS))
+            if stamp >= -start_ns:
+                events.append((stamp, 1, k, s))
+    seeds = {}
+    if stamp_offsets_s is not None:  # one seed per image, drawn in the order they are taken
+        taken = sorted((s, k) for _, kind, k, s in events if kind == 1)
+        seeds = dict(zip(taken, rng.integers(0, 2**63, size=len(taken)).tolist(), strict=True))
+    for stamp, kind, k, s in sorted(events):
         t = s / _NS
         if kind == 0:
             T = rig.pose_measurement(t, rng, pose_noise_m, pose_noise_rad)
-            yield SimulatedSample(start_ns + s, None, T)
+            yield SimulatedSample(start_ns + stamp, None, T)
             continue
-        T_world_rig = rig.T_world_rig(t)
-        for cam in rig.cameras:
-            gray = rig.render(cam, T_world_rig, rng, noise_std=image_noise_std,
-                              supersample=supersample, shift_pattern=shift_pattern)
-            yield SimulatedSample(start_ns + s, cam, gray)
+        cam = rig.cameras[k]
+        image_rng = np.random.default_rng(seeds[(s, k)]) if seeds else rng
+        gray = rig.render(cam, rig.T_world_rig(t), image_rng, noise_std=image_noise_std,
+                          supersample=supersample, shift_pattern=shift_pattern)
+        yield SimulatedSample(start_ns + stamp, cam, gray)

@@ -477,3 +477,44 @@ def test_accumulator_keeps_board_corners_and_bounds_their_memory():
     assert small.edges()[("board_0", "cam_0")].corners_px is None
     with pytest.raises(ValueError, match="board_corners: expected 0 or an integer >= 4"):
         PairAccumulator(board_corners=3)
+
+
+# --- time offsets: the recorded pose stream and the offsets in the pairs ------------------------
+
+
+def _with_stream(rng):
+    from rwhec_ros.sync.pose_track import PoseTrackData
+
+    ds = awkward_dataset(rng)
+    stamps = 1_700_000_000_000_000_000 + np.arange(7, dtype=np.int64) * 10_000_000
+    poses = random_transforms(rng, 7)
+    stream = PoseTrackData(stamps, poses, 100_000_000)
+    return Dataset(ds.x_names, ds.y_names, ds.edges, unknown_scale=True, metadata=ds.metadata,
+                   carriers=ds.carriers, time_offsets_s={"y0": -0.025}, pose_stream=stream)
+
+
+@pytest.mark.parametrize("arrays", ["inline", "npz"])
+def test_pose_stream_and_time_offsets_round_trip(tmp_path, arrays):
+    ds = _with_stream(np.random.default_rng(6))
+    back = _round_trip(ds, tmp_path / "t.yaml", arrays)
+    assert back.time_offsets_s == {"y0": -0.025}
+    assert back.pose_stream.max_gap_ns == 100_000_000
+    assert back.pose_stream.stamps_ns.tobytes() == ds.pose_stream.stamps_ns.tobytes()
+    assert back.pose_stream.poses.tobytes() == ds.pose_stream.poses.tobytes()
+    # a data set without them (written before they were kept) has neither
+    plain = _round_trip(awkward_dataset(np.random.default_rng(6)), tmp_path / "p.yaml", arrays)
+    assert plain.pose_stream is None and plain.time_offsets_s == {}
+
+
+def test_bad_time_data_is_named(tmp_path):
+    ds = _with_stream(np.random.default_rng(7))
+    with pytest.raises(ValueError, match=r"time_offsets_s: 'x0' is not a camera"):
+        Dataset(ds.x_names, ds.y_names, ds.edges, time_offsets_s={"x0": 0.1})
+    with pytest.raises(ValueError, match=r"time_offsets_s\['y0'\]: expected finite seconds"):
+        Dataset(ds.x_names, ds.y_names, ds.edges, time_offsets_s={"y0": float("nan")})
+    path = ds.save(tmp_path / "t.yaml", arrays="inline")
+    doc = yaml.safe_load(path.read_text())
+    doc["pose_stream"]["stamps_ns"][3] = doc["pose_stream"]["stamps_ns"][2]
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ValueError, match=r"t.yaml: pose_stream: pose_stream stamps_ns\[3\]"):
+        Dataset.load(path)

@@ -10,6 +10,7 @@ def test_declaration_plan_covers_the_schema():
     plan = declaration_plan(["cam0"], declared={"cameras.names", "noise.sigma"})
     names = {p[0] for p in plan}
     expected = {s.name for s in GLOBAL_SPECS} | {f"cameras.cam0.{s.name}" for s in CAMERA_SPECS}
+    expected.add("sync.time_offset.cam0")  # the per-camera sync.time_offset.<camera>
     assert names == expected - {"cameras.names", "noise.sigma"}
     by_name = {p[0]: p for p in plan}
     assert by_name["noise.kappa"][1:3] == ("DOUBLE", 125.0)
