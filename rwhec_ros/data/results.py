@@ -169,7 +169,9 @@ def result_document(
     far as they apply) and ``source`` (where the data came from).
     With a :class:`~rwhec_ros.core.verdict.Verdict`, each frame also says whether it is
     ``usable`` (and its ``verdict`` and ``why``), and ``verdict_details`` holds the fit
-    statistics, the scale check and the per-frame verdicts.
+    statistics, the scale check and the per-frame verdicts; ``exclusion`` what was excluded
+    because it did not fit, each frame's shift and the all-data solve's key numbers
+    (:meth:`rwhec_ros.core.verdict.exclusion.Exclusion.to_dict`; ``null`` when not run).
 
     With an :class:`~rwhec_ros.session.accuracy.Accuracy`, each frame also has its uncertainty
     (:meth:`~rwhec_ros.session.accuracy.Accuracy.frame_fields`: ``std_kind``, predicted
@@ -196,6 +198,8 @@ def result_document(
     doc["identifiability"] = None if identifiability is None else dict(identifiability)
     doc["config"] = dict(config or {})
     doc["source"] = dict(source or {})
+    exclusion = getattr(verdict, "exclusion", None)
+    doc["exclusion"] = None if exclusion is None else exclusion.to_dict()
     if verdict is not None:
         doc["verdict_details"] = verdict.to_dict()
     if accuracy is not None:

@@ -449,6 +449,8 @@ class CalibratorNode(Node):
             calibration = (last.verdict.level, last.verdict.headline())
         if last is not None and last.accuracy is not None:
             accuracy = last.accuracy.diagnostic_values()
+        if last is not None and last.verdict is not None and last.verdict.exclusion is not None:
+            accuracy = [*accuracy, *last.verdict.exclusion.diagnostic_values()]
         rows = diagnostic_rows(
             self.session.diagnostics(), counters, prefix=self.get_name(),
             identifiable=None if report is None else bool(report.identifiable),
