@@ -107,6 +107,39 @@ def test_without_rejection_the_all_data_solve_was_pulled_off_by_the_bad_tag():
             assert abs(s.translation_m - off[s.name]) <= final + 1e-9
 
 
+def test_the_outputs_name_the_exclusion_and_keep_the_all_data_solve():
+    import yaml
+
+    from rwhec_ros.data.results import FrameNaming, result_document
+    from rwhec_ros.session.outputs import publishable, summary
+
+    rig, problem = rig_pairs(np.random.default_rng(0), size_factor=0.75)
+    solved = solve_and_assess(problem, reject_outliers=True, accuracy=FAST,
+                              expected_x=problem.x_names, expected_y=problem.y_names)
+    naming = FrameNaming.from_carriers(problem.x_names, problem.y_names, camera_carrier="rig",
+                                       tag_carrier="world")
+    doc = yaml.safe_load(yaml.safe_dump(result_document(
+        solved.result, naming, excluded=solved.dropped, verdict=solved.verdict,
+        accuracy=solved.accuracy, rejected_pairs=solved.rejected_pairs), sort_keys=False))
+    ex = doc["exclusion"]
+    assert ex["excluded_tags"] == ["tag_2"] and set(ex["shifts"]) >= set(rig.cameras)
+    assert ex["first_solve"]["pairs"] == problem.n_measurements
+    assert set(ex["first_solve"]["frames"]) == set(problem.frame_names)
+    assert "its certificate is for that problem" in ex["certificate_note"]
+    assert doc["reasons"][0].startswith("CAUTION: tag_2: excluded and not calibrated")
+    assert all(k in doc["excluded_edges"] for k in ex["excluded"][0]["edges"])
+    assert "tag_2" not in [f["name"] for f in doc["frames"]]
+    text = summary(solved.result, solved.problem, solved.dropped, naming, solved.verdict,
+                   solved.accuracy)
+    assert "world->tag_2_calibrated: NOT CALIBRATED (excluded: does not fit)" in text
+    assert f"all-data solve (not published): {problem.n_measurements} pairs" in text
+    assert "without tag_2: cam0 " in text
+    names = list(solved.result.y_names) + list(solved.result.x_names)
+    kept, _ = publishable(naming.transforms(solved.result), names, solved.verdict)
+    assert "tag_2_calibrated" not in [child for _, child, _ in kept]
+    assert dict(solved.verdict.exclusion.diagnostic_values())["excluded"] == "tag_2"
+
+
 def test_good_data_exclude_nothing():
     rig, problem = rig_pairs(np.random.default_rng(1))
     for robust in (False, True):
@@ -221,6 +254,23 @@ def test_exclude_misfits_stops_at_the_round_limit():
                                   options=VerdictOptions(exclusion_max_rounds=1,
                                                          exclusion_max_share=0.01))
     assert not ex0.excluded and final0.problem is problem and ex0.shifts == []
+
+
+def test_a_failing_re_solve_publishes_the_previous_solve():
+    rig, problem = rig_pairs(np.random.default_rng(0), size_factor=0.75)
+    from rwhec_ros.core.solve import solve
+    from rwhec_ros.core.verdict.exclusion import Attempt
+
+    first = Attempt(solve(problem), problem)
+
+    def failing(p):
+        raise RuntimeError("no convergence")
+
+    ex, final = exclude_misfits(problem, first, failing)
+    assert final is first and not ex.excluded and ex.shifts == []
+    assert ex.stopped.startswith("the solve without (tag_2, cam0) failed (RuntimeError: no "
+                                 "convergence)")
+    assert ex.remaining
 
 
 def test_frame_noise_ratio_only_where_significant():

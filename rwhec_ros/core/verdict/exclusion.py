@@ -326,6 +326,23 @@ def misfits(fit: FitStatistics | None, given: Problem, *,
     return list(out.values())
 
 
+#: At most this many candidates are tried per exclusion (those with the largest share of the
+#: misfit, :func:`_misfit_chi2`): each trial is a solve.
+_MAX_TRIALS = 6
+
+
+def _misfit_chi2(m: Misfit, fit: FitStatistics | None) -> float:
+    """The ``2 p`` of the candidate's edges in ``fit`` (its share of the misfit)."""
+    if fit is None:
+        return 0.0
+    edges = set(m.edges)
+    return float(sum(e.noise_ratio_translation ** 2 * e.dof_translation
+                     + e.noise_ratio_rotation ** 2 * e.dof_rotation
+                     for e in fit.edges if e.name in edges
+                     and np.isfinite(e.noise_ratio_translation)
+                     and np.isfinite(e.noise_ratio_rotation)))
+
+
 def _without(problem: Problem, edges) -> Problem | None:
     gone = set(edges)
     kept = [e for e in problem.edges if e.name not in gone]
@@ -437,7 +454,8 @@ def exclude_misfits(
         ``solve_fn(problem)``, already made.
     solve_fn : callable
         ``Problem -> Attempt``: the caller's solve (mode, priors, outlier rejection), used for
-        every re-solve; its exceptions propagate.
+        every re-solve; when it raises (``ValueError``, ``ArithmeticError``, ``LinAlgError``,
+        ``RuntimeError``) the exclusion stops there and the previous solve is published.
     options : VerdictOptions, optional
         ``exclusion_max_rounds``, ``exclusion_max_share``, ``exclusion_rejected_share`` and the
         thresholds of the fit.
@@ -476,16 +494,23 @@ def exclude_misfits(
                                  "(verdict.exclusion_max_share): the misfit is not one target's")
             exclusion.remaining = tuple(m.name for m in cands)
             break
+        fits = sorted(fits, key=lambda m: -_misfit_chi2(m, fit))[:_MAX_TRIALS]
         best = choose(fits, current.problem, opts, solve_options)[0]
         rest = _without(given, best.edges)
         if rest is None:
             exclusion.stopped = f"excluding {best.name} would leave no data"
             exclusion.remaining = tuple(m.name for m in cands)
             break
+        try:
+            attempt = solve_fn(rest)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:
+            exclusion.stopped = (f"the solve without {best.name} failed ({type(exc).__name__}: "
+                                 f"{exc})")
+            exclusion.remaining = tuple(m.name for m in cands)
+            break
         _add(exclusion.excluded, best)
         gone += best.pairs
-        given = rest
-        current = solve_fn(given)
+        given, current = rest, attempt
         fit = _fit(current, opts)
     if exclusion.excluded:
         exclusion.shifts = frame_shifts(first.result, current.result)
