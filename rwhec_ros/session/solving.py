@@ -222,9 +222,9 @@ def solve_and_assess(
     notes = prior_notes + notes
     result.notes.extend(notes)
     ident = analyze_at_solution(solved, result)
-    if corners is not None:  # the corners of the pairs solved (not of excluded edges)
-        kept = {e.name for e in solved.edges}
-        corners = ([o for o in corners[0] if f"({o.x}, {o.y})" in kept], corners[1])
+    if corners is not None and exclusion is not None and exclusion.excluded:
+        gone = set(exclusion.dropped())  # the corners of the edges excluded for their misfit
+        corners = ([o for o in corners[0] if f"({o.x}, {o.y})" not in gone], corners[1])
     acc = None
     if accuracy is not None:
         acc = assess_accuracy(solved, result, solve_options=options, options=accuracy,
