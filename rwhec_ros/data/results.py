@@ -392,7 +392,10 @@ def load_result(path: str | Path) -> dict[str, Any]:
     for i, f in enumerate(doc["frames"]):
         if not isinstance(f, dict) or not {"name", "role", "matrix"} <= set(f):
             raise ValueError(f"{path}: frames[{i}]: expected name, role and matrix, got {f!r}")
-        T = np.asarray(f["matrix"], dtype=float)
+        try:  # a file cut inside a matrix leaves rows of different lengths
+            T = np.asarray(f["matrix"], dtype=float)
+        except (TypeError, ValueError):
+            T = np.zeros(0)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise ValueError(f"{path}: frames[{i}] ({f['name']}): matrix must be a finite 4x4, "
                              f"got {f['matrix']!r}")
