@@ -24,6 +24,10 @@ Three parts, each row with its own seeded runs:
    configured tag size 10 % and 20 % too small, a focal length 5 % too large in the CameraInfo,
    images stamped 30 and 50 ms late during fast motion (hand-held swings, see
    :class:`WavedTrajectory`), one tag moved by 5 cm and one turned upside down halfway through.
+4. **One bad target** (:mod:`verdict_badtarget`): the rendered pipeline with one tag's size wrong
+   (25 %, 10 %), moved halfway or flipped on some views, with and without ``--robust``, known and
+   unknown scale: the bad tag must be excluded and named, no camera published off by more than
+   3 of its std, exit 0.
    Rendering dominates the cost (about 13 s per
    12-s stream on one core), so each rendered stream serves every configuration that only changes
    what the session is told (tag sizes, intrinsics, stamps); fewer runs per row.
@@ -363,6 +367,14 @@ def rendered(runs: int, seed: int) -> list[str]:
     return lines
 
 
+def bad_target(runs: int, seed: int) -> list[str]:
+    """Part 4 (``benchmarks/verdict_badtarget.py``): one bad target of the rendered rig."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from verdict_badtarget import bad_target as part4
+
+    return part4(runs, seed, lambda: _rig(NORMAL), (RENDER_SIGMA, RENDER_KAPPA))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a few runs per row")
@@ -372,12 +384,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="runs per demo-rig row, pairs at the stated noise (default: %(default)s)")
     ap.add_argument("--render-runs", type=int, default=8,
                     help="rendered streams per row (default: %(default)s)")
-    ap.add_argument("--parts", type=int, nargs="+", default=(1, 2, 3),
-                    help="which parts to run (default: 1 2 3)")
+    ap.add_argument("--bad-target-runs", type=int, default=6,
+                    help="rendered runs per row of part 4, one bad target (default: "
+                         "%(default)s)")
+    ap.add_argument("--parts", type=int, nargs="+", default=(1, 2, 3, 4),
+                    help="which parts to run (default: 1 2 3 4)")
     ap.add_argument("--seed", type=int, default=0, help="base seed (default: %(default)s)")
     args = ap.parse_args(argv)
     if args.quick:
         args.section8_runs, args.demo_runs, args.render_runs = 5, 5, 1
+        args.bad_target_runs = 1
     t0 = time.perf_counter()
 
     def emit(lines: list[str]) -> None:  # part by part: a long run keeps what it finished
@@ -394,6 +410,8 @@ def main(argv: list[str] | None = None) -> int:
         emit(demo_synthetic(args.demo_runs, args.seed) + [""])
     if 3 in args.parts:
         emit(rendered(args.render_runs, args.seed) + [""])
+    if 4 in args.parts:
+        emit(bad_target(args.bad_target_runs, args.seed) + [""])
     emit([f"Total {time.perf_counter() - t0:.0f} s."])
     return 0
 

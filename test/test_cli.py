@@ -82,21 +82,30 @@ def test_csv_known_scale_is_certified_with_all_outputs(paper_known):
     for key in RESULT_KEYS:
         assert key in doc, key
     # the verdict first, in the YAML and on stdout: the (tag_23, cam_6) edge of the paper's data
-    # has ~35 deg rotation residuals on every pair
+    # has ~35 deg rotation residuals on every pair: it is excluded and the rest solved again
     assert list(doc)[:2] == ["verdict", "reasons"] and doc["verdict"] == "caution"
-    assert doc["reasons"][0].startswith("CAUTION: edge (tag_23, cam_6) fits far worse")
-    assert stdout.startswith("CAUTION: edge (tag_23, cam_6) fits far worse than the others: "
-                             "rotation residuals RMS 35")
+    assert doc["reasons"][0].startswith("CAUTION: edge (tag_23, cam_6) excluded: edge "
+                                        "(tag_23, cam_6) fits 17x the noise of the median edge")
+    assert stdout.startswith("CAUTION: edge (tag_23, cam_6) excluded: edge (tag_23, cam_6) fits "
+                             "17x the noise of the median edge (rotation residuals RMS 35")
+    assert "without it cam_6 moves " in doc["reasons"][0]
+    ex = doc["exclusion"]
+    assert [m["name"] for m in ex["excluded"]] == ["(tag_23, cam_6)"] and ex["pairs_kept"] == 3226
+    assert ex["first_solve"]["pairs"] == 3230 and ex["first_solve"]["certified"] is True
+    assert ex["first_solve"]["flagged_edges"] == ["(tag_23, cam_6)"]
+    # the largest shift is cam_6's, the camera of the excluded edge (19 mm measured)
+    assert max(ex["shifts"], key=lambda n: ex["shifts"][n]["translation_m"]) == "cam_6"
     assert all(f["usable"] for f in doc["frames"])
     assert doc["verdict_details"]["fit"]["edges"]
     assert doc["certified"] is True and doc["scale"] == 1.0
     assert doc["suboptimality_bound"] < 1e-5  # the paper reports a relative gap of ~1e-8
-    assert len(doc["frames"]) == 8 + 16 and doc["excluded_edges"] == {}
+    assert len(doc["frames"]) == 8 + 16 and list(doc["excluded_edges"]) == ["(tag_23, cam_6)"]
     assert doc["config"]["noise.sigma"] == 0.1 and doc["config"]["noise.kappa"] == 125.0
     assert doc["identifiability"]["identifiable"] is True
     # the printed summary is the session's: verdict, certified, rho_hat, one line per frame
     assert "\nCERTIFIED globally optimal (rho_hat=" in stdout
-    assert "3230 pairs on 73 edges" in stdout
+    assert "3226 pairs on 72 edges" in stdout  # the published solve; the all-data one too:
+    assert "all-data solve (not published): 3230 pairs on 73 edges, certified" in stdout
     assert "rig->cam_3_calibrated: t=[" in stdout and "world->tag_12_calibrated: t=[" in stdout
     # launch file and data set beside the result, in the -o directory
     launch = (out / "static_transforms.launch.py").read_text()

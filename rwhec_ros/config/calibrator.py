@@ -455,9 +455,13 @@ def _build_verdict(v: dict[str, Any]) -> dict[str, Any]:
             values[short] = check_positive(v, spec.name)
     if values["significance"] >= 1:
         raise ValueError(f"verdict.significance: must be < 1, got {values['significance']!r}")
-    for name in ("fit_caution_ratio", "edge_ratio", "edge_noisy_ratio"):
+    for name in ("fit_caution_ratio", "edge_ratio", "edge_noisy_ratio", "reprojection_ratio"):
         if values[name] < 1:
             raise ValueError(f"verdict.{name}: must be >= 1, got {values[name]!r}")
+    for name in ("exclusion_max_share", "exclusion_rejected_share"):
+        if values[name] >= 1:
+            raise ValueError(f"verdict.{name}: must be < 1 (a share of the pairs), got "
+                             f"{values[name]!r}")
     for low, high in (("fit_caution_ratio", "fit_unusable_ratio"),
                       ("scale_caution", "scale_unusable"),
                       ("caution_std_translation_m", "unusable_std_translation_m"),

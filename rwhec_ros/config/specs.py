@@ -324,6 +324,26 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("verdict.focal_caution", "double", 0.02,
               doc="... and beyond this relative difference: caution for that camera (0.02 = "
                   "2 %)"),
+    ParamSpec("verdict.reprojection_ratio", "double", 5.0,
+              doc="with tag corners and intrinsics in the data: a camera whose corners "
+                  "reproject through the calibration this many times worse (RMS) than the "
+                  "median of the other cameras' ..."),
+    ParamSpec("verdict.reprojection_min_px", "double", 2.0,
+              doc="... and worse than this [px] is named (caution for that camera)"),
+    ParamSpec("verdict.exclude_misfits", "bool", True,
+              doc="exclude a target or an edge that does not fit (all its edges far worse "
+                  "than the others, an outlier edge, most of its pairs rejected by "
+                  "solver.reject_outliers) and solve again without it; the published result "
+                  "is that solve, the excluded target is named and not published "
+                  "(docs/verdict.md)"),
+    ParamSpec("verdict.exclusion_max_rounds", "int", 3,
+              doc="exclude at most this many targets or edges, one per re-solve ..."),
+    ParamSpec("verdict.exclusion_max_share", "double", 0.34,
+              doc="... leaving out at most this share of the pairs (< 1): beyond it the misfit "
+                  "is not one target's, and the cameras on it are not calibrated"),
+    ParamSpec("verdict.exclusion_rejected_share", "double", 0.5,
+              doc="with solver.reject_outliers: a target (or an edge) more than this share of "
+                  "whose pairs were rejected does not fit and is excluded (< 1)"),
     ParamSpec("accuracy.cross_validation_folds", "int", 5,
               doc="k-fold cross-validation over the pairs at calibrate (held-out vs in-sample "
                   "residuals per edge); 0: off"),

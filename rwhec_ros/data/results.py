@@ -172,7 +172,9 @@ def result_document(
     far as they apply) and ``source`` (where the data came from).
     With a :class:`~rwhec_ros.core.verdict.Verdict`, each frame also says whether it is
     ``usable`` (and its ``verdict`` and ``why``), and ``verdict_details`` holds the fit
-    statistics, the scale check and the per-frame verdicts.
+    statistics, the scale check and the per-frame verdicts; ``exclusion`` what was excluded
+    because it did not fit, each frame's shift and the all-data solve's key numbers
+    (:meth:`rwhec_ros.core.verdict.exclusion.Exclusion.to_dict`; ``null`` when not run).
 
     With an :class:`~rwhec_ros.session.accuracy.Accuracy`, each frame also has its uncertainty
     (:meth:`~rwhec_ros.session.accuracy.Accuracy.frame_fields`: ``std_kind``, predicted
@@ -203,6 +205,8 @@ def result_document(
     doc["identifiability"] = None if identifiability is None else dict(identifiability)
     doc["config"] = dict(config or {})
     doc["source"] = dict(source or {})
+    exclusion = getattr(verdict, "exclusion", None)
+    doc["exclusion"] = None if exclusion is None else exclusion.to_dict()
     if fingerprint is not None:
         doc["dataset_fingerprint"] = dict(fingerprint)
     if verdict is not None:
@@ -388,7 +392,10 @@ def load_result(path: str | Path) -> dict[str, Any]:
     for i, f in enumerate(doc["frames"]):
         if not isinstance(f, dict) or not {"name", "role", "matrix"} <= set(f):
             raise ValueError(f"{path}: frames[{i}]: expected name, role and matrix, got {f!r}")
-        T = np.asarray(f["matrix"], dtype=float)
+        try:  # a file cut inside a matrix leaves rows of different lengths
+            T = np.asarray(f["matrix"], dtype=float)
+        except (TypeError, ValueError):
+            T = np.zeros(0)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise ValueError(f"{path}: frames[{i}] ({f['name']}): matrix must be a finite 4x4, "
                              f"got {f['matrix']!r}")

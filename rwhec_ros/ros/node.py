@@ -489,6 +489,8 @@ class CalibratorNode(Node):
             accuracy = last.accuracy.diagnostic_values()
         if last is not None and getattr(last, "time_offsets", None) is not None:
             accuracy = [*accuracy, *last.time_offsets.diagnostic_values()]
+        if last is not None and last.verdict is not None and last.verdict.exclusion is not None:
+            accuracy = [*accuracy, *last.verdict.exclusion.diagnostic_values()]
         rows = diagnostic_rows(
             self.session.diagnostics(), counters, prefix=self.get_name(),
             identifiable=None if report is None else bool(report.identifiable),

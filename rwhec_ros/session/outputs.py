@@ -38,6 +38,8 @@ def summary(result: CalibrationResult, problem, excluded: dict, config,
     if verdict is not None:
         lines.append(verdict.headline())
         lines += [f"  {m}" for m in verdict.messages()[1:]]
+        if verdict.exclusion is not None:
+            lines += verdict.exclusion.summary_lines()
     lines.append(f"CERTIFIED globally optimal (rho_hat={c.suboptimality_bound:.2e})"
                  if result.certified else
                  f"NOT certified: {c.status.value} (rho_hat={c.suboptimality_bound:.2e})")

@@ -12,6 +12,7 @@ from ..core.identifiability import IdentifiabilityTracker, analyze
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict, VerdictOptions, assess
+from ..core.verdict.exclusion import Attempt, Exclusion, exclude_misfits
 from ..data.results import plain
 from .accuracy import Accuracy, AccuracyOptions, assess_accuracy
 from .refinement import published_result, refine_solution
@@ -154,6 +155,11 @@ class Solved:
         With outlier rejection: edge ``"(x, y)"`` -> the indices of its pairs the rejection left
         out (indices into the problem given to :func:`solve_and_assess`, i.e. the data set's
         pairs of that edge), ascending; edges with none rejected are not listed.
+    exclusion : Exclusion or None
+        What was excluded because it did not fit, before ``result`` was solved, the frames'
+        shifts and the all-data solve's key numbers
+        (:func:`~rwhec_ros.core.verdict.exclusion.exclude_misfits`; also ``verdict.exclusion``);
+        None when ``verdict.exclude_misfits`` is off. Its edges are in ``dropped``.
     """
 
     result: CalibrationResult
@@ -164,6 +170,7 @@ class Solved:
     verdict: Verdict | None = None
     accuracy: Accuracy | None = None
     rejected_pairs: dict[str, list[int]] = field(default_factory=dict)
+    exclusion: Exclusion | None = None
 
     @property
     def identifiability_dict(self) -> dict | None:
@@ -219,11 +226,19 @@ def solve_and_assess(
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale, sdp_backend=sdp_backend)
     result, solved, dropped, notes, rejected = _solve(problem, options, reject_outliers)
+    exclusion = None
+    if (thresholds or VerdictOptions()).exclude_misfits:
+        exclusion, (result, solved, dropped, notes, rejected) = _exclude(
+            problem, (result, solved, dropped, notes, rejected), options, reject_outliers,
+            thresholds)
     notes = prior_notes + notes
     result.notes.extend(notes)
     if on_phase is not None:
         on_phase("analysing")
     ident = analyze_at_solution(solved, result)
+    if corners is not None and exclusion is not None and exclusion.excluded:
+        gone = set(exclusion.dropped())  # the corners of the edges excluded for their misfit
+        corners = ([o for o in corners[0] if f"({o.x}, {o.y})" not in gone], corners[1])
     acc = None
     if accuracy is not None:
         acc = assess_accuracy(solved, result, solve_options=options, options=accuracy,
@@ -238,9 +253,40 @@ def solve_and_assess(
                          intrinsics=None if corners is None else corners[1],
                          expected_x=[*expected_x, *problem.x_names],
                          expected_y=[*expected_y, *problem.y_names],
-                         excluded={**dict(excluded or {}), **dropped}, carriers=carriers)
+                         excluded={**dict(excluded or {}), **dropped}, carriers=carriers,
+                         exclusion=exclusion)
     result = published_result(result, None if acc is None else acc.refinement)
-    return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected)
+    return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected, exclusion)
+
+
+def _exclude(problem: Problem, first: tuple, options, reject_outliers: bool,
+             thresholds: VerdictOptions | None) -> tuple[Exclusion, tuple]:
+    """:func:`~rwhec_ros.core.verdict.exclusion.exclude_misfits` with this module's solve
+    (``options``, ``reject_outliers``): the exclusion and the ``_solve`` tuple to publish, whose
+    ``dropped`` also holds the excluded edges and whose notes say what the certificate is
+    for."""
+    from ..core.pipeline.options import SolveOptions
+
+    def attempt(out: tuple, given: Problem) -> Attempt:
+        result, solved, dropped, _, rejected = out
+        counts = {k: len(v) for k, v in rejected.items()}
+        sizes = {e.name: e.n for e in given.edges}
+        for edge in dropped:  # wholly rejected edges
+            if edge in sizes:
+                counts[edge] = sizes[edge]
+        return Attempt(result, solved, counts, out)
+
+    trial = SolveOptions(mode="fast", gauge=options.gauge, min_scale=options.min_scale,
+                         sdp=options.sdp)  # the configured SDP backend for a fallback
+    exclusion, final = exclude_misfits(
+        problem, attempt(first, problem),
+        lambda p: attempt(_solve(p, options, reject_outliers), p),
+        options=thresholds, solve_options=trial)
+    result, solved, dropped, notes, rejected = final.extra
+    if exclusion.excluded:
+        dropped = {**dropped, **exclusion.dropped()}
+        notes = [*notes, f"exclusion: {exclusion.certificate_note()}"]
+    return exclusion, (result, solved, dropped, notes, rejected)
 
 
 def solver_alternatives(mode: str, robust: bool, mode_option: str = "--mode",

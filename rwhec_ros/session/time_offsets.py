@@ -56,7 +56,7 @@ from .time_offset_report import (
 __all__ = ["TimeOffsetOptions", "CameraOffset", "TimeOffsetReport", "estimate_offsets",
            "one_step_offsets", "add_offset_reasons", "shift_dataset",
            "MOVING_SPEED_M_S", "MOVING_RATE_RAD_S", "MIN_MOVING_PAIRS", "SIGNIFICANT_SIGMAS",
-           "CAUTION_S", "MAX_ITERATIONS", "correct_time_offsets"]
+           "CAUTION_S", "MAX_ITERATIONS", "correct_time_offsets", "with_time_offsets"]
 
 _NS = 1_000_000_000
 #: A pair counts as moving when the stream moved faster than this [m/s] ...
@@ -459,3 +459,19 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
     except Exception as exc:  # noqa: BLE001 - an extra of the calibration, never its failure
         why = f"the estimate failed: {type(exc).__name__}: {exc}"
         return problem, dataset, _not(problem, options, "not_estimated", why)
+
+
+def with_time_offsets(doc: dict, report) -> dict:
+    """The result mapping ``doc`` with ``time_offsets`` (``report.to_dict()``) placed before
+    ``excluded_edges``, not last: a ``result.yaml`` cut short inside it then lacks the keys
+    after it that every result has, and is refused as incomplete
+    (:func:`rwhec_ros.data.results.incomplete_result`)."""
+    out: dict = {}
+    for key, value in doc.items():
+        if key == "excluded_edges":
+            out["time_offsets"] = report.to_dict()
+        if key != "time_offsets":
+            out[key] = value
+    if "time_offsets" not in out:
+        out["time_offsets"] = report.to_dict()
+    return out

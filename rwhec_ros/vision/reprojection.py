@@ -115,7 +115,8 @@ class CameraReprojection:
 
     ``n_behind`` pairs whose predicted tag lies at or behind the camera are left out of the
     statistics (the estimate cannot be right for them). ``focal`` is the focal fit of the same
-    camera's corners (every pair; module docstring), None when not computed."""
+    camera's corners (every pair; module docstring), None when not computed;
+    ``per_target_rms_px`` the RMS over the corners of each target it sees."""
 
     camera: str
     n_pairs: int
@@ -124,11 +125,14 @@ class CameraReprojection:
     max_px: float
     n_behind: int = 0
     focal: FocalFit | None = None
+    per_target_rms_px: dict[str, float] | None = None
 
     def to_dict(self) -> dict:
         return {"camera": self.camera, "n_pairs": int(self.n_pairs), "rms_px": float(self.rms_px),
                 "median_px": float(self.median_px), "max_px": float(self.max_px),
                 "n_behind": int(self.n_behind),
+                "per_target_rms_px": {k: float(v) for k, v in
+                                      (self.per_target_rms_px or {}).items()},
                 **_focal_keys(self.focal)}
 
 
@@ -189,7 +193,7 @@ def reprojection_errors(
         focal = fit_focal_scale([observations[i].corners_px for i in idx], intrinsics[cam],
                                 object_points=[observations[i].object_points for i in idx])
         Y_inv = invert_transform(result.transform(cam))
-        pts, seen = [], []
+        pts, seen, whose = [], [], []
         for i in idx:
             ob = observations[i]
             T = Y_inv @ ob.A @ result.transform(ob.x)  # T_cam_target predicted
@@ -197,6 +201,7 @@ def reprojection_errors(
             if np.all(P[:, 2] > 0):
                 pts.append(P)
                 seen.append(ob.corners_px)
+                whose += [ob.x] * len(P)
         n_behind = len(idx) - len(pts)
         if not pts:
             nan = float("nan")
@@ -204,7 +209,10 @@ def reprojection_errors(
             continue
         uv = intrinsics[cam].project_points(np.concatenate(pts))
         err = np.linalg.norm(uv - np.concatenate(seen), axis=1)
+        whose_a = np.array(whose)
+        per = {x: float(np.sqrt(np.mean(err[whose_a == x] ** 2))) for x in dict.fromkeys(whose)}
         out[cam] = CameraReprojection(cam, len(idx), float(np.sqrt(np.mean(err**2))),
-                                      float(np.median(err)), float(err.max()), n_behind, focal)
+                                      float(np.median(err)), float(err.max()), n_behind, focal,
+                                      per)
     return out
 

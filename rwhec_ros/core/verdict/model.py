@@ -13,9 +13,9 @@ from .scale_check import ScaleCheck
 __all__ = ["Reason", "FrameVerdict", "Verdict", "Builder", "PRIORITY"]
 
 #: Order of the reasons of one level: the most specific cause first.
-PRIORITY = ("certificate_failed", "not_identifiable", "not_calibrated", "tag", "camera",
-            "intrinsics", "edge", "scale", "fit", "precision", "certificate", "unseen_tag",
-            "check_failed")
+PRIORITY = ("certificate_failed", "not_identifiable", "excluded", "not_calibrated", "tag",
+            "camera", "reprojection", "intrinsics", "edge", "scale", "fit", "precision",
+            "certificate", "unseen_tag", "check_failed")
 
 
 @dataclass(frozen=True)
@@ -27,8 +27,10 @@ class Reason:
     level : str
         ``caution`` or ``unusable``.
     code : str
-        What kind: one of ``certificate_failed``, ``not_identifiable``, ``not_calibrated``,
-        ``scale``, ``tag``, ``camera``, ``intrinsics`` (:mod:`.focal_check`), ``edge``,
+        What kind: one of ``certificate_failed``, ``not_identifiable``, ``excluded``
+        (:mod:`.exclusion`), ``not_calibrated``, ``scale``, ``tag``, ``camera``,
+        ``reprojection`` (:mod:`.reprojection_check`), ``intrinsics`` (:mod:`.focal_check`),
+        ``edge``,
         ``fit``, ``precision``, ``certificate``, ``unseen_tag``, ``check_failed``.
     message : str
         A sentence: the frame or edge, the number, the likely cause, what to do.
@@ -106,6 +108,10 @@ class Verdict:
     options : VerdictOptions
     focal_check : dict of str to FocalCheck, or str
         Per camera, the focal check (:mod:`.focal_check`); a sentence when it was not made.
+    exclusion : Exclusion or None
+        What was excluded before the published solve, and how far the frames moved
+        (:mod:`.exclusion`); None when the exclusion was not run. The result YAML holds it as
+        its own key ``exclusion`` (not in ``to_dict``).
     """
 
     level: str
@@ -116,6 +122,7 @@ class Verdict:
     summary: str = ""
     options: VerdictOptions = field(default_factory=VerdictOptions)
     focal_check: dict | str = ""
+    exclusion: object = None
 
     @property
     def usable(self) -> bool:

@@ -89,6 +89,24 @@ class VerdictOptions:
     focal_caution : float
         ... and beyond this relative difference (0.02: 2 %) -> caution for that camera (good
         rendered runs: within 0.23 %; a focal length 5 % off: 4.5-5.5 %).
+    reprojection_ratio : float
+        A camera whose detected corners reproject through the calibration with an RMS error
+        this many times the median of the other cameras' (5.0) ...
+    reprojection_min_px : float
+        ... and above this (2.0 px) is named, a caution (:mod:`.reprojection_check`; good
+        rendered runs: 0.3-0.5 px on every camera).
+    exclude_misfits : bool
+        Exclude a target or an edge that does not fit and solve again without it
+        (:mod:`.exclusion`, True); what is published is that solve. Off: the misfit is only
+        named.
+    exclusion_max_rounds : int
+        At most this many targets or edges are excluded, one per re-solve (3).
+    exclusion_max_share : float
+        ... leaving out at most this share of the pairs (0.34): beyond that the misfit is not
+        one target's.
+    exclusion_rejected_share : float
+        With outlier rejection: a target (or an edge) more than this share of whose pairs the
+        rejection left out (0.5) does not fit, and is excluded like one that fits badly.
     """
 
     significance: float = 1e-3
@@ -111,6 +129,12 @@ class VerdictOptions:
     focal_check: bool = True
     focal_sigmas: float = 4.0
     focal_caution: float = 0.02
+    reprojection_ratio: float = 5.0
+    reprojection_min_px: float = 2.0
+    exclude_misfits: bool = True
+    exclusion_max_rounds: int = 3
+    exclusion_max_share: float = 0.34
+    exclusion_rejected_share: float = 0.5
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
@@ -123,6 +147,13 @@ class VerdictOptions:
         if not self.min_edges >= 2 or int(self.min_edges) != self.min_edges:
             raise ValueError(f"VerdictOptions.min_edges: must be an integer >= 2, got "
                              f"{self.min_edges!r}")
+        if int(self.exclusion_max_rounds) != self.exclusion_max_rounds:
+            raise ValueError(f"VerdictOptions.exclusion_max_rounds: must be an integer >= 1, "
+                             f"got {self.exclusion_max_rounds!r}")
+        for name in ("exclusion_max_share", "exclusion_rejected_share"):
+            if not getattr(self, name) < 1:
+                raise ValueError(f"VerdictOptions.{name}: must be < 1 (a share of the pairs), "
+                                 f"got {getattr(self, name)!r}")
         for low, high in (("fit_caution_ratio", "fit_unusable_ratio"),
                           ("scale_caution", "scale_unusable"),
                           ("caution_std_translation_m", "unusable_std_translation_m"),
@@ -134,7 +165,7 @@ class VerdictOptions:
         if self.fit_caution_ratio < 1:
             raise ValueError(f"VerdictOptions.fit_caution_ratio: must be >= 1 (the stated noise "
                              f"itself), got {self.fit_caution_ratio!r}")
-        for name in ("edge_ratio", "edge_noisy_ratio"):
+        for name in ("edge_ratio", "edge_noisy_ratio", "reprojection_ratio"):
             if getattr(self, name) < 1:
                 raise ValueError(f"VerdictOptions.{name}: must be >= 1, got "
                                  f"{getattr(self, name)!r}")

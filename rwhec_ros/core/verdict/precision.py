@@ -7,7 +7,11 @@ standard deviation of the translation [m] and of the rotation [deg]
 (:meth:`~rwhec_ros.core.analysis.uncertainty.FrameUncertainty.worst_std`). The verdict uses the
 larger of that prediction and the prediction rescaled by the a-posteriori noise ratio ``s`` of the
 fit (:mod:`.fit`): a stated noise that is too small must not make a frame look precise, and one that
-is too large keeps its (conservative) prediction.
+is too large keeps its (conservative) prediction. A frame whose own edges fit significantly worse
+than the stated noise (chi-square test over its edges' residuals, ``VerdictOptions.significance``)
+takes their noise ratio instead when it is larger (:func:`frame_noise_ratios`): a camera's std is
+never smaller than its own misfit shows, also when the other frames' good fit keeps the overall
+ratio near 1.
 """
 
 from __future__ import annotations
@@ -16,8 +20,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import chi2
 
-__all__ = ["FramePrecision", "frame_precisions", "scale_rel_std"]
+__all__ = ["FramePrecision", "frame_precisions", "frame_noise_ratios", "scale_rel_std"]
 
 
 @dataclass(frozen=True)
@@ -61,15 +66,39 @@ def noise_factor(noise_ratio: float) -> float:
     return max(1.0, float(noise_ratio)) if np.isfinite(noise_ratio) else 1.0
 
 
+def frame_noise_ratios(fit, significance: float) -> dict[str, float]:
+    """Frame -> the noise ratio of its own edges (both terms: ``sqrt(sum 2 p_e / sum dof_e)``),
+    for the frames whose edges fit significantly worse than the stated noise (upper-tail
+    chi-square p-value below ``significance``); the others are left out. ``fit`` is a
+    :class:`~.fit.FitStatistics` (None: empty)."""
+    if fit is None:
+        return {}
+    sums: dict[str, list[float]] = {}
+    for e in fit.edges:
+        c = (e.noise_ratio_translation ** 2 * e.dof_translation
+             + e.noise_ratio_rotation ** 2 * e.dof_rotation)
+        d = e.dof_translation + e.dof_rotation
+        if not (np.isfinite(c) and d > 0):
+            continue
+        for n in (e.x, e.y):
+            acc = sums.setdefault(n, [0.0, 0.0])
+            acc[0] += c
+            acc[1] += d
+    return {n: float(np.sqrt(c / d)) for n, (c, d) in sums.items()
+            if d > 0 and c > d and float(chi2.sf(c, d)) < significance}
+
+
 def frame_precisions(uncertainty, noise_ratio: float = 1.0,
-                     pinned: Iterable[str] = ()) -> dict[str, FramePrecision]:
+                     pinned: Iterable[str] = (),
+                     frame_ratios: dict[str, float] | None = None) -> dict[str, FramePrecision]:
     """Per frame, its predicted precision from an
     :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty` at the solution, with the factor
     ``max(1, noise_ratio)``; empty when ``uncertainty`` is None. A frame in ``pinned`` (a
     translation direction fixed by the user's priors) whose translation is unobservable in
     ``uncertainty`` (computed without those priors) gets ``nan`` (unknown, not undetermined);
     computed with the solve's priors (``UncertaintyOptions(gauge=...)``) its translation std is
-    the one given the priors."""
+    the one given the priors. ``frame_ratios`` (:func:`frame_noise_ratios`) raise the factor of
+    the frames they name to ``max(1, noise_ratio, their own)``."""
     if uncertainty is None:
         return {}
     factor = noise_factor(noise_ratio)
@@ -79,7 +108,8 @@ def frame_precisions(uncertainty, noise_ratio: float = 1.0,
         t, r = fu.worst_std()
         if fu.name in pinned and not np.isfinite(t):
             t = float("nan")
-        out[fu.name] = FramePrecision(fu.name, t, r, factor)
+        own = noise_factor((frame_ratios or {}).get(fu.name, 1.0))
+        out[fu.name] = FramePrecision(fu.name, t, r, max(factor, own))
     return out
 
 

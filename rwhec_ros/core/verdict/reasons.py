@@ -4,6 +4,7 @@ identifiability, frames without an estimate, scale, edges, fit, precision (see :
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 
 import numpy as np
 
@@ -12,7 +13,7 @@ from ..result import CalibrationResult, Status
 from .fit import EdgeFit, FitStatistics, rotation_std_deg
 from .model import Builder, Reason
 from .options import VerdictOptions
-from .precision import frame_precisions, noise_factor, scale_rel_std
+from .precision import frame_noise_ratios, frame_precisions, noise_factor, scale_rel_std
 from .scale_check import ScaleCheck
 from .words import deg, mm, names, times
 
@@ -189,7 +190,7 @@ def missing_frames(b: Builder, problem: Problem, xs: list[str], ys: list[str],
              excluded: Mapping[str, str]) -> None:
     present = set(problem.frame_names)
     for name in ys + xs:
-        if name in present:
+        if name in present or not b.frames[name].calibrated:  # excluded: its own reason
             continue
         b.frames[name].calibrated = False
         why = [f"{k}: {v}" for k, v in excluded.items() if _edge_has(k, name)]
@@ -241,7 +242,12 @@ def scale_reason(b: Builder, sc: ScaleCheck, opts: VerdictOptions,
           why=f"scale {sc.alpha:.3f}")
 
 
-def edge_reasons(b: Builder, fit: FitStatistics, problem: Problem, opts: VerdictOptions) -> None:
+def edge_reasons(b: Builder, fit: FitStatistics, problem: Problem, opts: VerdictOptions,
+                 strict: bool = False) -> None:
+    """Edges (and tags, cameras with every edge) that fit far worse than the others. ``strict``
+    (after :mod:`.exclusion` ran, which excludes what it can): a camera on such an edge or tag
+    rests on data that do not fit and is not usable; otherwise it is a caution."""
+    on_misfit = "unusable" if strict else "caution"
     flagged = fit.flagged_edges()
     if not flagged:
         return
@@ -275,7 +281,9 @@ def edge_reasons(b: Builder, fit: FitStatistics, problem: Problem, opts: Verdict
                   [name], [(e.x, e.y) for e in edges], why="all its edges fit badly")
             for e in edges:
                 other = e.y if role == "tag" else e.x
-                b.mark(other, "caution", f"pulled by {e.name}")
+                b.mark(other, on_misfit if role == "tag" else "caution", f"pulled by {e.name}")
+            if role == "tag" and strict:  # its cameras are not usable: so is the reason
+                b.reasons[-1] = replace(b.reasons[-1], level="unusable")
             done.update((e.x, e.y) for e in edges)
     degree: dict[str, int] = {}
     for e in fit.edges:
@@ -293,9 +301,13 @@ def edge_reasons(b: Builder, fit: FitStatistics, problem: Problem, opts: Verdict
         alone = [n for n in (e.x, e.y) if degree[n] == 1]
         tail = (f"; {names(alone)} rest{'s' if len(alone) == 1 else ''} on this edge alone "
                 "and cannot be used") if alone else ""
+        if strict:
+            tail += f"; {e.y} rests on it and cannot be used (it could not be excluded)"
+        # a tag that cannot be used makes the result a caution only; a camera an unusable one
+        camera_out = strict or e.y in alone
         own = max(e.noise_ratio_translation, e.noise_ratio_rotation)
         beyond = f" and {own:.1f}x the stated noise" if own >= opts.fit_caution_ratio else ""
-        b.add("unusable" if alone else "caution", "edge",
+        b.add("unusable" if camera_out else "caution", "edge",
               f"edge {e.name} fits {'far ' if e.ratio >= opts.edge_ratio else ''}worse than "
               f"the others: {what} over {e.pairs} pairs, "
               f"{times(e.ratio)} the noise of the median edge ({med}){beyond}: {cause}; solve "
@@ -303,6 +315,8 @@ def edge_reasons(b: Builder, fit: FitStatistics, problem: Problem, opts: Verdict
               [e.x, e.y], [(e.x, e.y)], why=f"on outlier edge {e.name}", frame_level="caution")
         for n in alone:
             b.mark(n, "unusable", f"rests on outlier edge {e.name} alone")
+        if strict:
+            b.mark(e.y, "unusable", f"rests on misfitting edge {e.name}")
 
 
 def fit_reasons(b: Builder, fit: FitStatistics, opts: VerdictOptions,
@@ -352,7 +366,8 @@ def precision_reasons(b: Builder, uncertainty, fit: FitStatistics | None, opts: 
     """Frames (and the scale) less precise than the thresholds, from ``uncertainty`` (an
     :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty` at the solution, or None: unknown)."""
     s = fit.noise_ratio if fit is not None and fit.testable else 1.0
-    prec = frame_precisions(uncertainty, s, pinned=pinned)
+    own = frame_noise_ratios(fit, opts.significance) if fit is not None and fit.testable else {}
+    prec = frame_precisions(uncertainty, s, pinned=pinned, frame_ratios=own)
     groups: dict[str, list[str]] = {"unusable": [], "caution": []}
     for name, p in prec.items():
         f = b.frames.get(name)

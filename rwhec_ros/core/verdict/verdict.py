@@ -13,7 +13,12 @@ It combines, for a solution of a :class:`~rwhec_ros.core.problem.Problem`:
   :mod:`rwhec_ros.core.analysis.uncertainty`);
 * when the data keep the tag corners: the focal length each camera's corners fit
   (:mod:`.focal_check`);
-* the frames the user asked for that got no estimate at all.
+* the frames the user asked for that got no estimate at all;
+* when the data keep the corners: a camera whose corners reproject far worse than the others'
+  (:mod:`.reprojection_check`);
+* what was excluded before this solve because it did not fit (:mod:`.exclusion`), and how far
+  the frames moved when it was; after an exclusion, a camera still on a misfitting edge or
+  target is not usable.
 
 The result is a :class:`Verdict`: a level (``good``, ``caution``, ``unusable``), the reasons as
 sentences (what, which frame or edge, the number, the likely cause, what to do), and a
@@ -32,6 +37,7 @@ import numpy as np
 
 from ..problem import Problem
 from ..result import CalibrationResult
+from .exclusion import exclusion_reasons
 from .fit import FitStatistics, goodness_of_fit
 from .focal_check import NOT_CHECKED, focal_checks, focal_reasons, focal_summary
 from .model import Builder, FrameVerdict, Reason, Verdict
@@ -47,6 +53,7 @@ from .reasons import (
     precision_reasons,
     scale_reason,
 )
+from .reprojection_check import reprojection_reasons
 from .scale_check import ScaleCheck, check_scale
 from .words import deg, mm
 
@@ -66,6 +73,7 @@ def assess(
     uncertainty=None,
     reprojection: Mapping | None = None,
     intrinsics: Mapping | None = None,
+    exclusion=None,
 ) -> Verdict:
     """The verdict of ``result``, the solution of ``problem``.
 
@@ -97,6 +105,10 @@ def assess(
         (data without tag corners): the check is skipped and ``Verdict.focal_check`` says so.
     intrinsics : mapping of str to CameraIntrinsics, optional
         The configured intrinsics (for ``fx`` in the focal check's words).
+    exclusion : Exclusion, optional
+        What :func:`~.exclusion.exclude_misfits` excluded before ``result`` was solved (its
+        reasons, and the excluded tags not calibrated); given, a camera still on a flagged edge
+        or target is not usable (the exclusion could not remove it).
     """
     opts = options or VerdictOptions()
     xs = list(dict.fromkeys([*expected_x, *problem.x_names]))
@@ -106,6 +118,7 @@ def assess(
     if identifiability is None:
         identifiability = _analyze(problem, result)
     identifiability_reasons(b, result, problem, identifiability, carriers)
+    exclusion_reasons(b, exclusion)
     missing_frames(b, problem, xs, ys, excluded or {})
     fit = None
     try:
@@ -122,7 +135,7 @@ def assess(
     if scale_check is not None:
         scale_reason(b, scale_check, opts, fit)
     if fit is not None:
-        edge_reasons(b, fit, problem, opts)
+        edge_reasons(b, fit, problem, opts, strict=exclusion is not None)
         fit_reasons(b, fit, opts, scale_check)
     if uncertainty is None:
         uncertainty = _uncertainty(problem, result)
@@ -136,11 +149,13 @@ def assess(
         focal = focal_checks(reprojection, intrinsics) or NOT_CHECKED
         if not isinstance(focal, str):
             focal_reasons(b, focal, opts)
+    reprojection_reasons(b, reprojection, opts)
     summary = _summary(result, fit, b)
     if not isinstance(focal, str) and focal_summary(focal, opts):
         summary += "; " + focal_summary(focal, opts)
     verdict = b.verdict(fit, scale_check, summary, opts)
     verdict.focal_check = focal
+    verdict.exclusion = exclusion
     return verdict
 
 
