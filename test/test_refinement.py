@@ -21,6 +21,9 @@ from rwhec_ros.core.refine import SCOPE
 from rwhec_ros.data.corners import corner_data
 from rwhec_ros.data.dataset import Dataset, DatasetEdge
 from rwhec_ros.data.results import FrameNaming, result_document
+from rwhec_ros.report.accuracy import accuracy_sections, summary_text_lines
+from rwhec_ros.report.refinement import REFINEMENT_HEADING
+from rwhec_ros.report.words import certificate_words
 from rwhec_ros.session import summary
 from rwhec_ros.session.accuracy import AccuracyOptions
 from rwhec_ros.session.solving import solve_and_assess
@@ -179,15 +182,64 @@ def test_a_refinement_that_cannot_run_says_why(refined):
     assert np.array_equal(solved.result.X, rec.certified.X)
 
 
+def test_result_top_says_what_is_published_and_what_the_certificate_covers(refined):
+    """``estimate_published`` and ``certificate_scope`` follow the certificate's keys at the
+    top of result.yaml; without a refinement they are absent."""
+    ds, solved, doc = refined
+    keys = list(doc)
+    i = keys.index("suboptimality_bound")
+    assert keys[i + 1:i + 3] == ["estimate_published", "certificate_scope"]
+    assert doc["certified"] is True and doc["estimate_published"] == "refined"
+    assert doc["certificate_scope"] == SCOPE
+    _, doc_off = _solve(ds, refine=False)
+    assert "estimate_published" not in doc_off and "certificate_scope" not in doc_off
+    obs, intr = corner_data(ds)
+    kept = solve_and_assess(ds.to_problem(min_pairs=3), corners=(obs, {"cam0": intr["cam0"]}),
+                            accuracy=AccuracyOptions(folds=0, guidance=False))
+    fields = kept.accuracy.certificate_fields()
+    assert fields["estimate_published"] == "certified"
+    assert fields["certificate_scope"].startswith(
+        "the published frames are the pose-level estimate (certified global optimum); the "
+        "corner-level refinement is not published: the refinement failed (no corners of ")
+
+
+def test_report_says_what_is_certified_and_shows_both_rms(refined):
+    ds, solved, doc = refined
+    words = certificate_words(doc)
+    assert words.startswith("certified globally optimal")
+    assert words.endswith("it covers the pose-level optimum: the published frames are its "
+                          "corner-level refinement (a local estimate, not certified)")
+    _, doc_off = _solve(ds, refine=False)
+    assert "refinement" not in certificate_words(doc_off)
+    assert all(h != REFINEMENT_HEADING for h, *_ in accuracy_sections(doc_off))
+    (_, text, _, rows), = [s for s in accuracy_sections(doc) if s[0] == REFINEMENT_HEADING]
+    assert text.startswith("Published: the refined estimate (") and SCOPE in text
+    cams = doc["refinement"]["cameras"]
+    assert [r[0] for r in rows] == list(ds.y_names)
+    for cam, n, rms_c, rms_r, _sigma in rows:
+        c = cams[cam]
+        assert (n, rms_c, rms_r) == (c["n_corners"], f"{c['rms_px_certified']:.2f}",
+                                     f"{c['rms_px_refined']:.2f}")
+    lines = " ".join(summary_text_lines(doc, width=200)).replace("\u00a0", " ")
+    assert "corner-level refinement: the refined estimate published" in lines
+    c0 = cams["cam0"]
+    assert f"cam0 {c0['rms_px_certified']:.2f} -> {c0['rms_px_refined']:.2f} px" in lines
+
+
 def test_cli_no_refine(tmp_path, refined):
     ds = refined[0]
     ds.save(tmp_path / "data.yaml")
     docs = {}
-    for flag in ([], ["--no-refine"]):
-        out = tmp_path / f"out{len(flag)}"
+    for flag in (["--report"], ["--no-refine"]):
+        out = tmp_path / flag[0].strip("-")
         code = main(["dataset", str(tmp_path / "data.yaml"), "-o", str(out), "-q", "--folds",
                      "0", "--no-guidance", *flag], stdout=io.StringIO(), stderr=io.StringIO())
         assert code in (0, 1), code
-        docs[bool(flag)] = yaml.safe_load((out / "result.yaml").read_text())
-    assert docs[False]["refinement"]["published"] in ("refined", "certified")
-    assert "refinement" not in docs[True]
+        docs[flag[0]] = yaml.safe_load((out / "result.yaml").read_text())
+    assert docs["--report"]["refinement"]["published"] in ("refined", "certified")
+    assert "refinement" not in docs["--no-refine"]
+    assert docs["--no-refine"]["config"]["solver.refine"] is False
+    assert docs["--report"]["config"]["solver.refine"] is True
+    page = (tmp_path / "report" / "report.html").read_text()
+    assert f"<h2>{REFINEMENT_HEADING}</h2>" in page
+    assert docs["--report"]["certificate_scope"] in page

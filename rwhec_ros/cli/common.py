@@ -280,6 +280,7 @@ class SolveSettings:
                 "solver.unobservable_std_m": self.unobservable_std_m,
                 "solver.min_scale": self.min_scale,
                 "solver.sdp_backend": self.sdp_backend,
+                "solver.refine": self.refine,
                 "priors.frames": [f for f, _, _ in self.priors],
                 "priors.axes": [a for _, a, _ in self.priors],
                 "priors.values_m": [x for _, _, x in self.priors],

@@ -176,6 +176,10 @@ def result_document(
     because it did not fit, each frame's shift and the all-data solve's key numbers
     (:meth:`rwhec_ros.core.verdict.exclusion.Exclusion.to_dict`; ``null`` when not run).
 
+    With a corner-level refinement (:mod:`rwhec_ros.session.refinement`), ``estimate_published``
+    (``refined`` or ``certified``) and ``certificate_scope`` (what the certificate covers, in
+    words) follow ``suboptimality_bound``, and ``refinement`` holds both estimates.
+
     With an :class:`~rwhec_ros.session.accuracy.Accuracy`, each frame also has its uncertainty
     (:meth:`~rwhec_ros.session.accuracy.Accuracy.frame_fields`: ``std_kind``, predicted
     ``std_translation_m`` [x, y, z] and ``std_rotation_deg`` [x, y, z] about the parent's axes,
@@ -191,7 +195,11 @@ def result_document(
     """
     doc = {"verdict": "unknown" if verdict is None else verdict.level,
            "reasons": [] if verdict is None else verdict.messages()}
-    doc.update(result.to_dict())
+    beside = {} if accuracy is None else accuracy.certificate_fields()
+    for key, value in result.to_dict().items():  # a refinement's scope beside the certificate
+        doc[key] = value
+        if key == "suboptimality_bound":
+            doc.update(beside)
     frames = naming.published_frames()
     for f in doc["frames"]:
         f["parent"], f["child"] = frames.get(f["name"], ("", f["name"]))

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from .labels import label_points
+from .refinement import refinement_section, refinement_text_lines
 from .residuals import natural_key
 
 __all__ = ["REPROJECTION_HEADING", "has_accuracy", "has_validation", "draw_std_bars",
@@ -146,7 +147,8 @@ def _focal_words(r: Mapping[str, Any]) -> str:
 
 
 def summary_text_lines(doc: Mapping[str, Any], width: int = 40) -> list[str]:
-    """The reprojection RMS per camera and the next motion (or why none is needed), wrapped to
+    """The reprojection RMS per camera, the corner-level refinement (which estimate is
+    published, the corner RMS of both) and the next motion (or why none is needed), wrapped to
     ``width``; empty without them."""
     lines = []
     rep = doc.get("reprojection")
@@ -156,6 +158,7 @@ def summary_text_lines(doc: Mapping[str, Any], width: int = 40) -> list[str]:
             ", ".join(f"{cam}\u00a0{r['rms_px']:.2f}\u00a0px" for cam, r in
                       sorted(rep.items(), key=lambda kv: natural_key(kv[0]))),
             width, initial_indent="  ", subsequent_indent="  ") + [""]
+    lines += refinement_text_lines(doc, width)
     g = doc.get("guidance")
     if g:
         lines += ["next motion:"] + textwrap.wrap(str(g.get("message", "")), width,
@@ -179,7 +182,8 @@ def _motion_words(c: Mapping[str, Any]) -> str:
 
 def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, list[tuple]]]:
     """The HTML page's accuracy sections as ``(heading, paragraph, table header, rows)``: the
-    per-frame stds (predicted and a posteriori), the cross-validation per edge, the guidance."""
+    per-frame stds (predicted and a posteriori), the cross-validation per edge, the reprojection
+    per camera, the corner-level refinement (:mod:`.refinement`), the guidance."""
     out = []
     if has_accuracy(doc):
         rows = []
@@ -237,6 +241,9 @@ def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, lis
                     "that the corners fit best (1: as configured; the verdict's focal check).",
                     ("camera", "pairs", "RMS [px]", "median [px]", "max [px]",
                      "pairs behind the camera", "per image [px]", "focal length fits"), rows))
+    ref = refinement_section(doc)
+    if ref is not None:
+        out.append(ref)
     g = doc.get("guidance")
     if g:
         rows = [(c.get("x"), c.get("y"), _motion_words(c), c.get("worst", ""))

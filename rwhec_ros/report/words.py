@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..core.result import rounding_decides
+from .refinement import scope_words
 
 __all__ = ["BANNER_COLORS", "certificate_words"]
 
@@ -34,7 +35,8 @@ _STATUS_WORDS = {
 
 def certificate_words(doc: Mapping[str, Any]) -> str:
     """The certificate in words, e.g. ``certified globally optimal (suboptimality bound
-    rho_hat = 5.4e-09)``."""
+    rho_hat = 5.4e-09)``, with what it covers when the published frames are the corner-level
+    refinement (:func:`~rwhec_ros.report.refinement.scope_words`)."""
     status = str(doc.get("status", ""))
     words = _STATUS_WORDS.get(status, status.replace("_", " ") or "no certificate")
     c = doc.get("certificate") or {}
@@ -50,4 +52,4 @@ def certificate_words(doc: Mapping[str, Any]) -> str:
     rho = float("nan") if rho is None else float(rho)
     if np.isfinite(rho):
         words += f" (suboptimality bound rho_hat = {rho:.2g})"
-    return words
+    return words + scope_words(doc)

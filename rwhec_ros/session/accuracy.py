@@ -132,6 +132,13 @@ class Accuracy:
                          "times the variance factor of the residuals", **fu.to_dict()}
         return d if self.refinement is None else self.refinement.frame_fields(name, d)
 
+    def certificate_fields(self) -> dict:
+        """With a refinement, the result-YAML keys ``estimate_published`` and
+        ``certificate_scope`` that go beside the certificate's
+        (:meth:`~rwhec_ros.session.refinement.CornerRefinement.certificate_fields`); else
+        empty."""
+        return {} if self.refinement is None else self.refinement.certificate_fields()
+
     def to_dict(self) -> dict:
         """The top-level result-YAML keys ``uncertainty`` (convention, variance factor, scale
         std, unobservable directions in words; the frames' numbers are with the frames),

@@ -127,6 +127,21 @@ class CornerRefinement:
                             "refined_std": float(r.scale_std)}
         return out
 
+    def certificate_fields(self) -> dict:
+        """The result-YAML keys beside the certificate's (``certified``, ``status``):
+        ``estimate_published`` (``refined`` or ``certified``) and ``certificate_scope``, what
+        the certificate covers in words, so that a reader of the top of ``result.yaml`` does not
+        take refined frames for certified ones."""
+        if self.published:
+            scope = self.scope
+        else:
+            cert = self.certified is not None and self.certified.certified
+            scope = (f"the published frames are the pose-level estimate "
+                     f"({'certified global optimum' if cert else 'not certified'}); "
+                     f"the corner-level refinement is not published: {self.reason}")
+        return {"estimate_published": "refined" if self.published else "certified",
+                "certificate_scope": scope}
+
     def frame_fields(self, name: str, pose_level: dict) -> dict:
         """The uncertainty keys of frame ``name`` in the result YAML: the refined estimate's
         when it is published (``pose_level`` then holds the certified one's), else
