@@ -139,9 +139,12 @@ def _pairs(dataset_yaml: Path) -> dict[tuple[str, str], tuple]:
 def test_samples_equal_the_equivalent_stop_and_go_bag(eye_in_hand, tmp_path, pose_source):
     config = _bag_config(tmp_path, eye_in_hand, pose_source)
     bag = _views_bag(tmp_path / "bag", eye_in_hand, pose_source)
-    code_b, out_b, err_b = run(["bag", bag, "--config", config, "-o", tmp_path / "bag_out", "-q"])
+    # the certified estimates are compared (--no-refine): the corner-level refinement also
+    # weighs the recorded pose stream, which only the bag has (1.3e-8 apart on numpy 1.26)
+    code_b, out_b, err_b = run(["bag", bag, "--config", config, "-o", tmp_path / "bag_out", "-q",
+                                "--no-refine"])
     code_s, out_s, err_s = run(["samples", eye_in_hand, "--config", config, "-o",
-                                tmp_path / "samples_out", "-q"])
+                                tmp_path / "samples_out", "-q", "--no-refine"])
     assert code_b == code_s == EXIT_OK, out_b + err_b + out_s + err_s
     assert out_b.splitlines()[0] == out_s.splitlines()[0]  # the same verdict line
     bag_pairs = _pairs(tmp_path / "bag_out" / "dataset.yaml")

@@ -121,12 +121,16 @@ def test_reprojection_per_camera_includes_the_boards(run):
     rig, _, _, _, outcome = run
     result = outcome.result
     dataset = Dataset.load(outcome.files["dataset"])
+    # the pairs the published solve used: an edge the exclusion (issue 35) removed does not
+    # count (on the numpy-1.26 line it excludes (board_1, cam1) here, not on numpy 2)
+    used = [o for o in corner_observations(dataset) if o.x in result.x_names
+            and not outcome.excluded.get(f"({o.x}, {o.y})", "").startswith("excluded:")]
     obs = [o for o in corner_observations(dataset) if o.x in result.x_names]
     per_camera = outcome.accuracy.reprojection
     assert set(per_camera) == set(rig.cameras)
     for cam, r in per_camera.items():
         # every pair with corners counts, the boards' among them
-        assert r.n_pairs == sum(o.y == cam for o in obs)
+        assert r.n_pairs == sum(o.y == cam for o in used), (outcome.excluded, result.notes)
         assert any(o.y == cam and o.x.startswith("board_") for o in obs)
     boards = [o for o in obs if o.x.startswith("board_")]
     positions = rig.target_names()

@@ -41,4 +41,4 @@ def test_boards_parameter_renders_the_boards_of_demo_boards_yaml(context):
 
 def test_a_bad_board_kind_is_named(context):
     with pytest.raises(ValueError, match=r"boards\[0\]: must be one of"):
-        _node(context, boards=["chessboard"])
+        _node(context, boards=["hexagon"])  # chessboard is a demo board since issue 41
