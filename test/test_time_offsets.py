@@ -119,6 +119,14 @@ def test_planted_offsets_are_estimated_applied_and_named_by_the_verdict():
     assert doc["cameras"]["y0"]["applied"] and doc["cameras"]["y1"]["status"] == "estimated"
     assert report.lines()[0] == (f"time offset y0: {1e3 * y0.offset_s:+.1f} +- "
                                  f"{1e3 * y0.std_s:.1f} ms, applied")
+    # a local estimate on top of the certified solve: never called certified
+    assert doc["certified"] is False and "not certified" in doc["method"]
+    assert report.lines()[-1].startswith("time offsets: a local estimate") and (
+        "not certified" in report.lines()[-1])
+    assert ("time_offsets", "local estimate, not certified") in report.diagnostic_values()
+    from rwhec_ros.report.page import _time_offset_html
+    html = "".join(_time_offset_html({"time_offsets": doc}))
+    assert "not certified" in html and "y0" in html
 
 
 def test_stop_and_go_offsets_are_not_determined_and_nothing_changes():
@@ -134,7 +142,8 @@ def test_stop_and_go_offsets_are_not_determined_and_nothing_changes():
         assert o.status == "not_determined" and o.moving_pairs == 0, o
         assert "pairs at rest say nothing" in o.why
         assert o.to_dict()["offset_s"] is None  # never a number
-    assert all("not determined" in line for line in report.lines())
+    assert all("not determined" in line for line in report.lines())  # no number, no method
+    assert "time_offsets" not in dict(report.diagnostic_values())
 
 
 def test_not_estimated_without_a_stream_or_when_off():
@@ -236,6 +245,8 @@ def test_the_live_estimate_shows_the_offsets(tmp_path):
     assert values["time_offset cam1"] == (f"{1e3 * offsets.cameras['cam1'].offset_s:+.1f} +- "
                                           f"{1e3 * offsets.cameras['cam1'].std_s:.1f} ms")
     assert est.document["time_offsets"]["cameras"]["cam1"]["status"] == "estimated"
+    assert values["time_offsets"] == "local estimate, not certified"
+    assert est.document["time_offsets"]["certified"] is False
     live.stop()
 
 
@@ -261,6 +272,7 @@ def test_rendered_bag_offsets_estimated_applied_and_shown_live(tmp_path):
     assert code in (0, 1)
     doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     cams = doc["time_offsets"]["cameras"]
+    assert doc["time_offsets"]["certified"] is False
     for cam in rig.cameras:
         o, truth = cams[cam], planted.get(cam, 0.0)
         assert o["status"] == "estimated", o
