@@ -289,3 +289,21 @@ def test_rendered_bag_offsets_estimated_applied_and_shown_live(tmp_path):
     again = yaml.safe_load((tmp_path / "again" / "result.yaml").read_text())
     for cam, o in again["time_offsets"]["cameras"].items():
         assert abs(o["offset_s"] - cams[cam]["offset_s"]) < 1e-3 and not o["applied"]
+
+
+def test_the_section_sits_before_the_accuracy_keys_and_a_cut_inside_it_shows():
+    """``TimeOffsetReport.into`` puts ``time_offsets`` before ``accuracy_notes``; a result cut
+    inside the section (its last key ``notes`` gone) is incomplete."""
+    from rwhec_ros.data.results import incomplete_result
+    from rwhec_ros.session.time_offsets import CameraOffset, TimeOffsetReport
+
+    report = TimeOffsetReport({"cam0": CameraOffset("cam0", "estimated", estimate_s=0.02,
+                                                    std_s=0.001, applied=True)})
+    doc = report.into({"a": 1, "accuracy_notes": [], "accuracy_timing_s": {}})
+    assert list(doc) == ["a", "time_offsets", "accuracy_notes", "accuracy_timing_s"]
+    assert list(report.into({"a": 1})) == ["a", "time_offsets"]
+    base = {"certified": True, "suboptimality_bound": 0.0, "scale": 1.0, "frames": [],
+            "timing_s": {}, "identifiability": {}, "config": {}}
+    assert incomplete_result({**base, "time_offsets": report.to_dict()}) == ""
+    cut = {k: v for k, v in report.to_dict().items() if k != "notes"}
+    assert "time_offsets" in incomplete_result({**base, "time_offsets": cut})

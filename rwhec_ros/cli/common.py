@@ -477,7 +477,7 @@ def solve_and_write(
                           source=source, verdict=verdict, accuracy=solved.accuracy,
                           rejected_pairs=solved.rejected_pairs,
                           fingerprint=dataset_fingerprint(dataset))
-    doc["time_offsets"] = offsets.to_dict()
+    doc = offsets.into(doc)
     names = list(result.y_names) + list(result.x_names)
     transforms, left_out = publishable(naming.transforms(result), names, verdict,
                                        publish_unusable=publish_unusable)

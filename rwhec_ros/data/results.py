@@ -388,7 +388,10 @@ def load_result(path: str | Path) -> dict[str, Any]:
     for i, f in enumerate(doc["frames"]):
         if not isinstance(f, dict) or not {"name", "role", "matrix"} <= set(f):
             raise ValueError(f"{path}: frames[{i}]: expected name, role and matrix, got {f!r}")
-        T = np.asarray(f["matrix"], dtype=float)
+        try:
+            T = np.asarray(f["matrix"], dtype=float)
+        except (TypeError, ValueError):  # ragged rows (a file cut inside it), not numbers
+            T = np.full(0, np.nan)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise ValueError(f"{path}: frames[{i}] ({f['name']}): matrix must be a finite 4x4, "
                              f"got {f['matrix']!r}")
@@ -418,6 +421,9 @@ def incomplete_result(doc: Mapping[str, Any]) -> str:
     # keys written after others by the same version (result_document): the later ones absent
     if doc.get("verdict") in ("good", "caution", "unusable") and "verdict_details" not in doc:
         return "key 'verdict_details' is missing (the verdict is there)"
+    offsets = doc.get("time_offsets")
+    if isinstance(offsets, Mapping) and "notes" not in offsets:  # its last key
+        return "key 'time_offsets' has no 'notes' (its last key)"
     frames = doc["frames"] if isinstance(doc["frames"], list) else []
     if any(isinstance(f, Mapping) and "std_kind" in f for f in frames):
         for key in ("uncertainty", "cross_validation", "guidance", "accuracy_notes"):

@@ -444,7 +444,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         doc = self.result_document(
             result, excl, ident, verdict, solved.accuracy, solved.rejected_pairs,
             fingerprint=None if dataset is None else dataset_fingerprint(dataset))
-        doc["time_offsets"] = offsets.to_dict()
+        doc = offsets.into(doc)
         text = dump_document(doc)
         if on_phase is not None:
             on_phase("writing")

@@ -200,6 +200,18 @@ class TimeOffsetReport:
                 "cameras": {c: o.to_dict() for c, o in self.cameras.items()},
                 "notes": list(self.notes)}
 
+    def into(self, doc: dict) -> dict:
+        """``doc`` (a result mapping) with this ``time_offsets`` section placed before
+        ``accuracy_notes`` (at the end without it): a file cut inside or before the section then
+        also lacks the keys that show a cut (:func:`~rwhec_ros.data.results.incomplete_result`)."""
+        out = {k: v for k, v in doc.items() if k != "time_offsets"}
+        if "accuracy_notes" not in out:
+            return {**out, "time_offsets": self.to_dict()}
+        keys = list(out)
+        at = keys.index("accuracy_notes")
+        return {**{k: out[k] for k in keys[:at]}, "time_offsets": self.to_dict(),
+                **{k: out[k] for k in keys[at:]}}
+
     def lines(self) -> list[str]:
         """Summary lines: ``time offset cam1: +20.3 +- 0.4 ms, applied``, then, when a number
         is shown, ``time offsets: a local estimate ..., not certified`` (:data:`NOT_CERTIFIED`);
