@@ -119,6 +119,14 @@ def test_planted_offsets_are_estimated_applied_and_named_by_the_verdict():
     assert doc["cameras"]["y0"]["applied"] and doc["cameras"]["y1"]["status"] == "estimated"
     assert report.lines()[0] == (f"time offset y0: {1e3 * y0.offset_s:+.1f} +- "
                                  f"{1e3 * y0.std_s:.1f} ms, applied")
+    # a local estimate on top of the certified solve: never called certified
+    assert doc["certified"] is False and "not certified" in doc["method"]
+    assert report.lines()[-1].startswith("time offsets: a local estimate") and (
+        "not certified" in report.lines()[-1])
+    assert ("time_offsets", "local estimate, not certified") in report.diagnostic_values()
+    from rwhec_ros.report.page import _time_offset_html
+    html = "".join(_time_offset_html({"time_offsets": doc}))
+    assert "not certified" in html and "y0" in html
 
 
 def test_stop_and_go_offsets_are_not_determined_and_nothing_changes():
@@ -134,7 +142,8 @@ def test_stop_and_go_offsets_are_not_determined_and_nothing_changes():
         assert o.status == "not_determined" and o.moving_pairs == 0, o
         assert "pairs at rest say nothing" in o.why
         assert o.to_dict()["offset_s"] is None  # never a number
-    assert all("not determined" in line for line in report.lines())
+    assert all("not determined" in line for line in report.lines())  # no number, no method
+    assert "time_offsets" not in dict(report.diagnostic_values())
 
 
 def test_not_estimated_without_a_stream_or_when_off():
@@ -236,6 +245,8 @@ def test_the_live_estimate_shows_the_offsets(tmp_path):
     assert values["time_offset cam1"] == (f"{1e3 * offsets.cameras['cam1'].offset_s:+.1f} +- "
                                           f"{1e3 * offsets.cameras['cam1'].std_s:.1f} ms")
     assert est.document["time_offsets"]["cameras"]["cam1"]["status"] == "estimated"
+    assert values["time_offsets"] == "local estimate, not certified"
+    assert est.document["time_offsets"]["certified"] is False
     live.stop()
 
 
@@ -261,6 +272,7 @@ def test_rendered_bag_offsets_estimated_applied_and_shown_live(tmp_path):
     assert code in (0, 1)
     doc = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
     cams = doc["time_offsets"]["cameras"]
+    assert doc["time_offsets"]["certified"] is False
     for cam in rig.cameras:
         o, truth = cams[cam], planted.get(cam, 0.0)
         assert o["status"] == "estimated", o
@@ -277,3 +289,21 @@ def test_rendered_bag_offsets_estimated_applied_and_shown_live(tmp_path):
     again = yaml.safe_load((tmp_path / "again" / "result.yaml").read_text())
     for cam, o in again["time_offsets"]["cameras"].items():
         assert abs(o["offset_s"] - cams[cam]["offset_s"]) < 1e-3 and not o["applied"]
+
+
+def test_the_section_sits_before_the_excluded_edges_and_a_cut_inside_it_shows():
+    """``TimeOffsetReport.into`` puts ``time_offsets`` before ``excluded_edges``; a result cut
+    inside the section (its last key ``notes`` gone) is incomplete."""
+    from rwhec_ros.data.results import incomplete_result
+    from rwhec_ros.session.time_offsets import CameraOffset, TimeOffsetReport
+
+    report = TimeOffsetReport({"cam0": CameraOffset("cam0", "estimated", estimate_s=0.02,
+                                                    std_s=0.001, applied=True)})
+    doc = report.into({"a": 1, "excluded_edges": {}, "rejected_pairs": {}})
+    assert list(doc) == ["a", "time_offsets", "excluded_edges", "rejected_pairs"]
+    assert list(report.into({"a": 1})) == ["a", "time_offsets"]
+    base = {"certified": True, "suboptimality_bound": 0.0, "scale": 1.0, "frames": [],
+            "timing_s": {}, "identifiability": {}, "config": {}}
+    assert incomplete_result({**base, "time_offsets": report.to_dict()}) == ""
+    cut = {k: v for k, v in report.to_dict().items() if k != "notes"}
+    assert "time_offsets" in incomplete_result({**base, "time_offsets": cut})

@@ -433,6 +433,9 @@ def incomplete_result(doc: Mapping[str, Any]) -> str:
     # keys written after others by the same version (result_document): the later ones absent
     if doc.get("verdict") in ("good", "caution", "unusable") and "verdict_details" not in doc:
         return "key 'verdict_details' is missing (the verdict is there)"
+    offsets = doc.get("time_offsets")
+    if isinstance(offsets, Mapping) and "notes" not in offsets:  # its last key
+        return "key 'time_offsets' has no 'notes' (its last key)"
     frames = doc["frames"] if isinstance(doc["frames"], list) else []
     if any(isinstance(f, Mapping) and "std_kind" in f for f in frames):
         for key in ("uncertainty", "cross_validation", "guidance", "accuracy_notes"):

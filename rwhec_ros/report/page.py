@@ -208,6 +208,8 @@ def _time_offset_html(doc: Mapping[str, Any]) -> list[str]:
             "while the pose stream moved), applied when beyond 3 standard deviations (the pairs "
             "re-interpolated at the corrected stamps and solved again); 'in the pairs': the "
             "offset the pairs' stamps carried already (sync.time_offset.&lt;camera&gt;, or a "
-            "data set's).</p>",
+            "data set's). The offsets are a local estimate (Gauss-Newton steps on top of the "
+            "certified solve), not certified: the certificate covers the extrinsics for the "
+            "pairs at the applied offsets, not the offsets.</p>",
             _table(("camera", "offset +- std [ms]", "in the pairs [ms]", "applied",
                     "moving pairs"), rows)]

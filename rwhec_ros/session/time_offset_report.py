@@ -9,12 +9,18 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 __all__ = ["TimeOffsetOptions", "CameraOffset", "TimeOffsetReport", "add_offset_reasons",
-           "SIGNIFICANT_SIGMAS", "CAUTION_S"]
+           "SIGNIFICANT_SIGMAS", "CAUTION_S", "NOT_CERTIFIED"]
 
 #: An offset beyond this many standard deviations is significant (applied) ...
 SIGNIFICANT_SIGMAS = 3.0
 #: ... and the verdict names one beyond this too [s].
 CAUTION_S = 0.002
+#: What the offsets are, in the result, the summary and ``/diagnostics``: the certificate proves
+#: the extrinsics globally optimal for fixed pairs (those at the applied offsets); the offsets
+#: come from Gauss-Newton steps started at a certified solution, which certify nothing.
+NOT_CERTIFIED = ("a local estimate (Gauss-Newton steps on top of the certified solve), not "
+                 "certified: the certificate covers the extrinsics for the pairs at the applied "
+                 "offsets, not the offsets")
 
 
 @dataclass(frozen=True)
@@ -188,27 +194,50 @@ class TimeOffsetReport:
     def to_dict(self) -> dict:
         """The ``time_offsets`` section of ``result.yaml``."""
         return {"convention": "t_pose = t_image + offset_s",
+                "certified": False, "method": NOT_CERTIFIED,
                 "range_s": float(self.range_s), "iterations": int(self.iterations),
                 "solves": int(self.solves), "elapsed_s": float(self.elapsed_s),
                 "cameras": {c: o.to_dict() for c, o in self.cameras.items()},
                 "notes": list(self.notes)}
 
+    def into(self, doc: dict) -> dict:
+        """``doc`` (a result mapping) with this ``time_offsets`` section placed before
+        ``excluded_edges`` (at the end without it), not last: a ``result.yaml`` cut short inside
+        or before the section then lacks the keys after it that every result has, and is refused
+        as incomplete (:func:`~rwhec_ros.data.results.incomplete_result`)."""
+        out: dict = {}
+        for key, value in doc.items():
+            if key == "excluded_edges":
+                out["time_offsets"] = self.to_dict()
+            if key != "time_offsets":
+                out[key] = value
+        if "time_offsets" not in out:
+            out["time_offsets"] = self.to_dict()
+        return out
+
     def lines(self) -> list[str]:
-        """Summary lines: ``time offset cam1: +20.3 +- 0.4 ms, applied``; one line when no
-        camera's was estimated for one reason."""
+        """Summary lines: ``time offset cam1: +20.3 +- 0.4 ms, applied``, then, when a number
+        is shown, ``time offsets: a local estimate ..., not certified`` (:data:`NOT_CERTIFIED`);
+        one line when no camera's was estimated for one reason."""
         whys = {(o.status, o.why) for o in self.cameras.values()}
         if len(whys) == 1 and next(iter(whys))[0] == "not_estimated":
             return [f"time offsets: not estimated ({next(iter(whys))[1]})"]
-        return [f"time offset {c}: {o.words()}" for c, o in self.cameras.items()]
+        lines = [f"time offset {c}: {o.words()}" for c, o in self.cameras.items()]
+        if any(o.determined for o in self.cameras.values()):
+            lines.append(f"time offsets: {NOT_CERTIFIED}")
+        return lines
 
     def diagnostic_values(self, prefix: str = "time_offset") -> list[tuple[str, str]]:
         """``(key, value)`` pairs for ``/diagnostics``: ``time_offset <camera>`` ->
-        ``+20.3 +- 0.4 ms`` or ``not determined (...)``."""
+        ``+20.3 +- 0.4 ms`` or ``not determined (...)``; with a number, ``time_offsets`` ->
+        ``local estimate, not certified``."""
         out = []
         for c, o in self.cameras.items():
             value = (f"{1e3 * o.offset_s:+.1f} +- {1e3 * o.std_s:.1f} ms" if o.determined
                      else o.words())
             out.append((f"{prefix} {c}", value))
+        if any(o.determined for o in self.cameras.values()):
+            out.append((f"{prefix}s", "local estimate, not certified"))
         return out
 
 

@@ -462,16 +462,6 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
 
 
 def with_time_offsets(doc: dict, report) -> dict:
-    """The result mapping ``doc`` with ``time_offsets`` (``report.to_dict()``) placed before
-    ``excluded_edges``, not last: a ``result.yaml`` cut short inside it then lacks the keys
-    after it that every result has, and is refused as incomplete
-    (:func:`rwhec_ros.data.results.incomplete_result`)."""
-    out: dict = {}
-    for key, value in doc.items():
-        if key == "excluded_edges":
-            out["time_offsets"] = report.to_dict()
-        if key != "time_offsets":
-            out[key] = value
-    if "time_offsets" not in out:
-        out["time_offsets"] = report.to_dict()
-    return out
+    """The result mapping ``doc`` with ``report``'s ``time_offsets`` section in its place
+    (:meth:`TimeOffsetReport.into <rwhec_ros.session.time_offset_report.TimeOffsetReport.into>`)."""
+    return report.into(doc)
