@@ -66,6 +66,7 @@ CORE_STAGES = (
     "pipeline",  # the dense and the large-problem path of a solve
     "solve",  # the one entry point
     "analysis",  # information, uncertainty, validation, guidance
+    "noise",  # the noise estimated from the data (variance components), the re-weighted solve
     "identifiability",
     "outliers",
     "baselines",
