@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 from .fit import FitStatistics
 from .options import VerdictOptions, level_rank, worst_level
@@ -106,6 +107,9 @@ class Verdict:
     options : VerdictOptions
     focal_check : dict of str to FocalCheck, or str
         Per camera, the focal check (:mod:`.focal_check`); a sentence when it was not made.
+    noise : NoiseEstimate or None
+        The noise per group estimated from the data that weighted the solve
+        (:mod:`rwhec_ros.core.noise`); None: the stated noise weighted it.
     """
 
     level: str
@@ -116,6 +120,7 @@ class Verdict:
     summary: str = ""
     options: VerdictOptions = field(default_factory=VerdictOptions)
     focal_check: dict | str = ""
+    noise: Any = None
 
     @property
     def usable(self) -> bool:
@@ -151,6 +156,7 @@ class Verdict:
             "options": asdict(self.options),
             "focal_check": (self.focal_check if isinstance(self.focal_check, str) else
                             {cam: c.to_dict() for cam, c in self.focal_check.items()}),
+            "noise": None if self.noise is None else self.noise.to_dict(),
         }
 
 

@@ -8,11 +8,17 @@ standard deviation of the translation [m] and of the rotation [deg]
 larger of that prediction and the prediction rescaled by the a-posteriori noise ratio ``s`` of the
 fit (:mod:`.fit`): a stated noise that is too small must not make a frame look precise, and one that
 is too large keeps its (conservative) prediction.
+
+With the noise estimated from the data (:mod:`rwhec_ros.core.noise`) the prediction is that of the
+estimated weights, and the factor is instead the upper confidence factor of the estimate
+(:func:`~rwhec_ros.core.noise.estimate.std_upper_factor`, the fewest degrees of freedom among the
+noise groups that weight the frame's pairs): the prediction is not conservative by a guess, and
+few pairs widen it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +37,8 @@ class FramePrecision:
         Standard deviations predicted from the stated noise (``inf``: not determined; ``nan``:
         unknown).
     factor : float
-        ``max(1, s)``, the a-posteriori noise ratio applied.
+        ``max(1, s)``, the a-posteriori noise ratio applied; with estimated noise the upper
+        confidence factor of the estimate.
     """
 
     name: str
@@ -62,14 +69,16 @@ def noise_factor(noise_ratio: float) -> float:
 
 
 def frame_precisions(uncertainty, noise_ratio: float = 1.0,
-                     pinned: Iterable[str] = ()) -> dict[str, FramePrecision]:
+                     pinned: Iterable[str] = (),
+                     factors: Mapping[str, float] | None = None) -> dict[str, FramePrecision]:
     """Per frame, its predicted precision from an
     :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty` at the solution, with the factor
     ``max(1, noise_ratio)``; empty when ``uncertainty`` is None. A frame in ``pinned`` (a
     translation direction fixed by the user's priors) whose translation is unobservable in
     ``uncertainty`` (computed without those priors) gets ``nan`` (unknown, not undetermined);
     computed with the solve's priors (``UncertaintyOptions(gauge=...)``) its translation std is
-    the one given the priors."""
+    the one given the priors. ``factors``: per frame a factor that replaces ``max(1,
+    noise_ratio)`` (estimated noise: the estimate's upper confidence factor)."""
     if uncertainty is None:
         return {}
     factor = noise_factor(noise_ratio)
@@ -79,7 +88,7 @@ def frame_precisions(uncertainty, noise_ratio: float = 1.0,
         t, r = fu.worst_std()
         if fu.name in pinned and not np.isfinite(t):
             t = float("nan")
-        out[fu.name] = FramePrecision(fu.name, t, r, factor)
+        out[fu.name] = FramePrecision(fu.name, t, r, (factors or {}).get(fu.name, factor))
     return out
 
 
