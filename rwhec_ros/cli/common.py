@@ -41,6 +41,7 @@ __all__ = [
     "Progress",
     "SolveSettings",
     "check_positive",
+    "stated_noise",
     "solver_overrides",
     "prior_overrides",
     "config_from_parameters",
@@ -161,13 +162,30 @@ def check_positive(name: str, value: float) -> None:
         raise BadInput(f"{name}: must be finite and > 0, got {value!r}")
 
 
+def stated_noise(args: argparse.Namespace, config) -> tuple[float, float, str]:
+    """``(sigma, kappa, given)`` for the pairs of ``csv`` and ``poses``: ``--sigma``/``--kappa``,
+    else the configuration's ``noise.sigma``/``noise.kappa`` (0: not stated); ``given`` is
+    ``"stated"`` when both are stated (they then also check the estimate), else ``"start"`` with
+    the start values (0.01 m, 125) for the unstated ones, which only start the estimate."""
+    from ..config.sections import START_KAPPA, START_SIGMA
+
+    sigma = args.sigma if args.sigma is not None else (config.noise.sigma if config else 0.0)
+    kappa = args.kappa if args.kappa is not None else (config.noise.kappa if config else 0.0)
+    if args.sigma is not None:
+        check_positive("--sigma", sigma)
+    if args.kappa is not None:
+        check_positive("--kappa", kappa)
+    given = "stated" if sigma > 0 and kappa > 0 else "start"
+    return (sigma if sigma > 0 else START_SIGMA), (kappa if kappa > 0 else START_KAPPA), given
+
+
 # ------------------------------------------------------------------------------------------------
 # settings: command line over configuration over defaults
 
 
 def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
-    """The flat parameters that ``--mode``, ``--min-pairs``, ``--robust``, ``--folds`` and
-    ``--no-guidance`` set (those given)."""
+    """The flat parameters that ``--mode``, ``--min-pairs``, ``--robust``, ``--folds``,
+    ``--no-guidance``, ``--no-noise-estimate`` and ``--noise-groups`` set (those given)."""
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
     out: dict[str, Any] = {}
@@ -184,6 +202,10 @@ def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["accuracy.cross_validation_folds"] = int(folds)
     if getattr(args, "no_guidance", False):
         out["accuracy.guidance"] = False
+    if getattr(args, "no_noise_estimate", False):
+        out["noise.estimate"] = False
+    if getattr(args, "noise_groups", None) is not None:
+        out["noise.groups"] = args.noise_groups
     return out
 
 
@@ -226,6 +248,8 @@ class SolveSettings:
     min_scale: float = 0.01
     folds: int = 5
     guidance: bool = True
+    noise_estimate: bool = True
+    noise_groups: str = "camera"
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
@@ -243,7 +267,9 @@ class SolveSettings:
                              unobservable_std_m=float(p.get("solver.unobservable_std_m", 1.0)),
                              min_scale=float(p.get("solver.min_scale", 0.01)),
                              folds=int(p.get("accuracy.cross_validation_folds", 5)),
-                             guidance=bool(p.get("accuracy.guidance", True)))
+                             guidance=bool(p.get("accuracy.guidance", True)),
+                             noise_estimate=bool(p.get("noise.estimate", True)),
+                             noise_groups=str(p.get("noise.groups", "camera")))
 
     def parameters(self) -> dict[str, Any]:
         """The ``solver.*``, ``priors.*`` and ``accuracy.*`` parameters of these settings."""
@@ -255,7 +281,15 @@ class SolveSettings:
                 "priors.axes": [a for _, a, _ in self.priors],
                 "priors.values_m": [x for _, _, x in self.priors],
                 "accuracy.cross_validation_folds": self.folds,
-                "accuracy.guidance": self.guidance}
+                "accuracy.guidance": self.guidance,
+                "noise.estimate": self.noise_estimate, "noise.groups": self.noise_groups}
+
+    def noise_options(self, given: str):
+        """:class:`~rwhec_ros.core.noise.NoiseOptions` of these settings, the pairs' noise
+        being ``given`` (``"stated"``, ``"reprojection"`` or ``"start"``)."""
+        from ..core.noise import NoiseOptions
+
+        return NoiseOptions(estimate=self.noise_estimate, groups=self.noise_groups, given=given)
 
 
 def config_from_parameters(flat: Mapping[str, Any], where: str):
@@ -364,17 +398,22 @@ def solve_and_write(
     report: bool,
     verdict_config=None,
     publish_unusable: bool = False,
+    noise_given: str = "start",
 ) -> int:
     """Solve ``problem``, assess it and write the outputs as the session does (``csv`` and
     ``dataset``); ``paths`` None: a new directory under ``settings.output_root``. The verdict's
     thresholds come from ``verdict_config`` (a configuration's ``verdict`` section, else the
-    defaults); the launch file holds the usable frames only unless ``publish_unusable``."""
+    defaults); the launch file holds the usable frames only unless ``publish_unusable``. The
+    noise is estimated from the data unless ``settings.noise_estimate`` is off; ``noise_given``
+    says what the problem's ``sigma``/``kappa`` are (stated by the user, from the reprojection,
+    start values)."""
     from ..data.corners import corner_data
     from ..data.results import (
         dump_document,
         new_output_dir,
         result_document,
         session_output_paths,
+        solved_pairs,
         write_outputs,
     )
     from ..session import static_transforms_launch, summary
@@ -399,7 +438,7 @@ def solve_and_write(
             carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
             accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,
                                      moving=_moving(config)),
-            corners=corner_data(dataset))
+            corners=corner_data(dataset), noise=settings.noise_options(noise_given))
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
         say(f"no solution: the solver failed ({type(exc).__name__}: {exc}); try --mode sdp, "
             "or --robust if some pairs may be outliers")
@@ -432,8 +471,9 @@ def solve_and_write(
         raise BadInput(f"cannot write the outputs: {describe_os_error(exc)}") from None
     say.summary(summary(result, solved.problem, excluded, naming, verdict, solved.accuracy))
     say.files(files)
-    if report:
-        write_report(say, doc, solved.problem, paths.report_png, paths.report_html, ident)
+    if report:  # the pairs solved, with their given noise (the report applies the estimate's)
+        pairs = solved.problem if solved.noise is None else solved_pairs(doc, problem)
+        write_report(say, doc, pairs, paths.report_png, paths.report_html, ident)
     return exit_code(verdict)
 
 

@@ -14,13 +14,13 @@ from .common import (
     NoSolution,
     Printer,
     SolveSettings,
-    check_positive,
     config_from_parameters,
     output_dir,
     output_paths,
     read_config,
     refuse_existing,
     solve_and_write,
+    stated_noise,
     write_report,
 )
 
@@ -73,10 +73,7 @@ def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
     config = read_config(args)
     params: dict[str, Any] = {} if config is None else config.to_parameters()
     settings = SolveSettings.resolve(args, params)
-    sigma = args.sigma if args.sigma is not None else (config.noise.sigma if config else 0.1)
-    kappa = args.kappa if args.kappa is not None else (config.noise.kappa if config else 125.0)
-    check_positive("--sigma", sigma)
-    check_positive("--kappa", kappa)
+    sigma, kappa, given = stated_noise(args, config)
     unknown_scale = bool(args.unknown_scale or (config and config.tags.unknown_scale))
     camera_carrier = args.camera_carrier or (config.camera_carrier.frame if config else "rig")
     tag_carrier = args.tag_carrier or (config.tag_carrier.frame if config else "world")
@@ -96,13 +93,13 @@ def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
         "camera_carrier.frame": camera_carrier,
         "tag_carrier.frame": tag_carrier,
         "tags.unknown_scale": unknown_scale,
-        "noise.sigma": float(sigma),
-        "noise.kappa": float(kappa),
+        "noise.sigma": float(sigma) if given == "stated" else 0.0,
+        "noise.kappa": float(kappa) if given == "stated" else 0.0,
         **settings.parameters(),
     }
     return solve_and_write(say, problem, dataset, naming, paths, settings, excluded=excluded,
                            config=used, source=source, force=args.force, report=args.report,
-                           **verdict_settings(config))
+                           noise_given=given, **verdict_settings(config))
 
 
 def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
@@ -137,7 +134,9 @@ def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
     problem, excluded = _problem(data, settings.min_pairs)
     return solve_and_write(say, problem, data, naming, paths, settings, excluded=excluded,
                            config=params, source={"type": "dataset", "path": str(args.file)},
-                           force=args.force, report=args.report, **verdict_settings(config))
+                           force=args.force, report=args.report,
+                           noise_given=config.noise.given if config is not None else "start",
+                           **verdict_settings(config))
 
 
 def cmd_report(args: argparse.Namespace, say: Printer) -> int:

@@ -12,15 +12,10 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .common import BadInput, Printer, SolveSettings, check_positive, output_paths, read_config
+from .common import BadInput, Printer, SolveSettings, output_paths, read_config, stated_noise
 from .files import _problem, check_carriers, verdict_settings
 
-__all__ = ["cmd_poses", "POSES_SIGMA", "POSES_KAPPA"]
-
-#: Noise of a user's PnP when neither ``--sigma`` nor a configuration says (5 mm, about 3 deg:
-#: the precision of a board seen at arm's length; ``config/arm_charuco.yaml``'s values).
-POSES_SIGMA = 0.005
-POSES_KAPPA = 400.0
+__all__ = ["cmd_poses"]
 
 
 def _mount(args: argparse.Namespace, pose_list, config) -> str:
@@ -46,12 +41,7 @@ def cmd_poses(args: argparse.Namespace, say: Printer) -> int:
     config = read_config(args)
     params: dict[str, Any] = {} if config is None else config.to_parameters()
     settings = SolveSettings.resolve(args, params)
-    sigma = args.sigma if args.sigma is not None else (
-        config.noise.sigma if config else POSES_SIGMA)
-    kappa = args.kappa if args.kappa is not None else (
-        config.noise.kappa if config else POSES_KAPPA)
-    check_positive("--sigma", sigma)
-    check_positive("--kappa", kappa)
+    sigma, kappa, given = stated_noise(args, config)
     unknown_scale = bool(args.unknown_scale or (config and config.tags.unknown_scale))
     paths = output_paths(args, report=args.report)  # refuse early, before any work
     pose_list = read_pose_list(args.file)
@@ -82,10 +72,10 @@ def cmd_poses(args: argparse.Namespace, say: Printer) -> int:
         "tag_carrier.frame": tag_carrier,
         "tag_carrier.moving": mount == "eye_to_hand",
         "tags.unknown_scale": unknown_scale,
-        "noise.sigma": float(sigma),
-        "noise.kappa": float(kappa),
+        "noise.sigma": float(sigma) if given == "stated" else 0.0,
+        "noise.kappa": float(kappa) if given == "stated" else 0.0,
         **settings.parameters(),
     }
     return solve_and_write(say, problem, dataset, naming, paths, settings, excluded=excluded,
                            config=used, source=source, force=args.force, report=args.report,
-                           **verdict_settings(config))
+                           noise_given=given, **verdict_settings(config))

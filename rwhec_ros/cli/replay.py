@@ -261,7 +261,7 @@ def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> d
         "cameras.names": list(rig.cameras),
         "tags.family": rig.family, "tags.ids": list(rig.single_tag_ids),
         "tags.default_size": float(rig.tag_size),
-        "noise.sigma": 0.005, "noise.kappa": 400.0, "noise.from_reprojection": False,
+        "noise.sigma": 0.0, "noise.kappa": 0.0, "noise.from_reprojection": False,
         "sync.max_gap_s": 0.1, "sync.extrapolation_tolerance_s": 0.01,
         "sync.image_queue_size": 6,
         "keyframe.min_rotation_rad": 0.05, "keyframe.min_translation_m": 0.02,

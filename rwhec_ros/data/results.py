@@ -168,8 +168,12 @@ def result_document(
     (``IdentifiabilityReport.to_dict()``), ``config`` (flat dotted calibrator parameters, as
     far as they apply) and ``source`` (where the data came from).
     With a :class:`~rwhec_ros.core.verdict.Verdict`, each frame also says whether it is
-    ``usable`` (and its ``verdict`` and ``why``), and ``verdict_details`` holds the fit
-    statistics, the scale check and the per-frame verdicts.
+    ``usable`` (and its ``verdict`` and ``why``), ``verdict_details`` holds the fit
+    statistics, the scale check and the per-frame verdicts, and ``noise`` the noise per group
+    estimated from the data (:meth:`rwhec_ros.core.noise.NoiseEstimate.to_dict`: per group
+    ``sigma_m`` and ``kappa`` next to ``sigma_given_m`` and ``kappa_given``, redundancy, degrees
+    of freedom and where each value comes from), ``null`` when the stated noise weighted the
+    solve (``certificate.weights`` says which).
 
     With an :class:`~rwhec_ros.session.accuracy.Accuracy`, each frame also has its uncertainty
     (:meth:`~rwhec_ros.session.accuracy.Accuracy.frame_fields`: ``std_kind``, predicted
@@ -197,6 +201,8 @@ def result_document(
     doc["config"] = dict(config or {})
     doc["source"] = dict(source or {})
     if verdict is not None:
+        noise = getattr(verdict, "noise", None)
+        doc["noise"] = None if noise is None else noise.to_dict()
         doc["verdict_details"] = verdict.to_dict()
     if accuracy is not None:
         doc.update(accuracy.to_dict())

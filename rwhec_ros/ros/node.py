@@ -92,6 +92,7 @@ from ..messages import (
 )
 from ..session import CalibrationSession, FairImageQueue, MessageHandlers, QueueWorker
 from ..session.camera_monitor import CameraDiagnostics
+from ..session.live_solve import noise_values
 from ..session.paths import node_output_root
 from ..session.rate_gate import RateGate
 from ..session.responses import (
@@ -449,6 +450,8 @@ class CalibratorNode(Node):
             calibration = (last.verdict.level, last.verdict.headline())
         if last is not None and last.accuracy is not None:
             accuracy = last.accuracy.diagnostic_values()
+        if last is not None and last.result is not None:  # the noise the data fit, per camera
+            accuracy = [*accuracy, *noise_values(getattr(last.result, "noise", None))]
         rows = diagnostic_rows(
             self.session.diagnostics(), counters, prefix=self.get_name(),
             identifiable=None if report is None else bool(report.identifiable),

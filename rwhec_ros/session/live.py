@@ -41,7 +41,13 @@ from .outcomes import SolveOutcome, edge_rows
 from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
 from .rejections import RejectionLog
-from .solving import make_tracker, report_dict, solve_and_assess, verdict_options
+from .solving import (
+    make_tracker,
+    noise_options,
+    report_dict,
+    solve_and_assess,
+    verdict_options,
+)
 
 __all__ = ["CalibrationSession"]
 
@@ -184,9 +190,11 @@ class CalibrationSession(ImageInput, CaptureMixin):
             self._acc.keyframe_rotation_rad = config.keyframe.min_rotation_rad
             self._acc.keyframe_translation_m = config.keyframe.min_translation_m
             noise = config.noise
+            if (noise.estimate, noise.groups) != (old.noise.estimate, old.noise.groups):
+                self._data_version += 1  # the live re-solve estimates (or not) again
             if not noise.from_reprojection and (noise.sigma, noise.kappa) != (
                     old.noise.sigma, old.noise.kappa):
-                self._acc.set_precisions(noise.sigma, noise.kappa)
+                self._acc.set_precisions(noise.sigma_start, noise.kappa_start)
                 self._data_version += 1
                 self._tracker = make_tracker(config.tags.unknown_scale)
                 for e in self._acc.edges().values():
@@ -391,7 +399,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 min_scale=c.solver.min_scale, thresholds=verdict_options(c.verdict),
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
-                accuracy=self._accuracy_options(), corners=corner_data(dataset))
+                accuracy=self._accuracy_options(), corners=corner_data(dataset),
+                noise=noise_options(c.noise))
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
                 False, f"the solver failed ({type(exc).__name__}: {exc}); all data kept: try "

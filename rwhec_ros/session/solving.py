@@ -8,6 +8,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from ..core.identifiability import IdentifiabilityTracker, analyze
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
@@ -25,6 +27,7 @@ __all__ = [
     "Solved",
     "solve_and_assess",
     "verdict_options",
+    "noise_options",
 ]
 
 
@@ -78,10 +81,51 @@ def solve_options(
     return SolveOptions(mode=mode, gauge=gauge, min_scale=min_scale), notes
 
 
-def _solve(problem: Problem, options, reject_outliers: bool):
-    """``(result, solved problem, dropped edges, notes, rejected pairs)``: a plain solve, or
-    RANSAC + GNC-TLS whose solved problem is the inlier problem (rejected pairs: edge
-    ``"(x, y)"`` -> the indices of its rejected pairs in ``problem``, ascending)."""
+def _solve(problem: Problem, options, reject_outliers: bool, noise=None):
+    """``(result, solved problem, dropped edges, notes, rejected pairs, noise estimate)``: a
+    plain solve, or RANSAC + GNC-TLS whose solved problem is the inlier problem (rejected pairs:
+    edge ``"(x, y)"`` -> the indices of its rejected pairs in ``problem``, ascending); with
+    ``noise`` (:class:`~rwhec_ros.core.noise.NoiseOptions`, ``estimate`` on) then solved with the
+    noise estimated from the data (:func:`~rwhec_ros.core.noise.solve_with_noise`: the solved
+    problem carries the estimated weights; the estimate None otherwise)."""
+    if noise is None or not noise.estimate:
+        return (*_solve_given(problem, options, reject_outliers), None)
+    import copy
+
+    from ..core.noise import solve_with_noise
+
+    start = copy.copy(options)
+    solved, dropped, notes, rejected, warm = problem, {}, [], {}, None
+    if reject_outliers:
+        # the outlier thresholds of RANSAC and GNC-TLS are in units of the noise: the data's,
+        # estimated first (edges far off are left out of it); then the inliers' noise
+        pre = solve_with_noise(problem, start, noise)
+        result, _, dropped, notes, rejected = _solve_given(pre.problem, options, True)
+        solved = _inliers(problem, dropped, rejected)
+        start.initial = (result.X, result.Y)
+        warm = None if pre.estimate is None else pre.estimate.factors()
+    ns = solve_with_noise(solved, start, noise, warm=warm)
+    notes = notes + ns.notes
+    return ns.result, ns.problem, dropped, notes, rejected, ns.estimate
+
+
+def _inliers(problem: Problem, dropped: Mapping[str, str],
+             rejected: Mapping[str, list[int]]) -> Problem:
+    """``problem``'s pairs without the ``dropped`` edges and the ``rejected`` pairs (edge ->
+    indices), with their given noise."""
+    from ..core.outliers.pairs import restrict_problem
+
+    masks = {}
+    for e in problem.edges:
+        m = np.full(e.n, e.name not in dropped)
+        m[list(rejected.get(e.name, ()))] = False
+        masks[e.name] = m
+    return restrict_problem(problem, masks, what="outlier rejection")
+
+
+def _solve_given(problem: Problem, options, reject_outliers: bool):
+    """:func:`_solve` with the given noise: ``(result, solved problem, dropped edges, notes,
+    rejected pairs)``."""
     from ..core.solve import solve
 
     if not reject_outliers:
@@ -120,7 +164,7 @@ def solve_problem(
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale)
-    result, _, dropped, notes, _ = _solve(problem, options, reject_outliers)
+    result, _, dropped, notes, _ = _solve_given(problem, options, reject_outliers)
     notes = prior_notes + notes
     result.notes.extend(notes)
     return result, dropped, notes
@@ -148,6 +192,9 @@ class Solved:
         With outlier rejection: edge ``"(x, y)"`` -> the indices of its pairs the rejection left
         out (indices into the problem given to :func:`solve_and_assess`, i.e. the data set's
         pairs of that edge), ascending; edges with none rejected are not listed.
+    noise : NoiseEstimate or None
+        The noise per group estimated from the data (:mod:`rwhec_ros.core.noise`); ``problem``
+        then has those weights. None when not estimated.
     """
 
     result: CalibrationResult
@@ -158,6 +205,7 @@ class Solved:
     verdict: Verdict | None = None
     accuracy: Accuracy | None = None
     rejected_pairs: dict[str, list[int]] = field(default_factory=dict)
+    noise: Any = None
 
     @property
     def identifiability_dict(self) -> dict | None:
@@ -168,6 +216,17 @@ def verdict_options(section: Mapping[str, Any] | None) -> VerdictOptions:
     """:class:`VerdictOptions` from a configuration's ``verdict`` thresholds (short names of the
     ``verdict.*`` parameters, :attr:`CalibratorConfig.verdict`); None or empty: the defaults."""
     return VerdictOptions(**dict(section or {}))
+
+
+def noise_options(noise_config, **overrides):
+    """:class:`~rwhec_ros.core.noise.NoiseOptions` from a configuration's ``noise`` section
+    (:class:`~rwhec_ros.config.sections.NoiseConfig`): ``estimate``, ``groups`` and what the
+    pairs' ``sigma``/``kappa`` are (stated, from the reprojection, start values);
+    ``overrides`` replace fields (e.g. ``information="edge_blocks"``)."""
+    from ..core.noise import NoiseOptions
+
+    return NoiseOptions(**{"estimate": noise_config.estimate, "groups": noise_config.groups,
+                           "given": noise_config.given, **overrides})
 
 
 #: What :func:`solve_and_assess` computes by default: uncertainty, 5-fold cross-validation,
@@ -190,6 +249,7 @@ def solve_and_assess(
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
     accuracy: AccuracyOptions | None = DEFAULT_ACCURACY,
     corners=None,
+    noise=None,
 ) -> Solved:
     """Solve ``problem`` (as :func:`solve_problem`: ``mode``, ``reject_outliers``, ``priors``,
     ``unobservable_std_m``, ``min_scale``), analyse identifiability at the solution and
@@ -200,13 +260,17 @@ def solve_and_assess(
     (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the verdict's
     precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
     reprojection error per camera and the verdict's focal check (with ``accuracy`` only).
-    Exceptions of the solver propagate."""
+    ``noise`` (:class:`~rwhec_ros.core.noise.NoiseOptions`; None: off): the noise of each group
+    estimated from the data and the final solve with it (after any outlier rejection); the
+    uncertainty and the verdict are then those of the estimated weights, and the verdict compares
+    a stated noise with the estimate. Exceptions of the solver propagate."""
     from ..core.solve import blas_threads
 
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale)
-    result, solved, dropped, notes, rejected = _solve(problem, options, reject_outliers)
+    result, solved, dropped, notes, rejected, estimate = _solve(problem, options,
+                                                                reject_outliers, noise)
     notes = prior_notes + notes
     result.notes.extend(notes)
     ident = analyze_at_solution(solved, result)
@@ -221,5 +285,6 @@ def solve_and_assess(
                          intrinsics=None if corners is None else corners[1],
                          expected_x=[*expected_x, *problem.x_names],
                          expected_y=[*expected_y, *problem.y_names],
-                         excluded={**dict(excluded or {}), **dropped}, carriers=carriers)
-    return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected)
+                         excluded={**dict(excluded or {}), **dropped}, carriers=carriers,
+                         noise=estimate)
+    return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected, estimate)
