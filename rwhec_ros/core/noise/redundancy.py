@@ -121,19 +121,22 @@ def group_sums(problem: Problem, result, groups: NoiseGroups, *,
     :class:`~rwhec_ros.core.analysis.uncertainty.UncertaintyOptions`. Raises ``ValueError`` for a
     malformed result."""
     gauge = gauge or GaugeOptions()
-    alpha = float(result.scale) if problem.unknown_scale else 1.0
-    chi_t, chi_r = pair_chi2(problem, np.asarray(result.X, float), np.asarray(result.Y, float),
-                             alpha)
     counts = np.array([e.n for e in problem.edges])
-    starts = np.r_[0, np.cumsum(counts)[:-1]]
-    et, er = np.add.reduceat(chi_t, starts), np.add.reduceat(chi_r, starts)
     G = groups.size
     eg = groups.edge_group
     pairs = np.bincount(eg, weights=counts, minlength=G).astype(int)
     # the analysis about a nearby point when the data are far from the origin (exact)
     prob, res = recentred_analysis(problem, result, priors=bool(gauge.priors))
     with blas_threads(1):
-        trace_t, trace_r, rank = _traces(prob, res, groups, gauge, information)
+        trace_t, trace_r, rank, block_chi2 = _traces(prob, res, groups, gauge, information)
+    if information == "edge_blocks" and prob is problem:
+        et, er = block_chi2  # from the quadratic form (the live path's; as its uncertainty)
+    else:
+        alpha = float(result.scale) if problem.unknown_scale else 1.0
+        chi_t, chi_r = pair_chi2(problem, np.asarray(result.X, float),
+                                 np.asarray(result.Y, float), alpha)
+        starts = np.r_[0, np.cumsum(counts)[:-1]]
+        et, er = np.add.reduceat(chi_t, starts), np.add.reduceat(chi_r, starts)
     ret, rer = 3.0 * counts - trace_t, 3.0 * counts - trace_r
     return GroupSums(
         pairs=pairs,
@@ -148,7 +151,8 @@ def group_sums(problem: Problem, result, groups: NoiseGroups, *,
 def _traces(problem: Problem, result, groups: NoiseGroups, gauge: GaugeOptions,
             information: str) -> tuple[np.ndarray, np.ndarray, int]:
     """``tr(N^-1 H_(g, c))`` per edge (E,) for the translation and the rotation part (the
-    curvature terms of a group shared among its edges, :class:`GroupSums`), and the rank."""
+    curvature terms of a group shared among its edges, :class:`GroupSums`), the rank, and the
+    edges' chi-squares ``2 x_e^T Q_e,c x_e`` of both parts from the quadratic form."""
     assemble = information_from_edge_blocks if information == "edge_blocks" else \
         information_matrix
     info = assemble(problem, result.X, result.Y, result.scale)
@@ -177,10 +181,12 @@ def _traces(problem: Problem, result, groups: NoiseGroups, gauge: GaugeOptions,
     rot_idx = lay.r0 + 3 * np.arange(F)[:, None] + np.arange(3)
     S_rot = S[rot_idx[:, :, None], rot_idx[:, None, :]]  # (F, 3, 3)
     tr_S = np.trace(S_rot, axis1=1, axis2=2)
+    chi2 = []
     for Qc, gn in ((trans, gn_t), (rot, gn_r)):
         per_group = np.zeros(Gn)
         # curvature terms of the gradient 2 Q_(g, c) x, group by group (linear in it)
         Qx = np.einsum("eij,ej->ei", Qc, xe)
+        chi2.append(np.maximum(2.0 * np.einsum("ei,ei->e", xe, Qx), 0.0))
         flat = (eg[:, None] * st.size + idx).ravel()
         g = 2.0 * np.bincount(flat, weights=Qx.ravel(), minlength=Gn * st.size).reshape(
             Gn, st.size)
@@ -198,7 +204,7 @@ def _traces(problem: Problem, result, groups: NoiseGroups, gauge: GaugeOptions,
         share = np.where(gsum[eg] != 0, gn / np.where(gsum[eg] != 0, gsum[eg], 1.0),
                          1.0 / count[eg])
         out.append(gn + per_group[eg] * share)
-    return out[0], out[1], int(cov.rank)
+    return out[0], out[1], int(cov.rank), (chi2[0], chi2[1])
 
 
 def _transforms(R: np.ndarray, t: np.ndarray) -> np.ndarray:

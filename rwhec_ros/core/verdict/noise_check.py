@@ -24,7 +24,7 @@ from .model import Builder
 from .options import VerdictOptions
 from .words import deg, mm
 
-__all__ = ["noise_reasons", "precision_factors"]
+__all__ = ["noise_reasons", "precision_factors", "stated_scale"]
 
 _CAUSES = {
     "translation": "check the tag sizes, the camera intrinsics and the time sync of the images "
@@ -106,3 +106,13 @@ def precision_factors(noise: NoiseEstimate | None, problem: Problem, opts: Verdi
         return {}
     return {name: std_upper_factor(dof, opts.noise_confidence)
             for name, dof in noise.frame_dof(problem).items() if np.isfinite(dof) and dof > 0}
+
+
+def stated_scale(noise: NoiseEstimate | None) -> dict[str, tuple[float, float]] | None:
+    """Per edge ``"(x, y)"``, the factors (std units: translation, rotation) from the stated
+    noise to the weights the solve used (its group's ``sqrt(used)``), for the edge check's
+    "clearly beyond the stated noise" rule; None unless the noise was estimated and stated."""
+    if noise is None or not noise.estimated or noise.given != "stated":
+        return None
+    return {e: (float(np.sqrt(g.translation.used)), float(np.sqrt(g.rotation.used)))
+            for g in noise.groups for e in g.edges}

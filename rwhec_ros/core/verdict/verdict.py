@@ -38,7 +38,7 @@ from ..result import CalibrationResult
 from .fit import FitStatistics, goodness_of_fit
 from .focal_check import NOT_CHECKED, focal_checks, focal_reasons, focal_summary
 from .model import Builder, FrameVerdict, Reason, Verdict
-from .noise_check import noise_reasons, precision_factors
+from .noise_check import noise_reasons, precision_factors, stated_scale
 from .options import VerdictOptions
 from .reasons import (
     all_determined,
@@ -120,7 +120,8 @@ def assess(
     fit = None
     try:
         fit = goodness_of_fit(problem, result, opts,
-                              noise_estimated=noise is not None and noise.estimated)
+                              noise_estimated=noise is not None and noise.estimated,
+                              stated_scale=stated_scale(noise))
     except (ValueError, FloatingPointError) as exc:
         b.add("caution", "check_failed", f"the goodness of fit could not be computed ({exc})",
               why="fit not checked")
