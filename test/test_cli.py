@@ -249,7 +249,7 @@ def test_bag_is_calibrated_to_the_truth(recorded, bag, config):
 
 def test_bag_prints_the_live_convergence(recorded, tmp_path):
     """As the bag plays the session re-solves in the background and the convergence is shown;
-    at the end, that of the whole recording."""
+    at the end only the verdict speaks (no live line that could contradict it, issue 32)."""
     rig, root = recorded
     flat = demo_parameters(rig, output_directory=str(tmp_path))
     # re-solve as often as possible; limits every frame meets with these data (1 m, 90 deg)
@@ -264,8 +264,8 @@ def test_bag_prints_the_live_convergence(recorded, tmp_path):
     during = [ln for ln in lines if ln.startswith("live estimate at message ")]
     assert during, stderr  # the first estimate, printed while the bag was read
     assert re.match(r"live estimate at message \d+/\d+: \d+ pairs: (not )?converged", during[0])
-    end = [ln for ln in lines if ln.startswith("live estimate at the end of the bag: ")]
-    assert len(end) == 1 and re.search(r": \d+ pairs: converged: largest std ", end[0]), stderr
+    assert not [ln for ln in lines if ln.startswith("live estimate at the end of the bag")]
+    assert re.match(r"(GOOD|CAUTION): ", stdout), stdout
     assert re.search(r"^reading bag: \d+ messages in .* s; live: ", stderr, re.M)
     # -q shows nothing and solves nothing for it: checked on the --quiet runs of
     # test_bag_is_calibrated_to_the_truth (the same bag)
@@ -558,8 +558,12 @@ def test_default_output_and_settings_come_from_the_configuration(tmp_path, monke
     assert doc["config"]["noise.sigma"] == 0.0 and doc["config"]["noise.kappa"] == 0.0
     assert doc["config"]["noise.estimate"] is True
     assert doc["mode"] == "local" and doc["config"]["solver.mode"] == "local"
-    code, stdout, _ = run([*argv, "--config", cfg, "--sigma", "0.02", "--min-pairs", "9"])
-    assert code == EXIT_NO_SOLUTION and "not enough data" in stdout  # 8 pairs per edge
+    code, stdout, stderr = run([*argv, "--config", cfg, "--sigma", "0.02", "--min-pairs", "9",
+                                "-q"])
+    assert code == EXIT_NO_SOLUTION and len(stderr.splitlines()) == 1  # 8 pairs per edge
+    assert stderr.startswith("rwhec-calibrate csv: no solution: not enough data: no edge has 9 "
+                             "pairs (--min-pairs=9); ")
+    assert "lower --min-pairs to 8 or record more" in stderr and "to_problem" not in stderr
 
 
 def test_dataset_robust_flag_reaches_the_solver(tmp_path):
@@ -760,8 +764,10 @@ def test_bag_without_the_configured_tf_names_the_frames_in_the_recording(recorde
     assert code == EXIT_NO_SOLUTION
     assert "no tf from map to rig at the image stamps (frame 'map' does not appear on /tf or " \
         "/tf_static); frames in the recording: ['rig', 'world']" in stderr
-    lines = stdout.splitlines()  # why there is no result first, then what was read
-    assert lines[0].startswith("no measurement pairs: ") and lines[-1].startswith("input: ")
+    # what was read on stdout, why there is no result on stderr (its last line)
+    assert stdout.startswith("input: ")
+    assert stderr.splitlines()[-1].startswith("rwhec-calibrate bag: no solution: no measurement "
+                                              "pairs: ")
 
 
 def test_ctrl_c_during_bag_saves_the_data_set_so_far(recorded, tmp_path, monkeypatch):
@@ -782,8 +788,9 @@ def test_ctrl_c_during_bag_saves_the_data_set_so_far(recorded, tmp_path, monkeyp
                                 "-o", out, "-q"])
     assert code == EXIT_INTERRUPTED
     assert "Traceback" not in stderr and len(stderr.splitlines()) == 1
-    assert stderr.startswith("rwhec-calibrate bag: interrupted; the ")
-    assert f"rwhec-calibrate dataset {out / 'dataset.yaml'}" in stderr
+    assert stderr.startswith("rwhec-calibrate bag: interrupted (SIGINT) while reading; the ")
+    assert f"resume with: rwhec-calibrate dataset {out / 'dataset.yaml'} -o {out} --force" \
+        in stderr
     monkeypatch.setattr(rosbag, "read_messages", real)
     data = Dataset.load(out / "dataset.yaml")  # resumable with `dataset`
     assert data.n_pairs > 0

@@ -46,9 +46,6 @@ MAX_LINES = 600
 #: test, so that it is removed.
 KNOWN_EXCEPTIONS: set[str | frozenset[str]] = {
     "rwhec_ros/vision/detection.py",  # being split in a parallel branch (621 lines)
-    "rwhec_ros/sync/accumulator.py",  # being split in a parallel branch (729 lines)
-    # report/figure.py <-> report/page.py (certificate_words, BANNER_COLORS): parallel branch
-    frozenset({"rwhec_ros.report.figure", "rwhec_ros.report.page"}),
 }
 
 

@@ -14,7 +14,7 @@ import argparse
 from pathlib import Path
 
 from .. import __version__
-from .common import DEFAULT_OUTPUT, MODES, PROG
+from .common import DEFAULT_OUTPUT, MODES, PROG, SDP_BACKENDS
 
 __all__ = ["build_parser"]
 
@@ -46,6 +46,10 @@ def _add_config(p: argparse.ArgumentParser, help_text: str, *, required: bool = 
 def _add_solver(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=MODES, default=None,
                    help="solver mode (default: the configuration's solver.mode, else fast)")
+    p.add_argument("--sdp-backend", choices=SDP_BACKENDS, default=None,
+                   help="the SDP's solver (mode sdp, and fast when its certificate is "
+                        "inconclusive): structured, cvxpy (cvxpy + Clarabel) or auto (default: "
+                        "the configuration's solver.sdp_backend, else auto)")
     p.add_argument("--min-pairs", type=int, default=None, metavar="N",
                    help="leave out edges with fewer pairs (default: the configuration's "
                         "solver.min_pairs, else 3)")
@@ -122,8 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "(A_i X_j = Y_k B_i) without ROS.",
         epilog="The first line printed is the verdict: GOOD, CAUTION or UNUSABLE, with the "
                "reason. Exit codes: 0 usable result (good or caution), 2 bad input or output, "
-               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted, 141 "
-               "output pipe closed (e.g. | head).",
+               "3 no solution, 4 result unusable (written, do not use it), 130 interrupted "
+               "(Ctrl-C), 143 terminated (SIGTERM), 141 output pipe closed (e.g. | head); "
+               "the pairs gathered are kept in dataset.yaml however a run ends.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -208,6 +213,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated duration [s] (default: %(default)s, one full yaw turn)")
     p.add_argument("--rate", type=float, default=5.0, help="image rate [Hz] (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--bag", type=Path, default=None, metavar="DIR",
+                   help="write the simulated recording as a rosbag2 directory DIR instead of "
+                        "calibrating (then: rwhec-calibrate bag DIR --config "
+                        "config/demo.yaml); an existing DIR is refused unless --force "
+                        "(default: calibrate)")
+    p.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3",
+                   help="storage of --bag (default: %(default)s)")
 
     p = sub.add_parser("report", help="report PNG + HTML of a written result")
     p.add_argument("result", metavar="RESULT.yaml", type=Path,

@@ -36,6 +36,7 @@ from .specs import (
     IMAGE_TRANSPORTS,
     NOISE_GROUPS,
     POSE_SOURCE_TYPES,
+    SDP_BACKENDS,
     SOLVER_MODES,
 )
 from .targets import build_targets
@@ -267,11 +268,12 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         pose_buffer_size=check_positive_int(v, "sync.pose_buffer_size", 2),
         image_queue_size=check_positive_int(v, "sync.image_queue_size", 1),
         detection_threads=check_int_or_auto(v, "sync.detection_threads", 1),
-        max_pending_images=check_positive_int(v, "sync.max_pending_images", 0),
         tf_timeout_s=check_positive(v, "sync.tf_timeout_s", allow_zero=True),
         at_rest_max_gap_s=check_positive(v, "sync.at_rest_max_gap_s", allow_zero=True),
         at_rest_translation_m=check_positive(v, "sync.at_rest_translation_m", allow_zero=True),
         at_rest_rotation_rad=check_positive(v, "sync.at_rest_rotation_rad", allow_zero=True),
+        max_pose_wait_s=check_positive(v, "sync.max_pose_wait_s", allow_zero=True),
+        max_waiting_mb=check_positive(v, "sync.max_waiting_mb"),
     )
     capture = CaptureConfig(
         mode=check_choice(v, "capture.mode", CAPTURE_MODES),
@@ -305,6 +307,7 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
         min_scale=check_positive(v, "solver.min_scale"),
         live_period_s=check_positive(v, "solver.live_period_s", allow_zero=True),
+        sdp_backend=check_choice(v, "solver.sdp_backend", SDP_BACKENDS),
     )
     convergence = ConvergenceConfig(
         max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),

@@ -24,6 +24,7 @@ __all__ = [
     "ROS_MANAGED_PREFIXES",
     "KINDS",
     "SOLVER_MODES",
+    "SDP_BACKENDS",
     "POSE_SOURCE_TYPES",
     "IMAGE_QOS",
     "IMAGE_TRANSPORTS",
@@ -46,6 +47,8 @@ KINDS = ("bool", "int", "double", "string", "int_array", "double_array", "string
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 SOLVER_MODES = ("fast", "sdp", "local")
+#: ``solver.sdp_backend`` values (:attr:`rwhec_ros.core.relaxation.SdpOptions.backend`).
+SDP_BACKENDS = ("auto", "structured", "cvxpy")
 POSE_SOURCE_TYPES = ("topic", "tf")
 IMAGE_QOS = ("sensor_data", "reliable")
 IMAGE_TRANSPORTS = ("raw", "compressed")
@@ -146,8 +149,13 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("sync.detection_threads", "int_or_auto", "auto",
               doc="threads running tag detection (node and bag replay): 'auto' = the cores "
                   "available to the process, at most one per camera; or an integer >= 1"),
-    ParamSpec("sync.max_pending_images", "int", 32,
-              doc="images waiting for a later pose to bracket their stamp"),
+    ParamSpec("sync.max_pose_wait_s", "double", 1.0,
+              doc="longest wait [s] of an image for the pose at its stamp (it waits as long as "
+                  "the pose stream's measured lateness needs, at most this; see "
+                  "docs/ros-transport.md)"),
+    ParamSpec("sync.max_waiting_mb", "double", 256.0,
+              doc="memory [MB] of the images held while they wait for their pose (the node's "
+                  "queue; the session's own); beyond it the oldest is given up and counted"),
     ParamSpec("sync.tf_timeout_s", "double", 0.2,
               doc="wait [s] for tf at an image stamp (pose_source.type 'tf')"),
     ParamSpec("sync.at_rest_max_gap_s", "double", 2.0,
@@ -201,6 +209,11 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "skipped)"),
     ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),
     ParamSpec("solver.min_pairs", "int", 3, doc="edges with fewer pairs are left out"),
+    ParamSpec("solver.sdp_backend", "string", "auto",
+              doc="the SDP's solver (mode sdp and the fallback of fast): 'structured' (the "
+                  "interior-point method on the frame blocks, docs/sdp.md), 'cvxpy' (cvxpy + "
+                  "Clarabel) or 'auto' (structured unless Clarabel's chordal decomposition is "
+                  "estimated cheaper)"),
     ParamSpec("solver.reject_outliers", "bool", False,
               doc="outlier rejection: per-edge RANSAC on eq. (70) (paper Sec. 9.1), then a "
                   "GNC-TLS robust solve, re-certified on the inlier set"),

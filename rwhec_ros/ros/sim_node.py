@@ -121,10 +121,10 @@ class DemoSimulatorNode(Node):
             for parent, child, T in self.rig.true_frames()])
 
     def stop_activity(self) -> None:
-        """Cancel the timers; callbacks already running return before publishing again."""
+        """Stop publishing: the timer callbacks return at once, those running return before
+        publishing again (the timers are not cancelled: a task of a cancelled timer fails,
+        see :meth:`rwhec_ros.ros.node.CalibratorNode.stop_activity`)."""
         self._stopping.set()
-        for timer in getattr(self, "_timers", ()):
-            timer.cancel()
 
     def _on_pose_timer(self) -> None:
         if self._stopping.is_set():
@@ -157,8 +157,8 @@ class DemoSimulatorNode(Node):
 
 
 def main(args=None) -> int:
-    """Console script ``rwhec_demo_sim`` (stops cleanly: see
-    :func:`rwhec_ros.ros.process.rclpy_main`)."""
+    """Console script ``rwhec_demo_sim`` (through :mod:`rwhec_ros.ros.entry`; stops cleanly:
+    see :func:`rwhec_ros.ros.process.rclpy_main`)."""
     return rclpy_main("rwhec_demo_sim", DemoSimulatorNode, args,
                       shutdown_timeout_s=EXECUTOR_SHUTDOWN_TIMEOUT_S)
 

@@ -4,7 +4,7 @@ shared by the CLI and the node."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,6 +28,7 @@ __all__ = [
     "solve_and_assess",
     "verdict_options",
     "noise_options",
+    "solver_alternatives",
 ]
 
 
@@ -63,11 +64,12 @@ def report_dict(report) -> dict | None:
 
 def solve_options(
     problem, *, mode: str = "fast", priors=(), unobservable_std_m: float = 1.0,
-    min_scale: float = 0.01,
+    min_scale: float = 0.01, sdp_backend: str = "auto",
 ):
     """:class:`~rwhec_ros.core.solve.SolveOptions` for ``problem`` with the translation priors
-    ``(frame, axis, value_m)`` of the frames it has (returns the options and a note per prior
-    whose frame has no usable edge)."""
+    ``(frame, axis, value_m)`` of the frames it has and the SDP backend (returns the options and
+    a note per prior whose frame has no usable edge)."""
+    from ..core.certify.relaxation import SdpOptions
     from ..core.model.gauge import GaugeOptions, TranslationPrior
     from ..core.solve import SolveOptions
 
@@ -78,7 +80,8 @@ def solve_options(
         else:
             notes.append(f"prior {frame}.{axis} = {value:g} m not used: {frame} has no usable edge")
     gauge = GaugeOptions(max_std_m=unobservable_std_m, priors=tuple(kept))
-    return SolveOptions(mode=mode, gauge=gauge, min_scale=min_scale), notes
+    return SolveOptions(mode=mode, gauge=gauge, min_scale=min_scale,
+                        sdp=SdpOptions(backend=sdp_backend)), notes
 
 
 def _solve(problem: Problem, options, reject_outliers: bool, noise=None):
@@ -152,18 +155,17 @@ def _solve_given(problem: Problem, options, reject_outliers: bool):
 
 def solve_problem(
     problem, *, mode: str = "fast", reject_outliers: bool = False, priors=(),
-    unobservable_std_m: float = 1.0, min_scale: float = 0.01,
+    unobservable_std_m: float = 1.0, min_scale: float = 0.01, sdp_backend: str = "auto",
 ) -> tuple[CalibrationResult, dict[str, str], list[str]]:
     """The solve step shared by the session and the CLI: ``solve`` in ``mode``, or with
     ``reject_outliers`` RANSAC (paper Section 9.1) + GNC-TLS re-certified on the inlier set
     (:func:`rwhec_ros.core.outliers.robust_solve`). ``priors`` (``(frame, axis, value_m)``) and
     ``unobservable_std_m`` fix translation directions the data do not determine
-    (:mod:`rwhec_ros.core.model.gauge`); ``min_scale`` is the unknown scale's floor. Returns
-    (result,
-    dropped edges, notes)."""
+    (:mod:`rwhec_ros.core.model.gauge`); ``min_scale`` is the unknown scale's floor;
+    ``sdp_backend`` the SDP's solver. Returns (result, dropped edges, notes)."""
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
-                                         min_scale=min_scale)
+                                         min_scale=min_scale, sdp_backend=sdp_backend)
     result, _, dropped, notes, _ = _solve_given(problem, options, reject_outliers)
     notes = prior_notes + notes
     result.notes.extend(notes)
@@ -242,6 +244,7 @@ def solve_and_assess(
     priors=(),
     unobservable_std_m: float = 1.0,
     min_scale: float = 0.01,
+    sdp_backend: str = "auto",
     thresholds: VerdictOptions | None = None,
     expected_x: Iterable[str] = (),
     expected_y: Iterable[str] = (),
@@ -250,29 +253,33 @@ def solve_and_assess(
     accuracy: AccuracyOptions | None = DEFAULT_ACCURACY,
     corners=None,
     noise=None,
+    on_phase: Callable[[str], None] | None = None,
 ) -> Solved:
     """Solve ``problem`` (as :func:`solve_problem`: ``mode``, ``reject_outliers``, ``priors``,
-    ``unobservable_std_m``, ``min_scale``), analyse identifiability at the solution and
-    :func:`~rwhec_ros.core.verdict.assess` it with ``thresholds``. ``expected_x``/``expected_y``
-    are the tags and cameras the user asked for, ``excluded`` the edges left out before the
-    solve (with reasons), ``carriers`` the camera and tag carrier frame names. ``accuracy``
-    says what of the per-frame uncertainty, cross-validation and guidance to compute
-    (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the verdict's
-    precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
+    ``unobservable_std_m``, ``min_scale``, ``sdp_backend``), analyse identifiability at the
+    solution and :func:`~rwhec_ros.core.verdict.assess` it with ``thresholds``.
+    ``expected_x``/``expected_y`` are the tags and cameras the user asked for, ``excluded`` the
+    edges left out before the solve (with reasons), ``carriers`` the camera and tag carrier frame
+    names. ``accuracy`` says what of the per-frame uncertainty, cross-validation and guidance to
+    compute (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the
+    verdict's precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
     reprojection error per camera and the verdict's focal check (with ``accuracy`` only).
     ``noise`` (:class:`~rwhec_ros.core.noise.NoiseOptions`; None: off): the noise of each group
     estimated from the data and the final solve with it (after any outlier rejection); the
     uncertainty and the verdict are then those of the estimated weights, and the verdict compares
-    a stated noise with the estimate. Exceptions of the solver propagate."""
+    a stated noise with the estimate. ``on_phase`` is called with ``"analysing"`` when the solver
+    returned. Exceptions of the solver propagate."""
     from ..core.solve import blas_threads
 
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
-                                         min_scale=min_scale)
+                                         min_scale=min_scale, sdp_backend=sdp_backend)
     result, solved, dropped, notes, rejected, estimate = _solve(problem, options,
                                                                 reject_outliers, noise)
     notes = prior_notes + notes
     result.notes.extend(notes)
+    if on_phase is not None:
+        on_phase("analysing")
     ident = analyze_at_solution(solved, result)
     acc = None
     if accuracy is not None:
@@ -288,3 +295,19 @@ def solve_and_assess(
                          excluded={**dict(excluded or {}), **dropped}, carriers=carriers,
                          noise=estimate)
     return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected, estimate)
+
+
+def solver_alternatives(mode: str, robust: bool, mode_option: str = "--mode",
+                        robust_option: str = "--robust") -> str:
+    """What is left to try after the solver stopped with an error in ``mode`` (with or
+    without outlier rejection), naming the option (``mode_option``, ``robust_option``) and its
+    current value; never what already ran."""
+    tries = []
+    if mode == "sdp":
+        tries.append(f"{mode_option} fast (now sdp)")
+    elif mode == "local":
+        tries.append(f"{mode_option} fast (now local: with a certificate and the SDP fallback)")
+    if not robust:
+        tries.append(f"{robust_option} (outlier rejection, now off)")
+    tries.append("more pairs from motion that rotates about two axes")
+    return "left to try: " + "; ".join(tries)
