@@ -34,8 +34,8 @@ class FramePrecision:
     ----------
     name : str
     predicted_translation_m, predicted_rotation_deg : float
-        Standard deviations predicted from the stated noise (``inf``: not determined; ``nan``:
-        unknown).
+        Standard deviations predicted from the noise of the weights (``inf``: not determined;
+        ``nan``: unknown).
     factor : float
         ``max(1, s)``, the a-posteriori noise ratio applied; with estimated noise the upper
         confidence factor of the estimate.
