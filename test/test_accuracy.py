@@ -67,7 +67,7 @@ def test_yaml_frame_stds_are_core_uncertainty_of_the_same_problem(good):
     assert set(frames) == set(problem.frame_names)
     for fu in unc.frames:
         f = frames[fu.name]
-        assert f["std_kind"].startswith("predicted from the stated noise")
+        assert f["std_kind"].startswith("predicted from the noise of the weights")
         C = np.asarray(f["covariance"], dtype=float)
         assert C.shape == (6, 6)
         # same numbers (YAML floats are repr-exact: only the float round trip)
@@ -126,7 +126,7 @@ def test_summary_gives_stds_worst_held_out_edge_and_next_motion(good):
     assert len(frame_lines) == len(problem.frame_names)
     assert all(" mm, +-" in ln and ln.endswith(" deg") for ln in frame_lines)
     (largest,) = [ln for ln in lines if ln.startswith("largest std: ")]
-    assert "predicted from the stated noise" in largest and "a posteriori" in largest
+    assert "predicted from the noise of the weights" in largest and "a posteriori" in largest
     (cv,) = [ln for ln in lines if ln.startswith("cross-validation (5 folds), worst held-out")]
     worst = max(doc["cross_validation"]["edges"],
                 key=lambda e: e["held_out"]["rms_translation_mm"])

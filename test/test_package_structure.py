@@ -62,6 +62,7 @@ CORE_STAGES = (
     "solve",  # the one entry point
     "analysis",  # information, uncertainty, validation, guidance
     "refine",  # the corner-level refinement of the certified optimum
+    "noise",  # the noise estimated from the data (variance components), the re-weighted solve
     "identifiability",
     "outliers",
     "baselines",

@@ -240,3 +240,20 @@ def test_ic_circle_grid_is_read(tmp_path):
     assert yaml.safe_load((tmp_path / "o" / "result.yaml").read_text())["certified"] is True
     (edge,) = Dataset.load(tmp_path / "o" / "dataset.yaml").edges
     assert (edge.x, edge.y, len(edge.A)) == ("board", "cam0", 15)
+
+
+def test_ic_charuco_is_not_unusable_because_of_a_guessed_noise(ic_charuco):
+    """Issue 34: the PnP's own precision (1 mm) is 3-4x below what these arm data fit (the
+    robot's own error); with the noise estimated per camera the verdict no longer calls the
+    result unusable for the fit, and the summary shows the estimate next to the given value."""
+    code, text, out = ic_charuco
+    assert code == EXIT_OK, text
+    assert not text.startswith("UNUSABLE"), text
+    doc = yaml.safe_load((out / "result.yaml").read_text())
+    assert doc["certificate"]["weights"] == "estimated"
+    cam = doc["noise"]["groups"]["cam0"]
+    assert doc["noise"]["given"] == "reprojection"
+    assert cam["translation"]["source"] == "estimated"
+    # the residuals fit a few mm where the corners alone predict about 1 mm
+    assert 2.0 < cam["sigma_m"] / cam["sigma_given_m"] < 8.0
+    assert "cam0: sigma" in text and "from the reprojection" in text

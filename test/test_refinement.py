@@ -123,7 +123,7 @@ def test_the_refined_estimate_is_published_with_both_in_the_result(refined):
         # the published frame's uncertainty is the refinement's, the certified one's beside it
         assert frame["std_kind"].startswith("corner-level model")
         assert frame["std_translation_m"] == pytest.approx(f["refined"]["std_translation_m"])
-        assert frame["pose_level"]["std_kind"].startswith("predicted from the stated noise")
+        assert frame["pose_level"]["std_kind"].startswith("predicted from the noise of the weights")
         assert frame["translation"] == pytest.approx(f["refined"]["translation"])
     for cam in ds.y_names:
         c = r["cameras"][cam]

@@ -350,3 +350,26 @@ def test_one_draw_gives_the_png_the_page_figure_and_the_sections(assessed):
     # cross-validation) ends the PNG too
     tail = images.page[-200:]
     assert np.array_equal(tail, images.png[-200:])
+
+
+def test_report_applies_the_estimated_noise_of_the_result():
+    """A report made from the data set (the given noise) shows the fit the solve had: the
+    weights of the result's ``noise`` section (``certificate.weights: estimated``)."""
+    from rwhec_ros.core.noise import solve_with_noise
+    from rwhec_ros.core.problem import Edge, Problem
+    from rwhec_ros.report import weighted_from_document
+    from rwhec_ros.simulation.synthetic import random_instance
+
+    problem, _ = random_instance(np.random.default_rng(31), 2, 2, n_per_edge=30, sigma=0.002,
+                                 kappa=3000.0)
+    given = Problem(problem.x_names, problem.y_names,
+                    [Edge.build(e.x, e.y, e.A, e.B, 0.01, 125.0) for e in problem.edges])
+    ns = solve_with_noise(given)
+    doc = {"certificate": {"weights": ns.result.certificate.weights},
+           "noise": ns.estimate.to_dict()}
+    weighted = weighted_from_document(doc, given)
+    for a, b in zip(weighted.edges, ns.problem.edges, strict=True):
+        np.testing.assert_allclose(a.sigma, b.sigma, rtol=1e-12)
+        np.testing.assert_allclose(a.kappa, b.kappa, rtol=1e-12)
+    doc["certificate"]["weights"] = "given"
+    assert weighted_from_document(doc, given) is given

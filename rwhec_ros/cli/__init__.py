@@ -50,8 +50,9 @@ kept: the data set is written as soon as reading ends, before the solve, and an 
 failed run prints the ``rwhec-calibrate dataset ...`` command that resumes it
 (:mod:`.run`; ``docs/robustness.md``).
 
-Modules: :mod:`.parser` (options and help), :mod:`.common` (output rule, settings, solving),
-:mod:`.run` (a run's phases, the data set kept, interrupts),
+Modules: :mod:`.parser` (options and help), :mod:`.common` (output rule, settings),
+:mod:`.solving` (the solve and its outputs), :mod:`.run` (a run's phases, the data set kept,
+interrupts),
 :mod:`.files` (``csv``, ``dataset``, ``report``), :mod:`.replay` (``bag``, ``demo``),
 :mod:`.samples` (``samples``), :mod:`.pose_list` (``poses``),
 :mod:`.main` (dispatch).

@@ -1,4 +1,5 @@
-"""What every subcommand shares: exit codes, printing, options, the output directory, the solve.
+"""What every subcommand shares: exit codes, printing, options, the output directory (the solve
+and its outputs: :mod:`.solving`).
 
 One rule for outputs: ``-o DIR`` receives ``result.yaml``, ``static_transforms.launch.py``,
 ``dataset.yaml`` (+ ``dataset.npz``) and, with ``--report``, ``report.png``/``report.html``;
@@ -13,23 +14,45 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
-import yaml
 
 from ..errors import describe_os_error
 
 __all__ = [
-    "EXIT_OK", "EXIT_BAD_INPUT", "EXIT_NO_SOLUTION", "EXIT_UNUSABLE", "EXIT_MOVED",
-    "EXIT_UNDECIDED", "EXIT_INTERRUPTED", "EXIT_TERMINATED", "EXIT_PIPE_CLOSED", "Terminated",
-    "exit_code", "Interrupted", "PROG", "MODES", "DEFAULT_OUTPUT", "BadInput", "NoSolution",
-    "Printer", "Progress", "SolveSettings", "check_positive", "solver_overrides",
-    "prior_overrides", "config_from_parameters", "read_config", "output_paths", "refuse_existing",
-    "solve_and_write", "calibrate_session", "write_report"
+    "EXIT_OK",
+    "EXIT_BAD_INPUT",
+    "EXIT_NO_SOLUTION",
+    "EXIT_UNUSABLE",
+    "EXIT_MOVED",
+    "EXIT_UNDECIDED",
+    "EXIT_INTERRUPTED",
+    "EXIT_TERMINATED",
+    "EXIT_PIPE_CLOSED",
+    "Terminated",
+    "exit_code",
+    "Interrupted",
+    "PROG",
+    "MODES",
+    "DEFAULT_OUTPUT",
+    "BadInput",
+    "NoSolution",
+    "Printer",
+    "Progress",
+    "SolveSettings",
+    "check_positive",
+    "stated_noise",
+    "solver_overrides",
+    "prior_overrides",
+    "config_from_parameters",
+    "read_config",
+    "output_paths",
+    "refuse_existing",
+    "write_report",
 ]
 
 #: A usable result: the verdict is ``good`` or ``caution`` (files written).
@@ -159,13 +182,31 @@ def check_positive(name: str, value: float) -> None:
         raise BadInput(f"{name}: must be finite and > 0, got {value!r}")
 
 
+def stated_noise(args: argparse.Namespace, config) -> tuple[float, float, str]:
+    """``(sigma, kappa, given)`` for the pairs of ``csv`` and ``poses``: ``--sigma``/``--kappa``,
+    else the configuration's ``noise.sigma``/``noise.kappa`` (0: not stated); ``given`` is
+    ``"stated"`` when both are stated (they then also check the estimate), else ``"start"`` with
+    the start values (0.01 m, 125) for the unstated ones, which only start the estimate."""
+    from ..config.sections import START_KAPPA, START_SIGMA
+
+    sigma = args.sigma if args.sigma is not None else (config.noise.sigma if config else 0.0)
+    kappa = args.kappa if args.kappa is not None else (config.noise.kappa if config else 0.0)
+    if args.sigma is not None:
+        check_positive("--sigma", sigma)
+    if args.kappa is not None:
+        check_positive("--kappa", kappa)
+    given = "stated" if sigma > 0 and kappa > 0 else "start"
+    return (sigma if sigma > 0 else START_SIGMA), (kappa if kappa > 0 else START_KAPPA), given
+
+
 # ------------------------------------------------------------------------------------------------
 # settings: command line over configuration over defaults
 
 
 def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """The flat parameters that ``--mode``, ``--sdp-backend``, ``--min-pairs``, ``--robust``,
-    ``--folds``, ``--no-guidance`` and ``--no-refine`` set (those given)."""
+    ``--folds``, ``--no-guidance``, ``--no-refine``, ``--no-noise-estimate`` and
+    ``--noise-groups`` set (those given)."""
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
     out: dict[str, Any] = {}
@@ -186,6 +227,10 @@ def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["accuracy.guidance"] = False
     if getattr(args, "no_refine", False):
         out["solver.refine"] = False
+    if getattr(args, "no_noise_estimate", False):
+        out["noise.estimate"] = False
+    if getattr(args, "noise_groups", None) is not None:
+        out["noise.groups"] = args.noise_groups
     return out
 
 
@@ -230,6 +275,8 @@ class SolveSettings:
     guidance: bool = True
     sdp_backend: str = "auto"
     refine: bool = True
+    noise_estimate: bool = True
+    noise_groups: str = "camera"
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
@@ -254,7 +301,9 @@ class SolveSettings:
                              folds=int(p.get("accuracy.cross_validation_folds", 5)),
                              guidance=bool(p.get("accuracy.guidance", True)),
                              sdp_backend=str(p.get("solver.sdp_backend", "auto")),
-                             refine=bool(p.get("solver.refine", True)))
+                             refine=bool(p.get("solver.refine", True)),
+                             noise_estimate=bool(p.get("noise.estimate", True)),
+                             noise_groups=str(p.get("noise.groups", "camera")))
 
     def resume_options(self, report: bool) -> list[str]:
         """The command-line options that give ``dataset`` these settings (for the resume
@@ -269,6 +318,10 @@ class SolveSettings:
             out.append("--no-guidance")
         if not self.refine:
             out.append("--no-refine")
+        if not self.noise_estimate:
+            out.append("--no-noise-estimate")
+        if self.noise_groups != "camera":
+            out += ["--noise-groups", self.noise_groups]
         if report:
             out.append("--report")
         return out
@@ -285,7 +338,15 @@ class SolveSettings:
                 "priors.axes": [a for _, a, _ in self.priors],
                 "priors.values_m": [x for _, _, x in self.priors],
                 "accuracy.cross_validation_folds": self.folds,
-                "accuracy.guidance": self.guidance}
+                "accuracy.guidance": self.guidance,
+                "noise.estimate": self.noise_estimate, "noise.groups": self.noise_groups}
+
+    def noise_options(self, given: str):
+        """:class:`~rwhec_ros.core.noise.NoiseOptions` of these settings, the pairs' noise
+        being ``given`` (``"stated"``, ``"reprojection"`` or ``"start"``)."""
+        from ..core.noise import NoiseOptions
+
+        return NoiseOptions(estimate=self.noise_estimate, groups=self.noise_groups, given=given)
 
 
 def config_from_parameters(flat: Mapping[str, Any], where: str):
@@ -403,177 +464,3 @@ def remove_stale_reports(say: Printer, paths) -> None:
         if path.exists():
             path.unlink()
             say.progress(f"removed the older report {path} (it described another result)")
-
-
-# ------------------------------------------------------------------------------------------------
-# solving
-
-
-def solve_and_write(
-    say: Printer,
-    problem,
-    dataset,
-    naming,
-    run,
-    settings: SolveSettings,
-    *,
-    excluded: dict[str, str],
-    config: dict[str, Any],
-    source: dict[str, Any],
-    report: bool,
-    verdict_config=None,
-    publish_unusable: bool = False,
-) -> int:
-    """Solve ``problem``, assess it and write the outputs as the session does (``csv`` and
-    ``dataset``) into the directory of ``run`` (:class:`~rwhec_ros.cli.run.Run`), which kept
-    ``dataset`` already. The verdict's thresholds come from ``verdict_config`` (a
-    configuration's ``verdict`` section, else the defaults); the launch file holds the usable
-    frames only unless ``publish_unusable``."""
-    from ..data.corners import corner_data
-    from ..data.fingerprint import dataset_fingerprint
-    from ..data.results import dump_document, result_document, write_outputs
-    from ..session import static_transforms_launch, summary
-    from ..session.accuracy import AccuracyOptions
-    from ..session.outputs import description_texts, launch_header, publishable
-    from ..session.solving import solve_and_assess, solver_alternatives, verdict_options
-    from ..session.time_offsets import add_offset_reasons, correct_time_offsets, with_time_offsets
-
-    frames = list(dataset.y_names) + list(dataset.x_names)
-    for f, a, x in settings.priors:
-        if f not in frames:
-            raise BadInput(f"--prior {f}.{a}={x:g}: no frame {f!r} in the data; frames: "
-                           f"{frames}")
-    run.enter("solving")
-    say.progress(f"solving: {problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
-                 f"{settings.mode}" + (", outlier rejection" if settings.robust else ""))
-    cam_carrier = next((naming.frames[n][0] for n in naming.y_names if n in naming.frames), "")
-    tag_carrier = next((naming.frames[n][0] for n in naming.x_names if n in naming.frames), "")
-    try:
-        problem, dataset, offsets = correct_time_offsets(
-            problem, dataset, config, mode=settings.mode, priors=settings.priors,
-            unobservable_std_m=settings.unobservable_std_m, min_scale=settings.min_scale,
-            reject_outliers=settings.robust)
-        solved = solve_and_assess(
-            problem, mode=settings.mode, reject_outliers=settings.robust,
-            priors=settings.priors, unobservable_std_m=settings.unobservable_std_m,
-            min_scale=settings.min_scale, sdp_backend=settings.sdp_backend,
-            thresholds=verdict_options(verdict_config),
-            expected_x=naming.x_names, expected_y=naming.y_names, excluded=excluded,
-            carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
-            accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,
-                                     moving=_moving(config)),
-            corners=corner_data(dataset), on_phase=run.enter, refine=settings.refine)
-    except Exception as exc:  # noqa: BLE001 - reported, exit code 3
-        raise NoSolution(
-            f"the solver stopped with an error in mode {settings.mode} ({type(exc).__name__}: "
-            f"{str(exc).split('. ')[0]}); "
-            + solver_alternatives(settings.mode, settings.robust)
-            + _kept(run)) from None
-    result, verdict = solved.result, solved.verdict
-    add_offset_reasons(verdict, offsets)
-    excluded.update(solved.dropped)
-    ident = solved.identifiability
-    doc = result_document(result, naming, excluded=excluded,
-                          identifiability=solved.identifiability_dict, config=config,
-                          source=source, verdict=verdict, accuracy=solved.accuracy,
-                          rejected_pairs=solved.rejected_pairs,
-                          fingerprint=dataset_fingerprint(dataset))
-    doc = with_time_offsets(doc, offsets)
-    names = list(result.y_names) + list(result.x_names)
-    transforms, left_out = publishable(naming.transforms(result), names, verdict,
-                                       publish_unusable=publish_unusable)
-    header = launch_header(result, verdict, left_out,
-                           f"from {source.get('type', '?')} {source.get('path', '')}")
-    launch = static_transforms_launch(transforms, header=header)
-    urdf, frames_text = description_texts(transforms, header)
-    run.enter("writing")
-    try:
-        paths = run.output_paths()
-        # the data set is on disk already (Run.keep): the rest, result.yaml last
-        files = write_outputs(paths, result_yaml=dump_document(doc), launch_text=launch,
-                              force=True, urdf_text=urdf, frames_text=frames_text)
-    except OSError as exc:
-        where = "" if run.paths is None else f" into {run.paths.result.parent}"
-        raise BadInput(f"cannot write the outputs{where}: {describe_os_error(exc)}"
-                       + _kept(run)) from None
-    files.update(_kept_files(run, dataset))
-    if not report:
-        remove_stale_reports(say, paths)
-    say.summary("\n".join([summary(result, solved.problem, excluded, naming, verdict,
-                                    solved.accuracy), *offsets.lines()]))
-    say.files(files)
-    if report:
-        write_report(say, doc, solved.problem, paths.report_png, paths.report_html, ident)
-    return exit_code(verdict)
-
-
-def _kept(run) -> str:
-    """``; the N pairs gathered are in ...; resume with: ...`` for an error message."""
-    words = run.kept_words()
-    return f"; {words}" if words else ""
-
-
-def _kept_files(run, dataset) -> dict[str, str]:
-    if run.kept is None:
-        return {}
-    files = {"dataset": str(run.kept)}
-    if dataset.writes_npz():
-        files["dataset_arrays"] = str(run.kept.with_suffix(".npz"))
-    return files
-
-
-def _moving(parameters: Mapping[str, Any]) -> str:
-    """The carrier the guidance moves: ``"x"`` when the configuration says only the tag carrier
-    moves, else ``"y"`` (the camera carrier)."""
-    tag = bool(parameters.get("tag_carrier.moving", False))
-    cam = bool(parameters.get("camera_carrier.moving", not tag))
-    return "x" if tag and not cam else "y"
-
-
-def calibrate_session(say: Printer, session, run, *, report: bool,
-                      inputs: Sequence[str] = ()) -> tuple[int, Any]:
-    """``session.calibrate()`` into the directory of ``run`` (:class:`~rwhec_ros.cli.run.Run`;
-    the pairs are kept there first), printed: the summary (the verdict first), then the lines
-    ``inputs`` (what was read), then the files; the report from the written data set and the
-    result (``bag`` and ``demo``). No solution or outputs that cannot be written: one line
-    (:class:`NoSolution`, :class:`BadInput`) naming the data set kept and how to resume."""
-    from ..data.dataset import Dataset
-    from ..data.results import session_output_paths, solved_pairs
-    from ..session.outcomes import too_few_pairs_words
-
-    solver = session.config.solver
-    run.keep(session.dataset())
-    run.enter("solving")
-    say.progress(f"solving: {session.counters().get('pairs_kept', 0)} pairs kept, mode "
-                 f"{solver.mode}" + (", outlier rejection" if solver.reject_outliers else ""))
-    out = None if run.paths is None else run.paths.result.parent
-    outcome = session.calibrate(out, force=True, on_phase=run.enter)
-    if not outcome.success:
-        for line in inputs:  # what was read (stdout), the reason on stderr
-            say(line)
-        counts = {(r["x"], r["y"]): r["pairs"] for r in session.diagnostics()}
-        why = outcome.message
-        if counts and outcome.result is None and why.startswith("not enough data"):
-            why = too_few_pairs_words(counts, solver.min_pairs, "--min-pairs")
-        elif why.startswith("the solver stopped"):
-            why = why.replace("solver.mode", "--mode").replace("solver.reject_outliers",
-                                                               "--robust")
-        raise NoSolution(why.replace("; all data kept:", ";") + _kept(run))
-    if outcome.write_error:  # nothing printed as if it had been written
-        where = "" if run.paths is None else f" into {run.paths.result.parent}"
-        raise BadInput(f"cannot write the outputs{where}: {outcome.write_error}" + _kept(run))
-    say.summary(outcome.message)
-    for line in inputs:
-        say(line)
-    say.files(outcome.files)
-    if not report and "result" in outcome.files:
-        remove_stale_reports(say, session_output_paths(Path(outcome.files["result"]).parent))
-    if report and "dataset" in outcome.files and "result" in outcome.files:
-        written = session_output_paths(Path(outcome.files["result"]).parent)
-        # PyYAML's C loader where it has one: the same mapping as safe_load, ~4x faster
-        doc = yaml.load(outcome.result_yaml,
-                        Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-        problem = solved_pairs(doc, Dataset.load(outcome.files["dataset"]).to_problem(
-            min_pairs=solver.min_pairs))  # the pairs the result was solved on
-        write_report(say, doc, problem, written.report_png, written.report_html)
-    return exit_code(outcome.verdict), outcome

@@ -15,16 +15,16 @@ from .common import (
     Printer,
     SolveSettings,
     check_output_room,
-    check_positive,
     config_from_parameters,
     output_dir,
     output_paths,
     read_config,
     refuse_existing,
-    solve_and_write,
+    stated_noise,
     write_report,
 )
 from .run import Run
+from .solving import solve_and_write
 
 __all__ = ["cmd_csv", "cmd_dataset", "cmd_report"]
 
@@ -100,10 +100,7 @@ def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
     config = read_config(args)
     params: dict[str, Any] = {} if config is None else config.to_parameters()
     settings = SolveSettings.resolve(args, params)
-    sigma = args.sigma if args.sigma is not None else (config.noise.sigma if config else 0.1)
-    kappa = args.kappa if args.kappa is not None else (config.noise.kappa if config else 125.0)
-    check_positive("--sigma", sigma)
-    check_positive("--kappa", kappa)
+    sigma, kappa, given = stated_noise(args, config)
     unknown_scale = bool(args.unknown_scale or (config and config.tags.unknown_scale))
     camera_carrier = args.camera_carrier or (config.camera_carrier.frame if config else "rig")
     tag_carrier = args.tag_carrier or (config.tag_carrier.frame if config else "world")
@@ -131,13 +128,14 @@ def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
             "camera_carrier.frame": camera_carrier,
             "tag_carrier.frame": tag_carrier,
             "tags.unknown_scale": unknown_scale,
-            "noise.sigma": float(sigma),
-            "noise.kappa": float(kappa),
+            "noise.sigma": float(sigma) if given == "stated" else 0.0,
+            "noise.kappa": float(kappa) if given == "stated" else 0.0,
             **settings.parameters(),
         }
         return solve_and_write(say, problem, dataset, naming, run, settings,
                                excluded=excluded, config=used, source=source,
-                               report=args.report, **verdict_settings(config))
+                               report=args.report, noise_given=given,
+                               **verdict_settings(config))
     except KeyboardInterrupt as exc:
         raise run.interrupted(exc) from None
 
@@ -191,7 +189,9 @@ def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
         problem, excluded = _problem(data, settings.min_pairs, run)
         return solve_and_write(say, problem, data, naming, run, settings, excluded=excluded,
                                config=params, source={"type": "dataset", "path": str(args.file)},
-                               report=args.report, **verdict_settings(config))
+                               report=args.report,
+                               noise_given=config.noise.given if config is not None else "start",
+                               **verdict_settings(config))
     except KeyboardInterrupt as exc:
         raise run.interrupted(exc) from None
 

@@ -72,6 +72,15 @@ def _add_solver(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-guidance", action="store_true",
                    help="do not compute the next-motion guidance (default: the configuration's "
                         "accuracy.guidance, else on)")
+    p.add_argument("--no-noise-estimate", action="store_true",
+                   help="weight the pairs with the stated noise (--sigma/--kappa, noise.*) "
+                        "instead of the noise estimated from the data per camera (default: the "
+                        "configuration's noise.estimate, else estimated)")
+    p.add_argument("--noise-groups", choices=("camera", "camera_target", "global"),
+                   default=None,
+                   help="noise groups of the estimate: one sigma/kappa per camera, per "
+                        "camera-target edge or for all pairs (default: the configuration's "
+                        "noise.groups, else camera)")
     p.add_argument("--report", action="store_true",
                    help="also write report.png and report.html (default: off)")
     p.add_argument("-q", "--quiet", action="store_true",
@@ -134,11 +143,13 @@ def build_parser() -> argparse.ArgumentParser:
                      "take the noise, carriers, scale, solver and output settings from a node "
                      "parameter file (default: none)")
     p.add_argument("--sigma", type=float, default=None,
-                   help="translation std of B [m] (default: the configuration's noise.sigma, "
-                        "else 0.1 as the authors)")
+                   help="translation std of B [m] as you know it: a check of the estimate "
+                        "and the start of it (default: the configuration's noise.sigma, else "
+                        "not stated: estimated from the data; the authors stated 0.1)")
     p.add_argument("--kappa", type=float, default=None,
-                   help="Langevin concentration of the B rotations (default: the "
-                        "configuration's noise.kappa, else 125.0)")
+                   help="Langevin concentration of the B rotations as you know it (default: "
+                        "the configuration's noise.kappa, else not stated: estimated; the "
+                        "authors stated 125)")
     p.add_argument("--unknown-scale", action="store_true",
                    help="estimate a common scale of the B translations, paper Problem 3 "
                         "(default: the configuration's tags.unknown_scale, else off)")
@@ -175,11 +186,12 @@ def build_parser() -> argparse.ArgumentParser:
                      "(default: none)")
     _add_mount(p, "the YAML file's mount, else the configuration's carriers")
     p.add_argument("--sigma", type=float, default=None,
-                   help="translation std of B [m] (default: the configuration's noise.sigma, "
-                        "else 0.005)")
+                   help="translation std of B [m] as you know it: a check of the estimate "
+                        "and the start of it (default: the configuration's noise.sigma, else "
+                        "not stated: estimated from the data)")
     p.add_argument("--kappa", type=float, default=None,
-                   help="Langevin concentration of the B rotations (default: the "
-                        "configuration's noise.kappa, else 400.0)")
+                   help="Langevin concentration of the B rotations as you know it (default: "
+                        "the configuration's noise.kappa, else not stated: estimated)")
     p.add_argument("--unknown-scale", action="store_true",
                    help="estimate a common scale of the B translations, paper Problem 3 "
                         "(default: the configuration's tags.unknown_scale, else off)")

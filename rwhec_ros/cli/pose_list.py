@@ -12,16 +12,11 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .common import BadInput, Printer, SolveSettings, check_positive, output_paths, read_config
+from .common import BadInput, Printer, SolveSettings, output_paths, read_config, stated_noise
 from .files import _problem, check_carriers, verdict_settings
 from .run import Run
 
-__all__ = ["cmd_poses", "POSES_SIGMA", "POSES_KAPPA"]
-
-#: Noise of a user's PnP when neither ``--sigma`` nor a configuration says (5 mm, about 3 deg:
-#: the precision of a board seen at arm's length; ``config/arm_charuco.yaml``'s values).
-POSES_SIGMA = 0.005
-POSES_KAPPA = 400.0
+__all__ = ["cmd_poses"]
 
 
 def _mount(args: argparse.Namespace, pose_list, config) -> str:
@@ -42,12 +37,7 @@ def cmd_poses(args: argparse.Namespace, say: Printer) -> int:
     config = read_config(args)
     params: dict[str, Any] = {} if config is None else config.to_parameters()
     settings = SolveSettings.resolve(args, params)
-    sigma = args.sigma if args.sigma is not None else (
-        config.noise.sigma if config else POSES_SIGMA)
-    kappa = args.kappa if args.kappa is not None else (
-        config.noise.kappa if config else POSES_KAPPA)
-    check_positive("--sigma", sigma)
-    check_positive("--kappa", kappa)
+    sigma, kappa, given = stated_noise(args, config)
     unknown_scale = bool(args.unknown_scale or (config and config.tags.unknown_scale))
     # refuse early, before any work
     paths = output_paths(args, report=args.report, root=settings.output_root)
@@ -55,16 +45,19 @@ def cmd_poses(args: argparse.Namespace, say: Printer) -> int:
               resume_options=settings.resume_options(args.report))
     try:
         run.enter("reading")
-        return _solve_pose_list(args, say, config, settings, sigma, kappa, unknown_scale, run)
+        return _solve_pose_list(args, say, config, settings, (sigma, kappa, given),
+                                unknown_scale, run)
     except KeyboardInterrupt as exc:
         raise run.interrupted(exc) from None
 
 
-def _solve_pose_list(args, say, config, settings, sigma, kappa, unknown_scale, run) -> int:
+def _solve_pose_list(args, say, config, settings, noise, unknown_scale, run) -> int:
     from ..data.dataset import Dataset
     from ..data.pose_list import pose_list_problem, read_pose_list, robot_frames
     from ..data.results import FrameNaming
-    from .common import solve_and_write
+    from .solving import solve_and_write
+
+    sigma, kappa, given = noise
 
     pose_list = read_pose_list(args.file)
     mount = _mount(args, pose_list, config)
@@ -95,10 +88,10 @@ def _solve_pose_list(args, say, config, settings, sigma, kappa, unknown_scale, r
         "tag_carrier.frame": tag_carrier,
         "tag_carrier.moving": mount == "eye_to_hand",
         "tags.unknown_scale": unknown_scale,
-        "noise.sigma": float(sigma),
-        "noise.kappa": float(kappa),
+        "noise.sigma": float(sigma) if given == "stated" else 0.0,
+        "noise.kappa": float(kappa) if given == "stated" else 0.0,
         **settings.parameters(),
     }
     return solve_and_write(say, problem, dataset, naming, run, settings, excluded=excluded,
-                           config=used, source=source, report=args.report,
+                           config=used, source=source, report=args.report, noise_given=given,
                            **verdict_settings(config))

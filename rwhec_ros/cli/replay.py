@@ -18,7 +18,6 @@ from .common import (
     Printer,
     Progress,
     SolveSettings,
-    calibrate_session,
     check_positive,
     config_from_parameters,
     output_paths,
@@ -27,6 +26,7 @@ from .common import (
     solver_overrides,
 )
 from .run import Run, pause_for_test
+from .solving import calibrate_session
 
 __all__ = ["cmd_bag", "cmd_demo", "demo_parameters", "LiveWatch"]
 
@@ -256,7 +256,7 @@ def demo_parameters(rig, *, output_directory: str = "", mode: str = "fast") -> d
         "cameras.names": list(rig.cameras),
         "tags.family": rig.family, "tags.ids": list(rig.single_tag_ids),
         "tags.default_size": float(rig.tag_size),
-        "noise.sigma": 0.005, "noise.kappa": 400.0, "noise.from_reprojection": False,
+        "noise.sigma": 0.0, "noise.kappa": 0.0, "noise.from_reprojection": False,
         "sync.max_gap_s": 0.1, "sync.extrapolation_tolerance_s": 0.01,
         "sync.image_queue_size": 6,
         "keyframe.min_rotation_rad": 0.05, "keyframe.min_translation_m": 0.02,

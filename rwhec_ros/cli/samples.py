@@ -26,12 +26,12 @@ from .common import (
     BadInput,
     Printer,
     SolveSettings,
-    calibrate_session,
     config_from_parameters,
     output_paths,
     prior_overrides,
     solver_overrides,
 )
+from .solving import calibrate_session
 
 __all__ = ["cmd_samples", "samples_parameters", "resolve_frames", "match_cameras",
            "file_message", "SAMPLES_DEFAULTS"]
@@ -39,9 +39,10 @@ __all__ = ["cmd_samples", "samples_parameters", "resolve_frames", "match_cameras
 _NS_PER_S = 1_000_000_000
 #: Settings of a stop-and-go data set where ``--config`` does not give them: every view is
 #: deliberate, so the keyframe thresholds only drop repeated views (1 mrad, 1 mm), and each pair's
-#: precision comes from its PnP (as ``config/arm_charuco.yaml``).
+#: precision comes from its PnP, scaled per camera by the noise the data fit (as
+#: ``config/arm_charuco.yaml``; ``noise.sigma``/``noise.kappa`` not stated).
 SAMPLES_DEFAULTS: dict[str, Any] = {
-    "noise.sigma": 0.005, "noise.kappa": 400.0, "noise.from_reprojection": True,
+    "noise.from_reprojection": True,
     "keyframe.min_rotation_rad": 0.001, "keyframe.min_translation_m": 0.001,
     "solver.min_pairs": 3,
 }

@@ -38,6 +38,7 @@ from .specs import (
     GLOBAL_SPECS,
     IMAGE_QOS,
     IMAGE_TRANSPORTS,
+    NOISE_GROUPS,
     POSE_SOURCE_TYPES,
     SDP_BACKENDS,
     SOLVER_MODES,
@@ -259,9 +260,11 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         )
 
     noise = NoiseConfig(
-        sigma=check_positive(v, "noise.sigma"),
-        kappa=check_positive(v, "noise.kappa"),
+        sigma=check_positive(v, "noise.sigma", allow_zero=True),
+        kappa=check_positive(v, "noise.kappa", allow_zero=True),
         from_reprojection=v["noise.from_reprojection"],
+        estimate=v["noise.estimate"],
+        groups=check_choice(v, "noise.groups", NOISE_GROUPS),
     )
     sync = SyncConfig(
         max_gap_s=check_positive(v, "sync.max_gap_s"),
@@ -453,9 +456,11 @@ def _build_verdict(v: dict[str, Any]) -> dict[str, Any]:
             values[short] = check_positive_int(v, spec.name, 2 if short == "min_edges" else 1)
         else:
             values[short] = check_positive(v, spec.name)
-    if values["significance"] >= 1:
-        raise ValueError(f"verdict.significance: must be < 1, got {values['significance']!r}")
-    for name in ("fit_caution_ratio", "edge_ratio", "edge_noisy_ratio", "reprojection_ratio"):
+    for name in ("significance", "noise_confidence"):
+        if values[name] >= 1:
+            raise ValueError(f"verdict.{name}: must be < 1, got {values[name]!r}")
+    for name in ("fit_caution_ratio", "edge_ratio", "edge_noisy_ratio", "reprojection_ratio",
+                 "noise_group_ratio"):
         if values[name] < 1:
             raise ValueError(f"verdict.{name}: must be >= 1, got {values[name]!r}")
     for name in ("exclusion_max_share", "exclusion_rejected_share"):

@@ -15,7 +15,9 @@ What a live change does (the text also goes into the callback's answer and the l
   ``priors.*`` arrays are parallel: to add or remove a prior, set them together, atomically);
 * ``noise.sigma``, ``noise.kappa`` -- given at once to every kept pair (unless
   ``noise.from_reprojection``, where they only fill in detections without their own precision),
-  so the next ``calibrate``, ``save_dataset`` and ``/diagnostics`` use them;
+  so the next ``calibrate``, ``save_dataset`` and ``/diagnostics`` use them (0: not stated,
+  the start value); ``noise.estimate``, ``noise.groups`` -- used by the next ``calibrate`` and
+  live re-solve;
 * ``keyframe.min_rotation_rad``, ``keyframe.min_translation_m`` -- used for the pairs offered
   from now on (pairs already kept stay);
 * ``output.*`` -- used by the next ``calibrate`` / ``save_dataset``;
@@ -63,6 +65,8 @@ LIVE_PARAMETERS: dict[str, str] = {
                    "calibrate uses it",
     "noise.kappa": "given to every kept pair now (unless noise.from_reprojection), so the next "
                    "calibrate uses it",
+    "noise.estimate": "used by the next calibrate and live re-solve",
+    "noise.groups": "used by the next calibrate and live re-solve",
     "keyframe.min_rotation_rad": "used for the pairs offered from now on",
     "keyframe.min_translation_m": "used for the pairs offered from now on",
     "priors.": _NEXT_SOLVE,

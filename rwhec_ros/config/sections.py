@@ -100,13 +100,46 @@ class TargetsConfig:
         return tuple(t.name for t in self.specs)
 
 
+#: Start values of ``sigma`` [m] and ``kappa`` where the noise is not stated (``noise.sigma`` or
+#: ``noise.kappa`` 0): the weights of the first solve; the estimate replaces them.
+START_SIGMA, START_KAPPA = 0.01, 125.0
+
+
 @dataclass(frozen=True)
 class NoiseConfig:
-    """Measurement precisions of ``B`` (paper eq. (14), (16)); ``from_reprojection`` overrides."""
+    """Measurement precisions of ``B`` (paper eq. (14), (16)); ``from_reprojection`` overrides.
+
+    ``sigma``/``kappa`` 0: not stated (:data:`START_SIGMA`, :data:`START_KAPPA` start the
+    estimate). ``estimate``: the noise of each of the ``groups`` is estimated from the data
+    (:mod:`rwhec_ros.core.noise`); stated values are then compared with it."""
 
     sigma: float
     kappa: float
     from_reprojection: bool
+    estimate: bool = True
+    groups: str = "camera"
+
+    @property
+    def stated(self) -> bool:
+        """Both ``sigma`` and ``kappa`` are stated (> 0)."""
+        return self.sigma > 0 and self.kappa > 0
+
+    @property
+    def sigma_start(self) -> float:
+        """``sigma`` when stated, else :data:`START_SIGMA`."""
+        return self.sigma if self.sigma > 0 else START_SIGMA
+
+    @property
+    def kappa_start(self) -> float:
+        """``kappa`` when stated, else :data:`START_KAPPA`."""
+        return self.kappa if self.kappa > 0 else START_KAPPA
+
+    @property
+    def given(self) -> str:
+        """What the pairs' ``sigma``/``kappa`` are for the estimate
+        (:data:`rwhec_ros.core.noise.GIVEN_KINDS`)."""
+        return ("reprojection" if self.from_reprojection else
+                "stated" if self.stated else "start")
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,8 @@ IMAGE_QOS = ("sensor_data", "reliable")
 IMAGE_TRANSPORTS = ("raw", "compressed")
 #: ``capture.mode`` values: which images become candidate views (:mod:`rwhec_ros.session.capture`).
 CAPTURE_MODES = ("continuous", "capture", "both")
+#: Values of ``noise.groups`` (:data:`rwhec_ros.core.noise.GROUPINGS`).
+NOISE_GROUPS = ("camera", "camera_target", "global")
 #: ``targets.<name>.type`` values: one tag of ``tags.family`` with its own frame name, a
 #: Kalibr-style AprilGrid, a ChArUco board (:mod:`rwhec_ros.vision.boards`), a chessboard, a
 #: circle grid with a larger origin circle, OpenCV's asymmetric circle grid
@@ -129,12 +131,22 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="named targets, each its own frame (X variable): a board (AprilGrid, ChArUco: "
                   "one pose from all its corners) or a single tag; each needs "
                   "targets.<name>.* parameters"),
-    ParamSpec("noise.sigma", "double", 0.01,
-              doc="translation standard deviation of B [m] (paper sigma, eq. (14))"),
-    ParamSpec("noise.kappa", "double", 125.0,
-              doc="Langevin concentration of the rotation of B (paper kappa, eq. (16))"),
+    ParamSpec("noise.sigma", "double", 0.0,
+              doc="translation standard deviation of B [m] (paper sigma, eq. (14)) as you know "
+                  "it; 0: not stated (with noise.estimate, estimated from the data, starting "
+                  "from 0.01). Stated (with noise.kappa), it is compared with the estimate"),
+    ParamSpec("noise.kappa", "double", 0.0,
+              doc="Langevin concentration of the rotation of B (paper kappa, eq. (16)) as you "
+                  "know it; 0: not stated (starting from 125)"),
     ParamSpec("noise.from_reprojection", "bool", False,
-              doc="use per-detection sigma/kappa from the PnP reprojection error instead"),
+              doc="use per-detection sigma/kappa from the PnP reprojection error instead "
+                  "(with noise.estimate: scaled by each noise group's estimated factor)"),
+    ParamSpec("noise.estimate", "bool", True,
+              doc="estimate the noise of each noise group from the residuals (Helmert "
+                  "variance components) and solve with it; false: solve with the stated noise"),
+    ParamSpec("noise.groups", "string", "camera",
+              doc="noise groups of the estimate: camera (one sigma/kappa per camera), "
+                  "camera_target (per camera-target edge) or global (one for all pairs)"),
     ParamSpec("sync.max_gap_s", "double", 0.1,
               doc="largest pose gap [s] bridged by interpolation at an image stamp"),
     ParamSpec("sync.extrapolation_tolerance_s", "double", 0.01,
@@ -344,6 +356,13 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("verdict.exclusion_rejected_share", "double", 0.5,
               doc="with solver.reject_outliers: a target (or an edge) more than this share of "
                   "whose pairs were rejected does not fit and is excluded (< 1)"),
+    ParamSpec("verdict.noise_confidence", "double", 0.95,
+              doc="with estimated noise, the precision check uses each frame's std times the "
+                  "upper confidence factor of the noise estimate at this level (few pairs: "
+                  "wider)"),
+    ParamSpec("verdict.noise_group_ratio", "double", 5.0,
+              doc="a camera whose estimated noise is this many times the others' median is "
+                  "named (caution)"),
     ParamSpec("accuracy.cross_validation_folds", "int", 5,
               doc="k-fold cross-validation over the pairs at calibrate (held-out vs in-sample "
                   "residuals per edge); 0: off"),

@@ -6,6 +6,7 @@ a solve.
   :mod:`.model` (the cost, the gauge fix, the reduction) -> :mod:`.initial` (the closed-form
   estimate) -> :mod:`.local` (Riemannian Newton) -> :mod:`.certify` (the certificate, the SDP).
 * After a solve: :mod:`.analysis` (information, uncertainty, validation, guidance),
+  :mod:`.noise` (the noise estimated from the data and the solve re-weighted with it),
   :mod:`.identifiability`, :mod:`.outliers` (robust solves) and :mod:`.verdict` (read first).
 * :mod:`.baselines`: the solvers the paper compares against.
 * Shared by all: :mod:`.problem` (the input), :mod:`.result` (options' results and statuses),

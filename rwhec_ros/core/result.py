@@ -90,6 +90,10 @@ class Certificate:
     cost_floor : float
         The cost regarded as zero at the scale of the data (unscaled): ``rho_hat``'s denominator
         is ``max(d, cost_floor)``; ``nan`` where no bound was computed.
+    weights : str
+        The weights of the problem certified: ``"given"`` (the per-pair ``sigma``/``kappa`` as
+        the problem states them) or ``"estimated"`` (from the data's residuals,
+        :func:`rwhec_ros.core.noise.solve_with_noise`).
     """
 
     status: Status
@@ -104,6 +108,7 @@ class Certificate:
     lambda_min_lower: float = float("nan")
     margins: dict = field(default_factory=dict)
     cost_floor: float = float("nan")
+    weights: str = "given"
 
     @property
     def certified(self) -> bool:
@@ -192,6 +197,10 @@ class CalibrationResult:
     unobservable : list
         :class:`~rwhec_ros.core.model.gauge.UnobservableDirection` s: translation directions the
         data do not determine, with how each was fixed (prior or default) and its value.
+    noise : NoiseEstimate or None
+        The noise per group estimated from the data whose weights this solve used
+        (:func:`rwhec_ros.core.noise.solve_with_noise`; ``certificate.weights`` is then
+        ``"estimated"``); None: the problem's given weights.
     """
 
     x_names: tuple[str, ...]
@@ -206,6 +215,7 @@ class CalibrationResult:
     rounding_displacement: float = 0.0
     notes: list[str] = field(default_factory=list)
     unobservable: list = field(default_factory=list)
+    noise: object = None
 
     @property
     def certified(self) -> bool:
@@ -266,6 +276,7 @@ class CalibrationResult:
                 "lambda_min_lower": float(c.lambda_min_lower),
                 "margins": {k: float(v) for k, v in c.margins.items()},
                 "message": c.message,
+                "weights": c.weights,
             },
             "unobservable": [u.to_dict() for u in self.unobservable],
             "solver_status": self.solver_status,

@@ -171,10 +171,15 @@ def result_document(
     (``IdentifiabilityReport.to_dict()``), ``config`` (flat dotted calibrator parameters, as
     far as they apply) and ``source`` (where the data came from).
     With a :class:`~rwhec_ros.core.verdict.Verdict`, each frame also says whether it is
-    ``usable`` (and its ``verdict`` and ``why``), and ``verdict_details`` holds the fit
+    ``usable`` (and its ``verdict`` and ``why``), ``verdict_details`` holds the fit
     statistics, the scale check and the per-frame verdicts; ``exclusion`` what was excluded
     because it did not fit, each frame's shift and the all-data solve's key numbers
-    (:meth:`rwhec_ros.core.verdict.exclusion.Exclusion.to_dict`; ``null`` when not run).
+    (:meth:`rwhec_ros.core.verdict.exclusion.Exclusion.to_dict`; ``null`` when not run); and
+    ``noise`` the noise per group estimated from the data
+    (:meth:`rwhec_ros.core.noise.NoiseEstimate.to_dict`: per group ``sigma_m`` and ``kappa``
+    next to ``sigma_given_m`` and ``kappa_given``, redundancy, degrees of freedom and where each
+    value comes from), ``null`` when the stated noise weighted the solve
+    (``certificate.weights`` says which).
 
     With a corner-level refinement (:mod:`rwhec_ros.session.refinement`), ``estimate_published``
     (``refined`` or ``certified``) and ``certificate_scope`` (what the certificate covers, in
@@ -218,6 +223,8 @@ def result_document(
     if fingerprint is not None:
         doc["dataset_fingerprint"] = dict(fingerprint)
     if verdict is not None:
+        noise = getattr(verdict, "noise", None)
+        doc["noise"] = None if noise is None else noise.to_dict()
         doc["verdict_details"] = verdict.to_dict()
     if accuracy is not None:
         doc.update(accuracy.to_dict())

@@ -42,8 +42,23 @@ __all__ = [
     "fit_of_document",
     "natural_key",
     "ReportFiles",
+    "weighted_from_document",
     "write_report",
 ]
+
+
+def weighted_from_document(doc: Mapping[str, Any], problem: Problem) -> Problem:
+    """``problem`` with the weights the result ``doc`` was solved with: the noise per group
+    estimated from the data (its ``noise`` section's ``used`` factors) when
+    ``certificate.weights`` is ``estimated``, else ``problem`` as it is."""
+    noise = doc.get("noise") or {}
+    if (doc.get("certificate") or {}).get("weights") != "estimated" or not noise.get("groups"):
+        return problem
+    from ..core.noise import weighted_as
+
+    factors = {name: (float(g["translation"]["used"]), float(g["rotation"]["used"]))
+               for name, g in noise["groups"].items()}
+    return weighted_as(problem, str(noise.get("grouping", "camera")), factors)
 
 
 @dataclass(frozen=True)
@@ -74,7 +89,10 @@ def write_report(
         ``reasons`` and ``verdict_details`` make the banner (a result without them gets a grey
         "verdict unknown" banner).
     problem : Problem
-        The measurement pairs that were solved (residuals, fit, identifiability).
+        The measurement pairs that were solved (residuals, fit, identifiability), with their
+        given noise: when the solve estimated it (``certificate.weights: estimated``), the
+        weights of the result's ``noise`` section are applied here
+        (:func:`weighted_from_document`).
     png_path, html_path : str or Path
         Output files (the page embeds its figure: it can be moved alone).
     identifiability : IdentifiabilityReport, optional
@@ -84,6 +102,7 @@ def write_report(
         Resolution of the PNG (18 inches wide).
     """
     png_path, html_path = Path(png_path), Path(html_path)
+    problem = weighted_from_document(doc, problem)
     X, Y, scale = estimates_from_document(doc, problem)
     residuals = edge_residuals(problem, X, Y, scale)
     fit = fit_of_document(doc, problem)

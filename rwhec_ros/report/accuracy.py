@@ -97,8 +97,8 @@ def draw_std_bars(ax, doc: Mapping[str, Any], what: str) -> None:
     handles = [Patch(color=_AXIS_COLORS[a], label=f"{_AXES[a]} axis") for a in range(3)]
     handles.append(Line2D([], [], color="black", lw=1.5, label="a posteriori"))
     ax.legend(handles=handles, fontsize=8, loc="upper right", framealpha=0.9)
-    ax.set_title(f"{what} uncertainty per frame: bars predicted from the stated noise (1 sigma), "
-                 "ticks a posteriori", fontsize=11)
+    ax.set_title(f"{what} uncertainty per frame: bars predicted from the weights' noise "
+                 "(1 sigma), ticks a posteriori", fontsize=11)
 
 
 def draw_validation(ax, doc: Mapping[str, Any], what: str, label: int = 4) -> None:
@@ -197,7 +197,8 @@ def accuracy_sections(doc: Mapping[str, Any]) -> list[tuple[str, str, tuple, lis
         vf = unc.get("variance_factor")
         vf = "undefined" if vf is None else f"{vf:.3g}"
         text = ("One standard deviation along / about the x / y / z axes of each frame's "
-                "parent. Predicted: from the stated noise (sigma, kappa); a posteriori: times "
+                "parent. Predicted: from the noise of the weights (estimated or stated); a "
+                "posteriori: times "
                 f"the variance factor of the residuals ({vf}). 'unobservable': the data do not "
                 "determine that axis (give a prior or add motion).")
         if unc.get("scale_std") is not None:

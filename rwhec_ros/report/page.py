@@ -61,8 +61,18 @@ def _summary_rows(doc, problem: Problem, fit: FitStatistics, ident) -> list[tupl
                    f"{(doc.get('timing_s') or {}).get('total', float('nan')):.2f} s"),
         ("identifiability", str(getattr(ident, "verdict", "not analysed"))),
     ]
+    noise = doc.get("noise") or {}
+    estimated = (doc.get("certificate") or {}).get("weights") == "estimated"
+    if estimated and noise.get("groups"):
+        given = {"stated": "stated", "reprojection": "from the reprojection",
+                 "start": "start value"}.get(noise.get("given"), noise.get("given"))
+        rows.append(("noise (from the data)", "; ".join(
+            f"{name}: sigma {1e3 * g['sigma_m']:.3g} mm ({given} {1e3 * g['sigma_given_m']:.3g}), "
+            f"{g['rotation_std_deg']:.3g} deg ({given} {g['rotation_std_given_deg']:.3g})"
+            for name, g in noise["groups"].items())
+            + f"; {noise.get('solves', '?')} solves, per {noise.get('grouping', '?')}"))
     if fit.testable:
-        rows.append(("fit to the stated noise",
+        rows.append(("fit to the estimated noise" if estimated else "fit to the stated noise",
                      f"translations {fit.noise_ratio_translation:.2f}x (sigma "
                      f"{1e3 * fit.sigma_estimated_m:.2f} mm, stated "
                      f"{1e3 * fit.sigma_stated_m:.2f} mm), rotations "

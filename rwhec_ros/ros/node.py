@@ -84,6 +84,7 @@ from std_srvs.srv import Trigger
 
 from ..config import DEFAULT_NODE_NAME
 from ..config.live_parameters import review_changes
+from ..core.noise.words import noise_values
 from ..data.results import dump_document
 from ..messages import (
     bgr_to_image_fields,
@@ -491,6 +492,8 @@ class CalibratorNode(Node):
             accuracy = [*accuracy, *last.time_offsets.diagnostic_values()]
         if last is not None and last.verdict is not None and last.verdict.exclusion is not None:
             accuracy = [*accuracy, *last.verdict.exclusion.diagnostic_values()]
+        if last is not None and last.result is not None:  # the noise the data fit, per camera
+            accuracy = [*accuracy, *noise_values(getattr(last.result, "noise", None))]
         rows = diagnostic_rows(
             self.session.diagnostics(), counters, prefix=self.get_name(),
             identifiable=None if report is None else bool(report.identifiable),

@@ -5,7 +5,7 @@ At the solution of :func:`~rwhec_ros.session.solving.solve_and_assess`:
 * the **uncertainty** of every frame (:func:`rwhec_ros.core.analysis.uncertainty.frame_uncertainty`,
 with
   the solve's priors): the 6x6 covariance on the tangent space of SE(3) in the frame's parent,
-  predicted from the stated noise and rescaled a posteriori; unobservable axes as such;
+  predicted from the noise of the weights and rescaled a posteriori; unobservable axes as such;
 * the **cross-validation** (:func:`rwhec_ros.core.analysis.validation.cross_validate`, ``folds``
 folds,
   ``0`` for none): per edge the held-out residuals next to the in-sample ones;
@@ -128,8 +128,9 @@ class Accuracy:
             fu = self.uncertainty.frame(name)
         except KeyError:
             return {}
-        d = {"std_kind": "predicted from the stated noise (sigma, kappa); a_posteriori: "
-                         "times the variance factor of the residuals", **fu.to_dict()}
+        d = {"std_kind": "predicted from the noise of the weights (estimated from the data, or "
+                         "stated: sigma, kappa); a_posteriori: times the variance factor of the "
+                         "residuals", **fu.to_dict()}
         return d if self.refinement is None else self.refinement.frame_fields(name, d)
 
     def certificate_fields(self) -> dict:
@@ -319,7 +320,8 @@ def accuracy_lines(accuracy: Accuracy | None) -> list[str]:
         vf = unc.variance_factor
         post = (f"; a posteriori x{np.sqrt(vf):.2g} (variance factor {vf:.2g} of the residuals)"
                 if np.isfinite(vf) else "")
-        lines.append(f"largest std: {big[0]} (1 sigma, predicted from the stated noise{post})")
+        lines.append(f"largest std: {big[0]} (1 sigma, predicted from the noise of the "
+                     f"weights{post})")
     if unc is not None:
         axes = unobservable_axes(unc)
         if axes:

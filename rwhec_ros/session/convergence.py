@@ -152,7 +152,8 @@ def estimate_document(result: CalibrationResult, uncertainty: Uncertainty, confi
     (``std_translation_m`` [x, y, z], ``std_rotation_deg`` [x, y, z], ``covariance``,
     ``a_posteriori``, ``unobservable``), the whole-problem ``uncertainty`` (variance factor, notes;
     without the
-    frames), ``convergence`` (:meth:`Convergence.to_dict`) and ``live`` (pairs, timing)."""
+    frames), ``convergence`` (:meth:`Convergence.to_dict`), ``live`` (pairs, timing) and
+    ``noise`` (the noise per group estimated from the data, None when not estimated)."""
     doc = result_document(result, FrameNaming.from_config(config), excluded=excluded,
                           config=config.to_parameters(), source={"type": LIVE_SOURCE})
     doc["reasons"] = ["a live estimate is not assessed: call calibrate for the verdict"]
@@ -164,4 +165,6 @@ def estimate_document(result: CalibrationResult, uncertainty: Uncertainty, confi
     doc["uncertainty"] = unc
     doc["convergence"] = convergence.to_dict()
     doc["live"] = plain(dict(live or {}))
+    noise = getattr(result, "noise", None)
+    doc["noise"] = None if noise is None else plain(noise.to_dict())
     return doc

@@ -412,7 +412,7 @@ class ImageInput(ImageWait):
             if noise.from_reprojection and o.sigma is not None and o.kappa is not None:
                 sigma, kappa = float(o.sigma), float(o.kappa)
             else:
-                sigma, kappa = noise.sigma, noise.kappa
+                sigma, kappa = noise.sigma_start, noise.kappa_start
             x = o.name
             # the data set keeps each pair's corners (reprojection error, focal check): a
             # tag's four, or a board's seen corners with their board-frame points

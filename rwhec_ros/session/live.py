@@ -44,7 +44,7 @@ from .outcomes import SolveOutcome, edge_rows, no_pairs_words, too_few_pairs_wor
 from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
 from .rejections import RejectionLog
-from .solving import make_tracker, report_dict, solve_and_assess, verdict_options
+from .solving import make_tracker, noise_options, report_dict, solve_and_assess, verdict_options
 from .time_offsets import add_offset_reasons, correct_time_offsets, with_time_offsets
 
 __all__ = ["CalibrationSession"]
@@ -209,9 +209,11 @@ class CalibrationSession(ImageInput, CaptureMixin):
             self._acc.keyframe_rotation_rad = config.keyframe.min_rotation_rad
             self._acc.keyframe_translation_m = config.keyframe.min_translation_m
             noise = config.noise
+            if (noise.estimate, noise.groups) != (old.noise.estimate, old.noise.groups):
+                self._data_version += 1  # the live re-solve estimates (or not) again
             if not noise.from_reprojection and (noise.sigma, noise.kappa) != (
                     old.noise.sigma, old.noise.kappa):
-                self._acc.set_precisions(noise.sigma, noise.kappa)
+                self._acc.set_precisions(noise.sigma_start, noise.kappa_start)
                 self._data_version += 1
                 self._tracker = make_tracker(config.tags.unknown_scale)
                 for e in self._acc.edges().values():
@@ -400,10 +402,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
     def _calibrate(self, output_dir: str | Path | None, force: bool,
                    on_phase: Callable[[str], None] | None = None) -> SolveOutcome:
         from .solving import solver_alternatives
-
         c = self.config
         problem, excluded, err, report, dataset, counts = self._snapshot()
-        offsets = None
         ident = report_dict(report)
         excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         if problem is None:
@@ -419,7 +419,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
             problem, dataset, offsets = correct_time_offsets(
                 problem, dataset, c, mode=c.solver.mode, priors=c.priors.entries,
                 unobservable_std_m=c.solver.unobservable_std_m, min_scale=c.solver.min_scale,
-                reject_outliers=c.solver.reject_outliers)
+                reject_outliers=c.solver.reject_outliers, noise=noise_options(c.noise))
             solved = solve_and_assess(
                 problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
                 priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
@@ -428,7 +428,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
                 accuracy=self._accuracy_options(), corners=corner_data(dataset),
-                on_phase=on_phase, refine=c.solver.refine)
+                noise=noise_options(c.noise), on_phase=on_phase, refine=c.solver.refine)
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
                 False, f"the solver stopped with an error in mode {c.solver.mode} "

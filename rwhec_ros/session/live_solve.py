@@ -58,11 +58,13 @@ from typing import Any
 
 from ..core.analysis.uncertainty import Uncertainty, UncertaintyOptions, frame_uncertainty
 from ..core.model.edge_cache import EdgeBlockCache
+from ..core.noise.words import noise_values
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
 from ..messages import LEVEL_OK, LEVEL_WARN
 from ..sync.accumulator import problem_from_edges
 from .convergence import Convergence, convergence_of, estimate_document
+from .time_offsets import live_offsets
 
 __all__ = [
     "PairsSnapshot",
@@ -71,6 +73,7 @@ __all__ = [
     "LiveSolver",
     "solve_with_uncertainty",
     "warm_start_of",
+    "warm_noise_of",
 ]
 
 
@@ -101,11 +104,19 @@ class PairsSnapshot:
         return int(sum(e.n for e in self.edges.values()))
 
 
-def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = None
+def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = None,
+                           warm_noise: dict | None = None
                            ) -> tuple[CalibrationResult, Uncertainty]:
     """The live re-solve: ``fast`` without SDP fallback or outlier rejection, with the
     configuration's priors, ``solver.unobservable_std_m`` and ``solver.min_scale``, then
     :func:`~rwhec_ros.core.analysis.uncertainty.frame_uncertainty` with the same gauge options.
+
+    With ``noise.estimate`` the noise of each group is estimated from the data and solved with
+    (:func:`~rwhec_ros.core.noise.solve_with_noise`, at most 3 solves per re-solve, the
+    information from the edge blocks), starting from ``warm_noise`` (the previous live
+    estimate's factors, ``result.noise.factors()``): with a few more pairs they still fit, so
+    one solve usually suffices. ``result.noise`` holds the estimate, and the uncertainty is that
+    of the estimated weights.
 
     ``initial`` ``(X (M, 4, 4), Y (P, 4, 4))``: a warm start (the previous live estimate, in the
     problem's frame order) for the local solver instead of the closed-form estimate. The
@@ -124,21 +135,35 @@ def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = Non
     result = None
     # one BLAS thread limit around the whole re-solve: the solve's and the uncertainty's own
     # (the same count, UncertaintyOptions' default) then find it set and skip set and restore
+    noise = None
+    if config.noise.estimate:
+        from .solving import noise_options
+
+        noise = noise_options(config.noise, information="edge_blocks", max_solves=3)
+
+    def run(opts):
+        if noise is None:
+            return solve(problem, opts), problem
+        from ..core.noise import solve_with_noise
+
+        ns = solve_with_noise(problem, opts, noise, warm=warm_noise)
+        return ns.result, ns.problem
+
     with blas_threads(options.blas_threads):
         if initial is not None:
             options.initial = initial
-            result = solve(problem, options)
+            result, solved = run(options)
             options.initial = None
             if result.certified:
                 notes = [*notes, "live: started from the previous live estimate"]
             else:
                 result = None  # solved again from the closed-form start
         if result is None:
-            result = solve(problem, options)
+            result, solved = run(options)
         result.notes.extend(notes)
         # the uncertainty's own limit (1 thread, its default) is this one when the solve's is 1:
         # None then (no second look at the BLAS libraries); else its own, as before
-        return result, frame_uncertainty(problem, result, UncertaintyOptions(
+        return result, frame_uncertainty(solved, result, UncertaintyOptions(
             gauge=options.gauge, information="edge_blocks",
             blas_threads=None if options.blas_threads == 1 else 1))
 
@@ -155,23 +180,11 @@ def warm_start_of(estimate: LiveEstimate | None, problem: Problem) -> tuple | No
     return r.X, r.Y
 
 
-def _live_offsets(problem: Problem, result: CalibrationResult, snap: PairsSnapshot, config,
-                  cache: dict):
-    """The live time offsets (:func:`~rwhec_ros.session.time_offsets.one_step_offsets`) of the
-    re-solved ``problem``, or None when they cannot be had (an injected re-solve's result of
-    another kind, a failure: the live estimate stands without them)."""
-    from .time_offsets import TimeOffsetOptions, one_step_offsets
-
-    options = TimeOffsetOptions.from_config(config)
-    if not options.estimate or snap.track is None:
-        return None
-    try:
-        stamps = {k: e.stamps_ns for k, e in snap.edges.items()}
-        if len(cache) > 4 * max(problem.n_measurements, 1000):  # pairs replaced over time
-            cache.clear()
-        return one_step_offsets(problem, result, stamps, snap.track, options, cache)
-    except Exception:  # noqa: BLE001 - an extra of the live estimate, never its failure
-        return None
+def warm_noise_of(estimate: LiveEstimate | None) -> dict | None:
+    """The noise factors per group of ``estimate``'s solve (``result.noise``), to start the next
+    re-solve's noise estimate from (*warm weights*); None without one."""
+    noise = None if estimate is None else getattr(estimate.result, "noise", None)
+    return None if noise is None else noise.factors()
 
 
 @dataclass(frozen=True)
@@ -310,6 +323,7 @@ class LiveStatus:
                        ("solve_ms", f"{1e3 * est.solve_s:.1f}")]
             if est.time_offsets is not None:
                 values += est.time_offsets.diagnostic_values()
+            values += noise_values(getattr(est.result, "noise", None))
         if self.last_error:
             values.append(("last_error", self.last_error))
         level = (LEVEL_OK if (not self.enabled or self.converged) and not self.last_error
@@ -481,13 +495,15 @@ class LiveSolver:
             if self._warm_start:
                 with self._lock:
                     initial = warm_start_of(self._s.estimate, problem)
-                result, unc = self._solve_fn(problem, c, initial=initial)
+                    warm = warm_noise_of(self._s.estimate)
+                extra = {"warm_noise": warm} if self._solve_fn is solve_with_uncertainty else {}
+                result, unc = self._solve_fn(problem, c, initial=initial, **extra)
             else:
                 result, unc = self._solve_fn(problem, c)
             conv = convergence_of(unc, [*y_names, *x_names],
                                   c.convergence.max_std_translation_m,
                                   c.convergence.max_std_rotation_deg)
-            offsets = _live_offsets(problem, result, snap, c, self._rate_cache)
+            offsets = live_offsets(problem, result, snap, c, self._rate_cache)
             t1, cpu = self._clock(), time.thread_time() - cpu0
             excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         except Exception as exc:  # noqa: BLE001 - a live solve never raises; the data stay

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.lie import transform_to_quat_xyzw
+from ..core.noise.words import noise_lines
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict
 from ..data.dataset import Dataset
@@ -49,6 +50,7 @@ def summary(result: CalibrationResult, problem, excluded: dict, config,
         lines[-1] += ": the pose-level optimum; the frames below are its corner-level refinement"
     lines.append(f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
                  f"{result.mode}")
+    lines += noise_lines(getattr(verdict, "noise", None))
     if problem.unknown_scale:
         s = None if accuracy is None or accuracy.uncertainty is None else \
             accuracy.uncertainty.scale_std

@@ -8,6 +8,8 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from ..core.identifiability import IdentifiabilityTracker, analyze
 from ..core.problem import Problem
 from ..core.result import CalibrationResult
@@ -27,6 +29,7 @@ __all__ = [
     "Solved",
     "solve_and_assess",
     "verdict_options",
+    "noise_options",
     "solver_alternatives",
 ]
 
@@ -83,10 +86,51 @@ def solve_options(
                         sdp=SdpOptions(backend=sdp_backend)), notes
 
 
-def _solve(problem: Problem, options, reject_outliers: bool):
-    """``(result, solved problem, dropped edges, notes, rejected pairs)``: a plain solve, or
-    RANSAC + GNC-TLS whose solved problem is the inlier problem (rejected pairs: edge
-    ``"(x, y)"`` -> the indices of its rejected pairs in ``problem``, ascending)."""
+def _solve(problem: Problem, options, reject_outliers: bool, noise=None):
+    """``(result, solved problem, dropped edges, notes, rejected pairs, noise estimate)``: a
+    plain solve, or RANSAC + GNC-TLS whose solved problem is the inlier problem (rejected pairs:
+    edge ``"(x, y)"`` -> the indices of its rejected pairs in ``problem``, ascending); with
+    ``noise`` (:class:`~rwhec_ros.core.noise.NoiseOptions`, ``estimate`` on) then solved with the
+    noise estimated from the data (:func:`~rwhec_ros.core.noise.solve_with_noise`: the solved
+    problem carries the estimated weights; the estimate None otherwise)."""
+    if noise is None or not noise.estimate:
+        return (*_solve_given(problem, options, reject_outliers), None)
+    import copy
+
+    from ..core.noise import solve_with_noise
+
+    start = copy.copy(options)
+    solved, dropped, notes, rejected, warm = problem, {}, [], {}, None
+    if reject_outliers:
+        # the outlier thresholds of RANSAC and GNC-TLS are in units of the noise: the data's,
+        # estimated first (edges far off are left out of it); then the inliers' noise
+        pre = solve_with_noise(problem, start, noise)
+        result, _, dropped, notes, rejected = _solve_given(pre.problem, options, True)
+        solved = _inliers(problem, dropped, rejected)
+        start.initial = (result.X, result.Y)
+        warm = None if pre.estimate is None else pre.estimate.factors()
+    ns = solve_with_noise(solved, start, noise, warm=warm)
+    notes = notes + ns.notes
+    return ns.result, ns.problem, dropped, notes, rejected, ns.estimate
+
+
+def _inliers(problem: Problem, dropped: Mapping[str, str],
+             rejected: Mapping[str, list[int]]) -> Problem:
+    """``problem``'s pairs without the ``dropped`` edges and the ``rejected`` pairs (edge ->
+    indices), with their given noise."""
+    from ..core.outliers.pairs import restrict_problem
+
+    masks = {}
+    for e in problem.edges:
+        m = np.full(e.n, e.name not in dropped)
+        m[list(rejected.get(e.name, ()))] = False
+        masks[e.name] = m
+    return restrict_problem(problem, masks, what="outlier rejection")
+
+
+def _solve_given(problem: Problem, options, reject_outliers: bool):
+    """:func:`_solve` with the given noise: ``(result, solved problem, dropped edges, notes,
+    rejected pairs)``."""
     from ..core.solve import solve
 
     if not reject_outliers:
@@ -124,7 +168,7 @@ def solve_problem(
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale, sdp_backend=sdp_backend)
-    result, _, dropped, notes, _ = _solve(problem, options, reject_outliers)
+    result, _, dropped, notes, _ = _solve_given(problem, options, reject_outliers)
     notes = prior_notes + notes
     result.notes.extend(notes)
     return result, dropped, notes
@@ -160,6 +204,9 @@ class Solved:
         shifts and the all-data solve's key numbers
         (:func:`~rwhec_ros.core.verdict.exclusion.exclude_misfits`; also ``verdict.exclusion``);
         None when ``verdict.exclude_misfits`` is off. Its edges are in ``dropped``.
+    noise : NoiseEstimate or None
+        The noise per group estimated from the data (:mod:`rwhec_ros.core.noise`); ``problem``
+        then has those weights. None when not estimated.
     """
 
     result: CalibrationResult
@@ -171,6 +218,7 @@ class Solved:
     accuracy: Accuracy | None = None
     rejected_pairs: dict[str, list[int]] = field(default_factory=dict)
     exclusion: Exclusion | None = None
+    noise: Any = None
 
     @property
     def identifiability_dict(self) -> dict | None:
@@ -181,6 +229,17 @@ def verdict_options(section: Mapping[str, Any] | None) -> VerdictOptions:
     """:class:`VerdictOptions` from a configuration's ``verdict`` thresholds (short names of the
     ``verdict.*`` parameters, :attr:`CalibratorConfig.verdict`); None or empty: the defaults."""
     return VerdictOptions(**dict(section or {}))
+
+
+def noise_options(noise_config, **overrides):
+    """:class:`~rwhec_ros.core.noise.NoiseOptions` from a configuration's ``noise`` section
+    (:class:`~rwhec_ros.config.sections.NoiseConfig`): ``estimate``, ``groups`` and what the
+    pairs' ``sigma``/``kappa`` are (stated, from the reprojection, start values);
+    ``overrides`` replace fields (e.g. ``information="edge_blocks"``)."""
+    from ..core.noise import NoiseOptions
+
+    return NoiseOptions(**{"estimate": noise_config.estimate, "groups": noise_config.groups,
+                           "given": noise_config.given, **overrides})
 
 
 #: What :func:`solve_and_assess` computes by default: uncertainty, 5-fold cross-validation,
@@ -204,6 +263,7 @@ def solve_and_assess(
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
     accuracy: AccuracyOptions | None = DEFAULT_ACCURACY,
     corners=None,
+    noise=None,
     on_phase: Callable[[str], None] | None = None,
     refine: bool = True,
 ) -> Solved:
@@ -218,6 +278,11 @@ def solve_and_assess(
     reprojection error per camera and the verdict's focal check (with ``accuracy`` only), and
     with ``refine`` the corner-level refinement (:mod:`.refinement`), whose estimate becomes the
     result when it is published (the verdict judges the certified solve).
+    ``noise`` (:class:`~rwhec_ros.core.noise.NoiseOptions`; None: off): the noise of each group
+    estimated from the data and the final solve with it (after any outlier rejection); the
+    uncertainty and the verdict are then those of the estimated weights, and the verdict compares
+    a stated noise with the estimate. A target or an edge that does not fit is excluded and the
+    rest solved again (``thresholds.exclude_misfits``, each solve with its own noise estimate).
     ``on_phase`` is called with ``"analysing"`` when the solver returned. Exceptions of the
     solver propagate."""
     from ..core.solve import blas_threads
@@ -225,12 +290,11 @@ def solve_and_assess(
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale, sdp_backend=sdp_backend)
-    result, solved, dropped, notes, rejected = _solve(problem, options, reject_outliers)
+    first = _solve(problem, options, reject_outliers, noise)
     exclusion = None
     if (thresholds or VerdictOptions()).exclude_misfits:
-        exclusion, (result, solved, dropped, notes, rejected) = _exclude(
-            problem, (result, solved, dropped, notes, rejected), options, reject_outliers,
-            thresholds)
+        exclusion, first = _exclude(problem, first, options, reject_outliers, thresholds, noise)
+    result, solved, dropped, notes, rejected, estimate = first
     notes = prior_notes + notes
     result.notes.extend(notes)
     if on_phase is not None:
@@ -254,39 +318,41 @@ def solve_and_assess(
                          expected_x=[*expected_x, *problem.x_names],
                          expected_y=[*expected_y, *problem.y_names],
                          excluded={**dict(excluded or {}), **dropped}, carriers=carriers,
-                         exclusion=exclusion)
+                         exclusion=exclusion, noise=estimate)
     result = published_result(result, None if acc is None else acc.refinement)
-    return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected, exclusion)
+    return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected, exclusion,
+                  estimate)
 
 
 def _exclude(problem: Problem, first: tuple, options, reject_outliers: bool,
-             thresholds: VerdictOptions | None) -> tuple[Exclusion, tuple]:
+             thresholds: VerdictOptions | None, noise=None) -> tuple[Exclusion, tuple]:
     """:func:`~rwhec_ros.core.verdict.exclusion.exclude_misfits` with this module's solve
-    (``options``, ``reject_outliers``): the exclusion and the ``_solve`` tuple to publish, whose
-    ``dropped`` also holds the excluded edges and whose notes say what the certificate is
-    for."""
+    (``options``, ``reject_outliers``, ``noise``: each re-solve estimates its own): the
+    exclusion and the ``_solve`` tuple to publish, whose ``dropped`` also holds the excluded
+    edges and whose notes say what the certificate is for."""
     from ..core.pipeline.options import SolveOptions
 
     def attempt(out: tuple, given: Problem) -> Attempt:
-        result, solved, dropped, _, rejected = out
+        result, solved, dropped, _, rejected, estimate = out
         counts = {k: len(v) for k, v in rejected.items()}
         sizes = {e.name: e.n for e in given.edges}
         for edge in dropped:  # wholly rejected edges
             if edge in sizes:
                 counts[edge] = sizes[edge]
-        return Attempt(result, solved, counts, out)
+        return Attempt(result, solved, counts, out,
+                       noise_estimated=estimate is not None and estimate.estimated)
 
     trial = SolveOptions(mode="fast", gauge=options.gauge, min_scale=options.min_scale,
                          sdp=options.sdp)  # the configured SDP backend for a fallback
     exclusion, final = exclude_misfits(
         problem, attempt(first, problem),
-        lambda p: attempt(_solve(p, options, reject_outliers), p),
+        lambda p: attempt(_solve(p, options, reject_outliers, noise), p),
         options=thresholds, solve_options=trial)
-    result, solved, dropped, notes, rejected = final.extra
+    result, solved, dropped, notes, rejected, estimate = final.extra
     if exclusion.excluded:
         dropped = {**dropped, **exclusion.dropped()}
         notes = [*notes, f"exclusion: {exclusion.certificate_note()}"]
-    return exclusion, (result, solved, dropped, notes, rejected)
+    return exclusion, (result, solved, dropped, notes, rejected, estimate)
 
 
 def solver_alternatives(mode: str, robust: bool, mode_option: str = "--mode",

@@ -56,7 +56,8 @@ from .time_offset_report import (
 __all__ = ["TimeOffsetOptions", "CameraOffset", "TimeOffsetReport", "estimate_offsets",
            "one_step_offsets", "add_offset_reasons", "shift_dataset",
            "MOVING_SPEED_M_S", "MOVING_RATE_RAD_S", "MIN_MOVING_PAIRS", "SIGNIFICANT_SIGMAS",
-           "CAUTION_S", "MAX_ITERATIONS", "correct_time_offsets", "with_time_offsets"]
+           "CAUTION_S", "MAX_ITERATIONS", "correct_time_offsets", "with_time_offsets",
+           "live_offsets"]
 
 _NS = 1_000_000_000
 #: A pair counts as moving when the stream moved faster than this [m/s] ...
@@ -417,7 +418,7 @@ def shift_dataset(dataset, report: TimeOffsetReport | None, track: PoseTrackData
 
 def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast", priors=(),
                          unobservable_std_m: float = 1.0, min_scale: float = 0.01,
-                         reject_outliers: bool = False):
+                         reject_outliers: bool = False, noise=None):
     """The calibrate step's one call: estimate the offsets of ``problem``'s cameras from
     ``dataset`` (its stamps, ``pose_stream`` and ``time_offsets_s``) with ``config``'s
     ``sync.*`` options (a configuration, flat parameters, or None: the defaults), solving as
@@ -428,8 +429,11 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
     rejects then stand out of their camera's residuals and are left out of the offsets (two
     pose samples 90 deg off made a plain solve's offsets 12.8 and 4.4 ms, significant, where
     the clean stream gives 0.3-0.6 +- 0.4-0.7 ms; without ``--robust`` such glitches still move
-    the offsets). An unexpected error of the estimate is reported as ``not_estimated`` with its
-    message; the calibration goes on with the pairs as they are."""
+    the offsets); with ``noise`` (:class:`~rwhec_ros.core.noise.NoiseOptions`, the final solve's)
+    that robust solve estimates the noise first, as the final one does, so that its thresholds
+    are in units of the data's noise, not of the pairs' start values. An unexpected error of
+    the estimate is reported as ``not_estimated`` with its message; the calibration goes on
+    with the pairs as they are."""
     from ..core.solve import solve
     from .solving import solve_options
 
@@ -441,7 +445,7 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
         if reject_outliers:
             from .solving import _solve
 
-            robust = _solve(p, opts, True)[0]
+            robust = _solve(p, opts, True, noise)[0]
             if (list(robust.x_names), list(robust.y_names)) == (list(p.x_names),
                                                                  list(p.y_names)):
                 return robust
@@ -465,3 +469,20 @@ def with_time_offsets(doc: dict, report) -> dict:
     """The result mapping ``doc`` with ``report``'s ``time_offsets`` section in its place
     (:meth:`TimeOffsetReport.into <rwhec_ros.session.time_offset_report.TimeOffsetReport.into>`)."""
     return report.into(doc)
+
+
+def live_offsets(problem, result, snap, config, cache: dict):
+    """The live time offsets (:func:`one_step_offsets`) of the re-solved ``problem`` (``snap``:
+    the live solver's :class:`~rwhec_ros.session.live_solve.PairsSnapshot`), or None when they
+    cannot be had (an injected re-solve's result of another kind, a failure: the live estimate
+    stands without them)."""
+    options = TimeOffsetOptions.from_config(config)
+    if not options.estimate or snap.track is None:
+        return None
+    try:
+        stamps = {k: e.stamps_ns for k, e in snap.edges.items()}
+        if len(cache) > 4 * max(problem.n_measurements, 1000):  # pairs replaced over time
+            cache.clear()
+        return one_step_offsets(problem, result, stamps, snap.track, options, cache)
+    except Exception:  # noqa: BLE001 - an extra of the live estimate, never its failure
+        return None

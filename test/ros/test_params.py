@@ -13,7 +13,7 @@ def test_declaration_plan_covers_the_schema():
     expected.add("sync.time_offset.cam0")  # the per-camera sync.time_offset.<camera>
     assert names == expected - {"cameras.names", "noise.sigma"}
     by_name = {p[0]: p for p in plan}
-    assert by_name["noise.kappa"][1:3] == ("DOUBLE", 125.0)
+    assert by_name["noise.kappa"][1:3] == ("DOUBLE", 0.0)  # 0: not stated, estimated
     assert by_name["sync.pose_buffer_size"][1] == "INTEGER"
     # no default or an empty array: declared by type only (an empty list has no ROS type)
     assert by_name["tags.ids"][1:3] == ("INTEGER_ARRAY", None)

@@ -47,6 +47,7 @@ __all__ = [
     "pair_residuals",
     "information_matrix",
     "information_from_edge_blocks",
+    "edge_tangent_jacobians",
     "scatter_information",
     "information_from_cost_matrix",
     "check_result_frames",
@@ -398,6 +399,26 @@ def information_matrix(
         edge_chi2=np.add.reduceat(terms.chi2, starts))
 
 
+def edge_tangent_jacobians(problem: Problem, R: np.ndarray, t: np.ndarray, alpha: float
+                           ) -> np.ndarray:
+    """Per edge, the Jacobian (E, 25, 13) of its local state ``x_e = [alpha t_X, alpha t_Y,
+    alpha, vec R_X, vec R_Y]`` (eq. (44)) on its tangent coordinates ``[dt_X, dt_Y, d alpha, w_X,
+    w_Y]`` at the rotations ``R`` (F, 3, 3), metric translations ``t`` (F, 3) and scale
+    ``alpha`` (the ``d alpha`` column is zero for known scale)."""
+    F = R.shape[0]
+    fx, fy = problem.edge_x, problem.M + problem.edge_y
+    basis = np.swapaxes(R[:, None] @ hat(np.eye(3))[None], -1, -2).reshape(F, 3, 9)  # vec(R e_k^)
+    J = np.zeros((len(problem.edges), 25, 13))
+    J[:, 0:3, 0:3] = J[:, 3:6, 3:6] = alpha * _I3
+    if problem.unknown_scale:
+        J[:, 0:3, 6] = t[fx]
+        J[:, 3:6, 6] = t[fy]
+        J[:, 6, 6] = 1.0
+    J[:, 7:16, 7:10] = np.swapaxes(basis[fx], 1, 2)
+    J[:, 16:25, 10:13] = np.swapaxes(basis[fy], 1, 2)
+    return J
+
+
 def information_from_edge_blocks(
     problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1.0
 ) -> Information:
@@ -420,23 +441,12 @@ def information_from_edge_blocks(
     st = StateLayout(M, problem.P)
     R, t = T[:, :3, :3], T[:, :3, 3]
     full, _, idx = edge_blocks(problem)
-    E = full.shape[0]
     x = pack_state(st, T[:M], T[M:], a)
     xe = x[idx]  # (E, 25) on [alpha t_X, alpha t_Y, alpha, vec R_X, vec R_Y]
     Qx = np.einsum("eij,ej->ei", full, xe)
     edge_chi2 = 2.0 * np.einsum("ei,ei->e", xe, Qx)
     g = 2.0 * np.bincount(idx.ravel(), weights=Qx.ravel(), minlength=st.size)  # 2 Q x
-    # local Jacobian (E, 25, 13) of x_e on [dt_X, dt_Y, d alpha, w_X, w_Y]
-    fx, fy = problem.edge_x, M + problem.edge_y
-    basis = np.swapaxes(R[:, None] @ hat(np.eye(3))[None], -1, -2).reshape(F, 3, 9)  # vec(R e_k^)
-    J = np.zeros((E, 25, 13))
-    J[:, 0:3, 0:3] = J[:, 3:6, 3:6] = a * _I3
-    if problem.unknown_scale:
-        J[:, 0:3, 6] = t[fx]
-        J[:, 3:6, 6] = t[fy]
-        J[:, 6, 6] = 1.0
-    J[:, 7:16, 7:10] = np.swapaxes(basis[fx], 1, 2)
-    J[:, 16:25, 10:13] = np.swapaxes(basis[fy], 1, 2)
+    J = edge_tangent_jacobians(problem, R, t, a)
     Jt = np.swapaxes(J, 1, 2)
     hess = 2.0 * (Jt @ (full @ J))
     H, Qee = _scatter_blocks(layout, problem.edge_x, problem.edge_y, hess, full[:, :7, :7])

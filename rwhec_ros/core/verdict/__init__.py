@@ -5,6 +5,9 @@ The modules, one concept each:
 * :mod:`.options`: :class:`VerdictOptions`, every threshold a named, documented parameter;
 * :mod:`.fit`: goodness of fit against the stated noise (a-posteriori variance factor with a
   chi-square test, globally and per edge; paper eq. (33));
+* :mod:`.noise_check`: with the noise estimated from the data (:mod:`rwhec_ros.core.noise`), a
+  stated noise against the estimate per group, a camera far noisier than the others, and the
+  estimate's confidence in the precision check;
 * :mod:`.scale_check`: a known-scale problem solved with an unknown scale (tag sizes, focal
   lengths, pose-stream units);
 * :mod:`.focal_check`: the focal length each camera's detected corners (tags or boards)

@@ -116,6 +116,7 @@ class FirstSolve:
     noise_ratio_rotation: float
     flagged_edges: tuple[str, ...]
     frames: dict
+    noise_estimated: bool = False
 
     def to_dict(self) -> dict:
         return {"status": self.status, "certified": bool(self.certified),
@@ -176,7 +177,9 @@ class Exclusion:
         cert = (f"certified (rho_hat={f.suboptimality_bound:.2g})" if f.certified else
                 f"not certified ({f.status})")
         fit = (f", the data fit {f.noise_ratio_translation:.2g}x / "
-               f"{f.noise_ratio_rotation:.2g}x the stated translation / rotation noise"
+               f"{f.noise_ratio_rotation:.2g}x the "
+               + ("estimated" if f.noise_estimated else "stated")
+               + " translation / rotation noise"
                if np.isfinite(f.noise_ratio_translation) else "")
         lines = [f"all-data solve (not published): {f.pairs} pairs on {f.edges} edges, {cert}"
                  f"{fit}"]
@@ -232,13 +235,16 @@ class Exclusion:
 @dataclass
 class Attempt:
     """One solve of the caller's solver: the ``result``, the ``problem`` it solved (with outlier
-    rejection: the inlier problem), the pairs it rejected (edge ``"(x, y)"`` -> count) and
-    whatever else the caller keeps (``extra``, returned untouched)."""
+    rejection: the inlier problem), the pairs it rejected (edge ``"(x, y)"`` -> count),
+    whatever else the caller keeps (``extra``, returned untouched) and whether the problem's
+    weights are the noise estimated from the data (``noise_estimated``: an edge is then flagged
+    only by its ratio to the median edge, :func:`~.fit.goodness_of_fit`)."""
 
     result: CalibrationResult
     problem: Problem
     rejected: Mapping[str, int] = field(default_factory=dict)
     extra: object = None
+    noise_estimated: bool = False
 
 
 # ------------------------------------------------------------------------------------------------
@@ -407,7 +413,8 @@ def _first_solve(attempt: Attempt, fit: FitStatistics | None, given: Problem) ->
         c.status.value, bool(r.certified), float(c.suboptimality_bound), given.n_measurements,
         len(given.edges), nan if fit is None else fit.noise_ratio_translation,
         nan if fit is None else fit.noise_ratio_rotation,
-        () if fit is None else tuple(e.name for e in fit.flagged_edges()), frames)
+        () if fit is None else tuple(e.name for e in fit.flagged_edges()), frames,
+        attempt.noise_estimated)
 
 
 def _add(excluded: list[Misfit], m: Misfit) -> None:
@@ -430,7 +437,8 @@ def _tag_of(edge: str) -> str:
 
 def _fit(attempt: Attempt, options: VerdictOptions) -> FitStatistics | None:
     try:
-        return goodness_of_fit(attempt.problem, attempt.result, options)
+        return goodness_of_fit(attempt.problem, attempt.result, options,
+                               noise_estimated=attempt.noise_estimated)
     except (ValueError, FloatingPointError):
         return None
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 from .fit import FitStatistics
 from .options import VerdictOptions, level_rank, worst_level
@@ -112,6 +113,9 @@ class Verdict:
         What was excluded before the published solve, and how far the frames moved
         (:mod:`.exclusion`); None when the exclusion was not run. The result YAML holds it as
         its own key ``exclusion`` (not in ``to_dict``).
+    noise : NoiseEstimate or None
+        The noise per group estimated from the data that weighted the solve
+        (:mod:`rwhec_ros.core.noise`); None: the stated noise weighted it.
     """
 
     level: str
@@ -123,6 +127,7 @@ class Verdict:
     options: VerdictOptions = field(default_factory=VerdictOptions)
     focal_check: dict | str = ""
     exclusion: object = None
+    noise: Any = None
 
     @property
     def usable(self) -> bool:
@@ -158,6 +163,7 @@ class Verdict:
             "options": asdict(self.options),
             "focal_check": (self.focal_check if isinstance(self.focal_check, str) else
                             {cam: c.to_dict() for cam, c in self.focal_check.items()}),
+            "noise": None if self.noise is None else self.noise.to_dict(),
         }
 
 

@@ -107,6 +107,16 @@ class VerdictOptions:
     exclusion_rejected_share : float
         With outlier rejection: a target (or an edge) more than this share of whose pairs the
         rejection left out (0.5) does not fit, and is excluded like one that fits badly.
+    noise_confidence : float
+        With the noise estimated from the data (:mod:`rwhec_ros.core.noise`), the precision
+        check uses each frame's std times the one-sided upper confidence factor of the estimated
+        noise at this level (0.95): ``sqrt(dof / chi2_0.05(dof))`` for the fewest degrees of
+        freedom among the groups that weight its pairs (1.04 at 1000, 1.36 at 20): few pairs,
+        a wider bound.
+    noise_group_ratio : float
+        A noise group (camera) whose estimated noise is this many times the median of the others
+        (5.0), significantly so, is named (caution): a camera much noisier than the rest of the
+        rig usually has a fault.
     """
 
     significance: float = 1e-3
@@ -135,6 +145,8 @@ class VerdictOptions:
     exclusion_max_rounds: int = 3
     exclusion_max_share: float = 0.34
     exclusion_rejected_share: float = 0.5
+    noise_confidence: float = 0.95
+    noise_group_ratio: float = 5.0
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
@@ -142,6 +154,12 @@ class VerdictOptions:
                 continue
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"VerdictOptions.{name}: must be finite and > 0, got {value!r}")
+        if not self.noise_confidence < 1:
+            raise ValueError(f"VerdictOptions.noise_confidence: must be < 1, got "
+                             f"{self.noise_confidence!r}")
+        if self.noise_group_ratio < 1:
+            raise ValueError(f"VerdictOptions.noise_group_ratio: must be >= 1, got "
+                             f"{self.noise_group_ratio!r}")
         if not self.significance < 1:
             raise ValueError(f"VerdictOptions.significance: must be < 1, got {self.significance!r}")
         if not self.min_edges >= 2 or int(self.min_edges) != self.min_edges:

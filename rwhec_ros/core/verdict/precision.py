@@ -7,16 +7,23 @@ standard deviation of the translation [m] and of the rotation [deg]
 (:meth:`~rwhec_ros.core.analysis.uncertainty.FrameUncertainty.worst_std`). The verdict uses the
 larger of that prediction and the prediction rescaled by the a-posteriori noise ratio ``s`` of the
 fit (:mod:`.fit`): a stated noise that is too small must not make a frame look precise, and one that
-is too large keeps its (conservative) prediction. A frame whose own edges fit significantly worse
-than the stated noise (chi-square test over its edges' residuals, ``VerdictOptions.significance``)
-takes their noise ratio instead when it is larger (:func:`frame_noise_ratios`): a camera's std is
-never smaller than its own misfit shows, also when the other frames' good fit keeps the overall
-ratio near 1.
+is too large keeps its (conservative) prediction.
+
+With the noise estimated from the data (:mod:`rwhec_ros.core.noise`) the prediction is that of the
+estimated weights, and the factor is instead the upper confidence factor of the estimate
+(:func:`~rwhec_ros.core.noise.estimate.std_upper_factor`, the fewest degrees of freedom among the
+noise groups that weight the frame's pairs): the prediction is not conservative by a guess, and
+few pairs widen it.
+
+Either way, a frame whose own edges fit significantly worse than the weights (chi-square test over
+its edges' residuals, ``VerdictOptions.significance``) takes their noise ratio instead when it is
+larger (:func:`frame_noise_ratios`): a camera's std is never smaller than its own misfit shows,
+also when the other frames' good fit keeps the overall ratio near 1.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,10 +40,11 @@ class FramePrecision:
     ----------
     name : str
     predicted_translation_m, predicted_rotation_deg : float
-        Standard deviations predicted from the stated noise (``inf``: not determined; ``nan``:
-        unknown).
+        Standard deviations predicted from the noise of the weights (``inf``: not determined;
+        ``nan``: unknown).
     factor : float
-        ``max(1, s)``, the a-posteriori noise ratio applied.
+        ``max(1, s)``, the a-posteriori noise ratio applied; with estimated noise the upper
+        confidence factor of the estimate.
     """
 
     name: str
@@ -90,15 +98,18 @@ def frame_noise_ratios(fit, significance: float) -> dict[str, float]:
 
 def frame_precisions(uncertainty, noise_ratio: float = 1.0,
                      pinned: Iterable[str] = (),
-                     frame_ratios: dict[str, float] | None = None) -> dict[str, FramePrecision]:
+                     frame_ratios: dict[str, float] | None = None,
+                     factors: Mapping[str, float] | None = None) -> dict[str, FramePrecision]:
     """Per frame, its predicted precision from an
     :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty` at the solution, with the factor
     ``max(1, noise_ratio)``; empty when ``uncertainty`` is None. A frame in ``pinned`` (a
     translation direction fixed by the user's priors) whose translation is unobservable in
     ``uncertainty`` (computed without those priors) gets ``nan`` (unknown, not undetermined);
     computed with the solve's priors (``UncertaintyOptions(gauge=...)``) its translation std is
-    the one given the priors. ``frame_ratios`` (:func:`frame_noise_ratios`) raise the factor of
-    the frames they name to ``max(1, noise_ratio, their own)``."""
+    the one given the priors. ``factors``: per frame a factor that replaces ``max(1,
+    noise_ratio)`` (estimated noise: the estimate's upper confidence factor); ``frame_ratios``
+    (:func:`frame_noise_ratios`) raise the factor of the frames they name to at least their
+    own."""
     if uncertainty is None:
         return {}
     factor = noise_factor(noise_ratio)
@@ -109,7 +120,8 @@ def frame_precisions(uncertainty, noise_ratio: float = 1.0,
         if fu.name in pinned and not np.isfinite(t):
             t = float("nan")
         own = noise_factor((frame_ratios or {}).get(fu.name, 1.0))
-        out[fu.name] = FramePrecision(fu.name, t, r, max(factor, own))
+        base = (factors or {}).get(fu.name, factor)
+        out[fu.name] = FramePrecision(fu.name, t, r, max(base, own))
     return out
 
 

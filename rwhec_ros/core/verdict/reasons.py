@@ -243,11 +243,14 @@ def scale_reason(b: Builder, sc: ScaleCheck, opts: VerdictOptions,
 
 
 def edge_reasons(b: Builder, fit: FitStatistics, problem: Problem, opts: VerdictOptions,
-                 strict: bool = False) -> None:
+                 strict: bool = False, *, noise_estimated: bool = False) -> None:
     """Edges (and tags, cameras with every edge) that fit far worse than the others. ``strict``
     (after :mod:`.exclusion` ran, which excludes what it can): a camera on such an edge or tag
-    rests on data that do not fit and is not usable; otherwise it is a caution."""
+    rests on data that do not fit and is not usable; otherwise it is a caution.
+    ``noise_estimated``: the weights are the noise estimated per group, so an edge's own ratio
+    is to its group's (camera's) estimated noise, not to a stated one."""
     on_misfit = "unusable" if strict else "caution"
+    reference = "its camera's estimated noise" if noise_estimated else "the stated noise"
     flagged = fit.flagged_edges()
     if not flagged:
         return
@@ -306,7 +309,7 @@ def edge_reasons(b: Builder, fit: FitStatistics, problem: Problem, opts: Verdict
         # a tag that cannot be used makes the result a caution only; a camera an unusable one
         camera_out = strict or e.y in alone
         own = max(e.noise_ratio_translation, e.noise_ratio_rotation)
-        beyond = f" and {own:.1f}x the stated noise" if own >= opts.fit_caution_ratio else ""
+        beyond = f" and {own:.1f}x {reference}" if own >= opts.fit_caution_ratio else ""
         b.add("unusable" if camera_out else "caution", "edge",
               f"edge {e.name} fits {'far ' if e.ratio >= opts.edge_ratio else ''}worse than "
               f"the others: {what} over {e.pairs} pairs, "
@@ -337,7 +340,8 @@ def fit_reasons(b: Builder, fit: FitStatistics, opts: VerdictOptions,
             noise = (f"the translation residuals fit sigma = {mm(fit.sigma_estimated_m)}, "
                      f"configured {mm(fit.sigma_stated_m)} ({s:.1f}x)")
             todo = ("check the tag sizes, the camera intrinsics and the time sync of the "
-                    "images with the pose stream (or state the true noise in noise.sigma)")
+                    "images with the pose stream (or state the true noise in noise.sigma, or "
+                    "let the data give it: noise.estimate true)")
         else:
             noise = (f"the rotation residuals fit kappa = {fit.kappa_estimated:.3g} "
                      f"({deg(rotation_std_deg(fit.kappa_estimated))} per axis), configured "
@@ -345,7 +349,7 @@ def fit_reasons(b: Builder, fit: FitStatistics, opts: VerdictOptions,
                      f"{s:.1f}x)")
             todo = ("check the time sync of the images with the pose stream, the camera "
                     "intrinsics and tag poses that flip (or state the true noise in "
-                    "noise.kappa)")
+                    "noise.kappa, or let the data give it: noise.estimate true)")
         if clean_ok:
             level = "caution"
             todo = (f"{100 * fit.flagged_share:.0f} % of the misfit is on the edges named "
@@ -362,12 +366,20 @@ def fit_reasons(b: Builder, fit: FitStatistics, opts: VerdictOptions,
 
 
 def precision_reasons(b: Builder, uncertainty, fit: FitStatistics | None, opts: VerdictOptions,
-                      problem: Problem, pinned: list[str], scale: float = 1.0) -> None:
+                      problem: Problem, pinned: list[str], scale: float = 1.0, *,
+                      factors: Mapping[str, float] | None = None,
+                      noise_estimated: bool = False) -> None:
     """Frames (and the scale) less precise than the thresholds, from ``uncertainty`` (an
-    :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty` at the solution, or None: unknown)."""
+    :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty` at the solution, or None: unknown).
+    ``factors``: per frame the factor on its std (estimated noise: the estimate's upper
+    confidence factor, :mod:`.noise_check`); ``noise_estimated``: the weights are the data's.
+    When the weights are the stated noise and the data fit significantly less, the advice says
+    that the stated noise, not the data, makes the frames imprecise."""
     s = fit.noise_ratio if fit is not None and fit.testable else 1.0
     own = frame_noise_ratios(fit, opts.significance) if fit is not None and fit.testable else {}
-    prec = frame_precisions(uncertainty, s, pinned=pinned, frame_ratios=own)
+    prec = frame_precisions(uncertainty, s, pinned=pinned, frame_ratios=own, factors=factors)
+    stated_too_large = (not noise_estimated and fit is not None and fit.testable
+                        and s < 1.0 / opts.fit_caution_ratio)
     groups: dict[str, list[str]] = {"unusable": [], "caution": []}
     for name, p in prec.items():
         f = b.frames.get(name)
@@ -393,12 +405,21 @@ def precision_reasons(b: Builder, uncertainty, fit: FitStatistics | None, opts: 
         r_lim = opts.unusable_std_rotation_deg if level == "unusable" else \
             opts.caution_std_rotation_deg
         named = [i.split(" ")[0] for i in items]
+        if stated_too_large:
+            todo = (f"these stds rest on the stated noise, and the residuals fit {s:.2g}x of it: "
+                    f"with the data's noise they would be {s:.2g}x as large; let the data give "
+                    "the noise (noise.estimate true, the default) or state the noise you observe "
+                    "(noise.sigma, noise.kappa)")
+        else:
+            todo = ("record more views of " + ("this frame" if len(items) == 1 else
+                                               "these frames")
+                    + " with rotation about two axes and varied distances")
+        kind = (", with the noise estimated from the data at its upper confidence bound"
+                if noise_estimated else "")
         b.reasons.append(Reason(
             level, "precision",
-            f"predicted precision beyond {mm(t_lim)} / {deg(r_lim)} (one standard deviation): "
-            + ", ".join(items) + "; record more views of "
-            + ("this frame" if len(items) == 1 else "these frames")
-            + " with rotation about two axes and varied distances", tuple(named)))
+            f"predicted precision beyond {mm(t_lim)} / {deg(r_lim)} (one standard deviation"
+            f"{kind}): " + ", ".join(items) + "; " + todo, tuple(named)))
     rel = scale_rel_std(uncertainty, scale)
     if problem.unknown_scale and rel is not None and np.isfinite(rel):
         rel = rel * noise_factor(s)

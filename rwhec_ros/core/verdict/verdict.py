@@ -7,7 +7,9 @@ It combines, for a solution of a :class:`~rwhec_ros.core.problem.Problem`:
   the numeric check's null directions, undetermined components) are **not calibrated**;
 * the goodness of fit (:mod:`.fit`): the noise the residuals imply against the stated one,
   globally (chi-square test on the a-posteriori variance factor) and per edge (edges far beyond
-  the median edge are named);
+  the median edge are named); with the noise estimated from the data (:mod:`.noise_check`), a
+  stated noise compared with the estimate per noise group, and a camera far noisier than the
+  others named;
 * the scale check of a known-scale problem (:mod:`.scale_check`);
 * the precision of each frame (:mod:`.precision`, from the per-frame covariance of
   :mod:`rwhec_ros.core.analysis.uncertainty`);
@@ -35,12 +37,14 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
+from ..noise.words import short_summary
 from ..problem import Problem
 from ..result import CalibrationResult
 from .exclusion import exclusion_reasons
 from .fit import FitStatistics, goodness_of_fit
 from .focal_check import NOT_CHECKED, focal_checks, focal_reasons, focal_summary
 from .model import Builder, FrameVerdict, Reason, Verdict
+from .noise_check import noise_reasons, precision_factors, stated_scale
 from .options import VerdictOptions
 from .reasons import (
     all_determined,
@@ -74,6 +78,7 @@ def assess(
     reprojection: Mapping | None = None,
     intrinsics: Mapping | None = None,
     exclusion=None,
+    noise=None,
 ) -> Verdict:
     """The verdict of ``result``, the solution of ``problem``.
 
@@ -109,6 +114,11 @@ def assess(
         What :func:`~.exclusion.exclude_misfits` excluded before ``result`` was solved (its
         reasons, and the excluded tags not calibrated); given, a camera still on a flagged edge
         or target is not usable (the exclusion could not remove it).
+    noise : NoiseEstimate, optional
+        The noise per group estimated from the data, whose weights ``problem`` carries
+        (:func:`~rwhec_ros.core.noise.solve_with_noise`): the fit compares a stated noise with it
+        and the precision check uses its degrees of freedom (:mod:`.noise_check`); None: the
+        problem's noise as stated.
     """
     opts = options or VerdictOptions()
     xs = list(dict.fromkeys([*expected_x, *problem.x_names]))
@@ -122,7 +132,9 @@ def assess(
     missing_frames(b, problem, xs, ys, excluded or {})
     fit = None
     try:
-        fit = goodness_of_fit(problem, result, opts)
+        fit = goodness_of_fit(problem, result, opts,
+                              noise_estimated=noise is not None and noise.estimated,
+                              stated_scale=stated_scale(noise))
     except (ValueError, FloatingPointError) as exc:
         b.add("caution", "check_failed", f"the goodness of fit could not be computed ({exc})",
               why="fit not checked")
@@ -135,27 +147,31 @@ def assess(
     if scale_check is not None:
         scale_reason(b, scale_check, opts, fit)
     if fit is not None:
-        edge_reasons(b, fit, problem, opts, strict=exclusion is not None)
+        edge_reasons(b, fit, problem, opts, strict=exclusion is not None,
+                     noise_estimated=noise is not None and noise.estimated)
         fit_reasons(b, fit, opts, scale_check)
+    noise_reasons(b, noise, problem, opts)
     if uncertainty is None:
         uncertainty = _uncertainty(problem, result)
     if uncertainty is None:
         b.add("caution", "check_failed", "the uncertainty at the solution could not be "
               "computed, so the precision of the frames is unknown", why="precision unknown")
     precision_reasons(b, uncertainty, fit, opts, problem, pinned_frames(result),
-                      float(result.scale))
+                      float(result.scale), factors=precision_factors(noise, problem, opts),
+                      noise_estimated=noise is not None and noise.estimated)
     focal: dict | str = "off (verdict.focal_check false)"
     if opts.focal_check:
         focal = focal_checks(reprojection, intrinsics) or NOT_CHECKED
         if not isinstance(focal, str):
             focal_reasons(b, focal, opts)
     reprojection_reasons(b, reprojection, opts)
-    summary = _summary(result, fit, b)
+    summary = _summary(result, fit, b, noise)
     if not isinstance(focal, str) and focal_summary(focal, opts):
         summary += "; " + focal_summary(focal, opts)
     verdict = b.verdict(fit, scale_check, summary, opts)
     verdict.focal_check = focal
     verdict.exclusion = exclusion
+    verdict.noise = noise
     return verdict
 
 
@@ -177,11 +193,14 @@ def _uncertainty(problem: Problem, result: CalibrationResult):
         return None
 
 
-def _summary(result: CalibrationResult, fit: FitStatistics | None, b: Builder) -> str:
+def _summary(result: CalibrationResult, fit: FitStatistics | None, b: Builder,
+             noise=None) -> str:
     c = result.certificate
     parts = [f"certified globally optimal (rho_hat={c.suboptimality_bound:.2g})"
              if c.certified else f"not certified ({c.status.value})"]
-    if fit is not None and fit.testable:
+    if noise is not None and noise.estimated:
+        parts.append(short_summary(noise))
+    elif fit is not None and fit.testable:
         parts.append(f"the data fit {fit.noise_ratio_translation:.2g}x the stated translation "
                      f"noise and {fit.noise_ratio_rotation:.2g}x the rotation noise")
     known = [f for f in b.frames.values() if f.calibrated and np.isfinite(f.std_translation_m)
