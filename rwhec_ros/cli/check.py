@@ -80,7 +80,7 @@ def add_check_parser(sub, add_output, add_config) -> argparse.ArgumentParser:
                         "stop-and-go views (as samples) or a dataset.yaml")
     p.add_argument("--reference", type=Path, required=True, metavar="FILE",
                    help="the stored calibration: result.yaml, check.yaml, frames.yaml or a "
-                        "URDF/xacro with the calibrated frames as fixed joints")
+                        "URDF/xacro with the calibrated frames as fixed joints (required)")
     p.add_argument("--tolerance-mm", type=float, default=None,
                    help="accepted change of a camera's translation [mm] (default: the "
                         "configuration's check.tolerance_translation_m, else 2)")
