@@ -43,8 +43,8 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [
-            "calibrator = rwhec_ros.ros.node:main",
-            "rwhec_demo_sim = rwhec_ros.ros.sim_node:main",
+            "calibrator = rwhec_ros.ros.entry:calibrator",
+            "rwhec_demo_sim = rwhec_ros.ros.entry:demo_sim",
             "rwhec-calibrate = rwhec_ros.cli:main",
         ],
     },

@@ -150,13 +150,17 @@ def _base_record(inst: Instance, mode: str) -> dict:
 
 
 #: ``--mode`` values and their solver options: ``fast-sparse`` forces the sparse unreduced path of
-#: ``fast`` (issue 14) with no dense/SDP fallback, so that every certificate is the sparse one.
+#: ``fast`` (issue 14) with no dense/SDP fallback, so that every certificate is the sparse one;
+#: ``sdp-cvxpy`` and ``sdp-structured`` force the SDP's backend (``sdp`` takes the default).
 MODE_OPTIONS = {"fast": {"mode": "fast"}, "sdp": {"mode": "sdp"},
+                "sdp-cvxpy": {"mode": "sdp", "sdp_backend": "cvxpy"},
+                "sdp-structured": {"mode": "sdp", "sdp_backend": "structured"},
                 "fast-sparse": {"mode": "fast", "fast_form": "sparse", "fallback_to_sdp": False}}
 
 
 def _solve(inst: Instance, mode: str, rec: dict):
     """Run the product; fills status fields or the crash. Returns the result or None."""
+    from rwhec_ros.core.relaxation import SdpOptions
     from rwhec_ros.core.solve import SolveOptions, solve
 
     try:
@@ -167,7 +171,11 @@ def _solve(inst: Instance, mode: str, rec: dict):
         return None
     t0 = time.perf_counter()
     try:
-        res = solve(problem, SolveOptions(**MODE_OPTIONS[mode]))
+        opts = dict(MODE_OPTIONS[mode])
+        backend = opts.pop("sdp_backend", None)
+        if backend is not None:
+            opts["sdp"] = SdpOptions(backend=backend)
+        res = solve(problem, SolveOptions(**opts))
     except Exception as exc:
         rec.update(status="crash", certified=False, solve_s=time.perf_counter() - t0,
                    crash=f"{type(exc).__name__}: {exc}"[:300],

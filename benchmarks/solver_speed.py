@@ -297,6 +297,152 @@ def large_rigs(quick: bool, repeats: int, dense_max_frames: int, timeout: float)
     return rows
 
 
+# --- issue 40: the SDP path, cvxpy + Clarabel (old) vs the structured method (new) -----------
+
+#: SDP-backend rows: real data, the phase table's 1X1Y, 4X1Y, ``M x P [x tags per camera]``.
+SDP_BACKEND_CASES = ("real", "1X1Y", "4X1Y", "50x1", "1x50", "30x30x3")
+
+
+def _backend_problem(name: str, paper: Path = SHARED):
+    if name == "real":
+        from rwhec_ros.data.paper_csv import read_paper_csv
+
+        return read_paper_csv(paper, sigma=0.1, kappa=125.0, min_pairs=3)
+    if name in ("1X1Y", "4X1Y"):  # the phase table's instances (same seed, same draws)
+        rng = np.random.default_rng(1)
+        p11, _ = random_instance(rng, 1, 1, n_per_edge=100, sigma=0.01, kappa=125)
+        return p11 if name == "1X1Y" else random_instance(rng, 4, 1, n_per_edge=108, sigma=0.01,
+                                                           kappa=125)[0]
+    parts = [int(x) for x in name.split("x")]
+    M, P = parts[:2]
+    rng = np.random.default_rng(M * 100003 + P)
+    edges = random_camera_tag_graph(rng, M, P, parts[2]) if len(parts) > 2 else None
+    return random_instance(rng, M, P, edges=edges, n_per_edge=20, sigma=0.02, kappa=100)[0]
+
+
+def sdp_backend_row(name: str, backend: str, limit: float, paper: Path = SHARED) -> dict:
+    """One SDP solve of ``name`` with ``backend`` in this process (pinned to one core, Clarabel
+    single-threaded), after a warm-up solve of a small problem with the same backend."""
+    import json
+
+    opts = _sdp_options(limit)
+    opts.backend = backend
+    solve(random_instance(np.random.default_rng(0), 2, 1, n_per_edge=10, kappa=100)[0],
+          SolveOptions(mode="sdp", sdp=opts))  # warm-up
+    problem = _backend_problem(name, paper)
+    load = os.getloadavg()[0]
+    with one_core():
+        res = solve(problem, SolveOptions(mode="sdp", sdp=opts))
+    c = res.certificate
+    note = next((n for n in res.notes if n.startswith(("Clarabel:", "structured IPM:"))), "")
+    out = {"name": name, "backend": backend, "frames": problem.n_frames,
+           "used": next((n.split(": ")[1] for n in res.notes
+                         if n.startswith("SDP backend")), backend),
+           "form": next((n.split(": ")[1] for n in res.notes if n.startswith("SDP form")), ""),
+           "iterations": note.split(": ")[1].split(" iterations")[0] if note else "",
+           "solve": res.timing_s.get("solve", float("nan")),
+           "compile": res.timing_s.get("compile", 0.0), "total": res.timing_s["total"],
+           "status": c.status.value, "rho": c.suboptimality_bound, "p": c.primal_cost,
+           "load": load, "load_after": os.getloadavg()[0], "rss_peak": _rss_mb("VmHWM")}
+    print(json.dumps(out))
+    return out
+
+
+def _backend_subprocess(name: str, backend: str, limit: float, timeout: float,
+                        mem_gb: float, paper: Path) -> dict:
+    """:func:`sdp_backend_row` in a fresh process whose address space is capped at ``mem_gb``
+    (the cvxpy path of the 30 x 30 graph grew past 17 GB before it was stopped)."""
+    import json
+    import resource
+    import subprocess
+
+    lim = int(mem_gb * 2**30)
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--sdp-row", f"{name}:{backend}",
+           "--sdp-time-limit", str(limit), "--paper-data", str(paper)]
+    t0 = time.perf_counter()
+    try:
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout,
+                              preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS,
+                                                                    (lim, lim)))
+    except subprocess.TimeoutExpired:
+        return {"failed": f"not finished in {timeout:.0f} s"}
+    if done.returncode != 0:
+        tail = (done.stderr.strip().splitlines() or ["?"])[-1]
+        why = (f"out of memory (address space capped at {mem_gb:g} GB)" if "memory" in
+               done.stderr.lower() or "alloc" in tail else tail[:120])
+        return {"failed": f"{why} after {time.perf_counter() - t0:.0f} s"}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def sdp_backends(cases, limit: float, timeout: float, mem_gb: float,
+                 paper: Path) -> list[tuple[dict, dict]]:
+    print("## The SDP path: cvxpy + Clarabel vs. the structured method (issue 40)\n")
+    print("Mode `sdp` on each problem, old (`SdpOptions(backend=\"cvxpy\")`, the form `auto` "
+          "picks) and new (the default `backend=\"auto\"`) back to back, each in a fresh "
+          "process pinned to one core (BLAS and Clarabel single-threaded) after a warm-up "
+          f"solve, address space capped at {mem_gb:g} GB. 'solver' = `timing_s[\"solve\"]` "
+          "(Clarabel's solve time, or the structured method's iterations and polish); "
+          "'compile' = cvxpy's; 'total' = the whole `solve()`; 'load' = 1-minute load average "
+          "when the solve started (2 cores). Speed-up = old solver / new solver time.\n")
+    print("| problem | frames | load | old: form | old solver | old compile | old total | old "
+          "status | old rho_hat | new: backend | new solver | new total | new status | new "
+          "rho_hat | speed-up | \\|p_new - p_old\\| / p_old |")
+    print("|" + "---|" * 16)
+    rows = []
+    for name in cases:
+        old = _backend_subprocess(name, "cvxpy", limit, timeout, mem_gb, paper)
+        new = _backend_subprocess(name, "auto", limit, timeout, mem_gb, paper)
+        rows.append((old, new))
+        ref = new if "failed" not in new else old
+        cells = [name, str(ref.get("frames", "?")), f"{ref.get('load', float('nan')):.1f}"]
+        if "failed" in old:
+            cells += ["–", old["failed"], "–", "–", "–", "–"]
+        else:
+            cells += [f"{old['form']} ({old['iterations']} it)", _dur(old["solve"]),
+                      _dur(old["compile"]), _dur(old["total"]), old["status"],
+                      f"{old['rho']:.1e}"]
+        if "failed" in new:
+            cells += ["–", new["failed"], "–", "–", "–", "–", "–"]
+        else:
+            cells += [f"{new['used']} ({new['iterations']} it)", _dur(new["solve"]),
+                      _dur(new["total"]), new["status"], f"{new['rho']:.1e}"]
+            if "failed" in old:
+                cells += ["–", "–"]
+            else:
+                cells += [f"{old['solve'] / new['solve']:.1f}x",
+                          f"{abs(new['p'] - old['p']) / abs(old['p']):.1e}"]
+        print("| " + " | ".join(cells) + " |", flush=True)
+    print()
+    return rows
+
+
+def _backend_targets(rows) -> None:
+    """The issue-40 targets from the SDP-backend rows."""
+    print("| target (issue 40) | measured | verdict |")
+    print("|---|---|---|")
+    by = {old.get("name", new.get("name")): (old, new) for old, new in rows}
+    if "real" in by and "failed" not in by["real"][0] and "failed" not in by["real"][1]:
+        old, new = by["real"]
+        ok = new["solve"] < 1.0 and new["status"] == "certified_optimal"
+        print(f"| real 16 x 8 data: SDP solver time < 1 s, certified | {_dur(new['solve'])}, "
+              f"{new['status']} | {'met' if ok else '**MISSED**'} |")
+        ratio = old["solve"] / new["solve"]
+        print(f"| real 16 x 8 data: >= 15x faster than cvxpy + Clarabel in the same run | "
+              f"{ratio:.1f}x | {'met' if ratio >= 15 else '**MISSED**'} |")
+    both = {n: (o, w) for n, (o, w) in by.items() if "failed" not in o and "failed" not in w}
+    slower = [n for n, (o, w) in both.items() if w["used"] == "structured"
+              and w["solve"] > o["solve"] * 1.1]
+    same = [n for n, (o, w) in both.items() if w["used"] == "cvxpy"]
+    print(f"| no slower anywhere else (structured solver time <= 1.1 x old; rows where `auto` "
+          f"took cvxpy run the same code: {', '.join(same) or 'none'}) | slower: "
+          f"{', '.join(slower) or 'none'} | {'met' if not slower else '**MISSED**'} |")
+    differ = [n for n, (o, w) in both.items()
+              if o["status"] != w["status"] or abs(w["p"] - o["p"]) > 1e-6 * abs(o["p"])]
+    print(f"| same status and optimum (\\|p\\| within 1e-6) | differ: "
+          f"{', '.join(differ) or 'none'} | {'met' if not differ else '**MISSED**'} |")
+    print()
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="smaller scaling study, no real-data SDP")
@@ -310,9 +456,29 @@ def main(argv=None) -> int:
     ap.add_argument("--large-dense-max-frames", type=int, default=301)
     ap.add_argument("--large-timeout", type=float, default=3600.0)
     ap.add_argument("--large-only", action="store_true", help="only the large-rig rows")
+    ap.add_argument("--sdp-row", default=None, help="run one SDP-backend row (internal)")
+    ap.add_argument("--sdp-backends-only", action="store_true",
+                    help="only the SDP-backend table (issue 40)")
+    ap.add_argument("--sdp-row-timeout", type=float, default=1800.0)
+    ap.add_argument("--sdp-mem-gb", type=float, default=6.0)
+    ap.add_argument("--paper-data", type=Path, default=SHARED,
+                    help="the paper's real data (default: ../shared/data/paper_real_world)")
     args = ap.parse_args(argv)
     if args.large_row:
         large_row(args.large_row, args.form, args.repeats)
+        return 0
+    if args.sdp_row:
+        name, backend = args.sdp_row.split(":")
+        sdp_backend_row(name, backend, args.sdp_time_limit, args.paper_data)
+        return 0
+    if args.sdp_backends_only:
+        print(f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python "
+              f"{platform.python_version()}; run "
+              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}.\n")
+        cases = [c for c in SDP_BACKEND_CASES if c != "real" or args.paper_data.is_dir()]
+        rows = sdp_backends(cases, args.sdp_time_limit,
+                            args.sdp_row_timeout, args.sdp_mem_gb, args.paper_data)
+        _backend_targets(rows)
         return 0
     if args.large_only:
         print(f"Machine: {platform.machine()}, {os.cpu_count()} cores; run "

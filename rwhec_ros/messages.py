@@ -363,7 +363,8 @@ def diagnostic_rows(
         level, message = LEVEL_ERROR, "no measurement pairs yet"
     else:
         level = LEVEL_OK if ok else LEVEL_WARN
-        message = f"{verdict}; {summary}" if verdict else summary
+        # the verdict already counts the edges identifiable on their own: only the pairs added
+        message = f"{verdict}; {n_pairs} pairs" if verdict else summary
     values = [(str(k), str(v)) for k, v in sorted(counters.items())]
     if verdict:
         values.insert(0, ("identifiability", verdict))

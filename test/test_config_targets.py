@@ -128,3 +128,56 @@ def test_priors_may_name_a_board():
     p = with_targets(board=CHARUCO)
     p.update({"priors.frames": ["board"], "priors.axes": ["z"], "priors.values_m": [1.0]})
     assert CalibratorConfig.from_parameters(p).priors.entries == (("board", "z", 1.0),)
+
+
+# --- chessboards and circle grids ---------------------------------------------------------------
+CHESS = {"type": "chessboard", "cols": 9, "rows": 6, "square_size": 0.03}
+ORIGIN_GRID = {"type": "circles", "cols": 10, "rows": 10, "circle_spacing": 0.0254,
+               "origin_circle": True}
+ACIRCLES = {"type": "asymmetric_circles", "cols": 4, "rows": 11, "circle_spacing": 0.02,
+            "circle_diameter": 0.015}
+
+
+def test_chessboards_and_circle_grids_round_trip():
+    from rwhec_ros.vision.grids import ChessboardSpec, CircleGridSpec
+
+    c = CalibratorConfig.from_parameters(with_targets(cb=CHESS, dots=ORIGIN_GRID, ac=ACIRCLES))
+    cb, dots, ac = c.targets.specs
+    assert cb.board == ChessboardSpec(9, 6, 0.03) and cb.kind == "chessboard"
+    assert dots.board == CircleGridSpec(10, 10, 0.0254, origin_circle=True)
+    assert ac.board == CircleGridSpec(4, 11, 0.02, asymmetric=True, diameter=0.015)
+    assert (dots.kind, ac.kind) == ("circles", "asymmetric_circles")
+    assert cb.marker_ids() == () and not cb.has_markers
+    assert CalibratorConfig.from_parameters(c.to_parameters()) == c
+
+
+@pytest.mark.parametrize("targets,param,words", [
+    ({"cb": {**CHESS, "rows": 7}}, "targets.cb.cols",
+     "10 x 8 squares.*one odd and one even number of squares"),
+    ({"dots": {**ORIGIN_GRID, "origin_circle": False}}, "targets.dots.origin_circle",
+     "turned by 90 degrees.*origin_circle: true"),
+    ({"ac": {**ACIRCLES, "rows": 10}}, "targets.ac.rows", "odd number of rows"),
+    ({"ac": {**ACIRCLES, "circle_diameter": 0.03}}, "targets.ac.circle_diameter",
+     "smaller than the distance"),
+    ({"cb": {**CHESS, "spacing": 0.3}}, "targets.cb.spacing", "not a parameter of a 'chessboard'"),
+    ({"ac": {**ACIRCLES, "origin_circle": True}}, "targets.ac.origin_circle",
+     "not a parameter of a 'asymmetric_circles'"),
+    ({"cb": {"type": "chessboard", "cols": 9, "rows": 6}}, "targets.cb.square_size", "missing"),
+])
+def test_bad_grids_name_the_parameter_the_reason_and_the_fix(targets, param, words):
+    with pytest.raises(ValueError, match=rf"^{param}: .*{words}"):
+        CalibratorConfig.from_parameters(with_targets(**targets))
+
+
+def test_detection_gate_and_chessboard_refinement_are_checked():
+    p = minimal()
+    c = CalibratorConfig.from_parameters(p)
+    assert (c.detection.reprojection_gate_factor, c.detection.chessboard_refinement) == (4.0, "sb")
+    p.update({"detection.reprojection_gate_factor": 0.5})
+    with pytest.raises(ValueError, match=r"^detection.reprojection_gate_factor: must be finite "
+                                         r"and >= 1, got 0.5"):
+        CalibratorConfig.from_parameters(p)
+    p = minimal()
+    p["detection.chessboard_refinement"] = "classic"
+    with pytest.raises(ValueError, match=r"^detection.chessboard_refinement: must be one of"):
+        CalibratorConfig.from_parameters(p)

@@ -26,7 +26,8 @@ def test_round_robin_one_in_service_per_key_and_fifo():
     q.task_done(got[0])
     assert q.get(0) == ("a", "a1")  # oldest first
     stats = q.stats()
-    assert stats["a"] == {"received": 6, "dropped": 0, "dropped_expendable": 0, "processed": 1,
+    assert stats["a"] == {"received": 6, "dropped": 0, "dropped_expendable": 0,
+                          "dropped_memory": 0, "processed": 1,
                           "queued": 4}
     assert len(q) == 4
     with pytest.raises(KeyError):
@@ -179,3 +180,38 @@ def test_a_slow_expendable_predicate_does_not_hold_up_the_consumers():
     assert q.stats()["a"]["dropped"] == 0
     q.task_done(first)
     assert q.get(1.0) == ("a", "a1")
+
+
+def test_waiting_items_do_not_fill_a_keys_backlog_memory_bounds_them():
+    """Issue 39: images waiting for a late pose stream filled the 8 slots of their camera and
+    were dropped. Items that waited do not count as the backlog, even once ready (a late pose
+    stream catching up makes many ready at once); memory bounds every item, the oldest first."""
+    newest = {"t": 0}
+    drops = []
+    q = FairImageQueue(["a", "b"], 2, ready=lambda item: item[0] <= newest["t"],
+                       weight=lambda item: item[1], max_bytes=100,
+                       on_drop=lambda key, item, waiting: drops.append((key, item[0], waiting)))
+    for stamp in range(1, 9):  # 8 waiting items of 10 bytes on "a": 4x the backlog
+        assert q.put("a", (stamp, 10))
+    assert q.stats()["a"]["dropped"] == 0 and len(q) == 8 and q.nbytes == 80
+    newest["t"] = 20  # all ready now: still no backlog (they waited)
+    assert q.put("a", (9, 10)) and q.put("a", (10, 10))  # ready when put: a backlog of 2
+    assert q.stats()["a"]["dropped"] == 0
+    assert not q.put("a", (11, 10))  # the backlog is full: the key's oldest item goes
+    assert q.stats()["a"]["dropped"] == 1 and q.get(0) == ("a", (2, 10))
+    newest["t"] = 5  # items 6.. wait again (for this test's sake)
+    # memory: 40 bytes on "b" push the total past 100: the oldest items held go, any key
+    assert q.put("b", (1, 40))
+    assert drops == [("a", k, False) for k in (3, 4, 5)]  # the oldest held, ready ones
+    assert q.put("b", (2, 40))
+    assert drops[3:] == [("a", k, True) for k in (6, 7, 8, 9)]  # then waiting ones
+    s = q.stats()
+    assert (s["a"]["dropped_memory"], s["a"]["dropped"], s["b"]["dropped"]) == (7, 8, 0)
+    assert q.nbytes == 40 + 40 + 2 * 10
+    assert q.discard() == 4 and len(q) == 0 and q.nbytes == 0
+
+
+def test_without_ready_maxsize_still_bounds_every_item():
+    q = FairImageQueue(["a"], 2, weight=len, max_bytes=10**6)
+    assert q.put("a", "x") and q.put("a", "y") and not q.put("a", "z")
+    assert q.get(0) == ("a", "y") and q.nbytes == 1

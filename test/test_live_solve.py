@@ -69,7 +69,8 @@ class Rig:
             return np.zeros((SIZE, SIZE), np.uint8)
         return load
 
-    def detect(self, gray, intrinsics, predicted=None, only=None) -> TargetDetectionResult:
+    def detect(self, gray, intrinsics, predicted=None, only=None,
+               noise_history=()) -> TargetDetectionResult:
         """The interface of :meth:`TargetDetector.detect` (targets ``tag_<id>``)."""
         camera, A = self.local.current
         if camera not in self.visible:

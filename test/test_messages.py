@@ -271,6 +271,10 @@ def test_diagnostic_rows_levels():
     assert rows[0]["level"] == LEVEL_OK and rows[0]["message"].startswith("identifiable: 1")
     assert rows[0]["values"][0] == ("identifiability", "identifiable: 1 comp")
     assert rows[2]["level"] == LEVEL_WARN
+    # the verdict counts the edges identifiable on their own already: said once (issue 39)
+    verdict = "identifiable: 1 component(s), 3 frames, 1 of 2 edges identifiable on their own"
+    message = diagnostic_rows(edges, counters, identifiable=True, verdict=verdict)[0]["message"]
+    assert message.count("identifiable on their own") == 1 and message.endswith(" pairs")
     # the level is a small int that the node turns into the one-byte octet Jazzy requires
     assert bytes([rows[0]["level"]]) == b"\x00"
 

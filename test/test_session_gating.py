@@ -241,7 +241,7 @@ def test_a_skipped_image_is_never_decoded_and_a_waiting_one_is_gated_on_its_pose
     assert moved.calls == 1
     counts = session.camera_counters()["cam0"]
     assert counts == {"images": 4, "skipped_no_motion": 2, "detected": 2, "used": 2,
-                      "rejected": 0, "pairs_kept": 2}
+                      "rejected": 0, "no_pose": 0, "pairs_kept": 2}
     assert session.counters()["images_skipped_no_motion"] == 2
     # a decoder that fails is a bad image, counted, never raised
     def broken():

@@ -132,14 +132,24 @@ def test_render_with_boards_puts_each_board_at_its_tag_pose():
 
 
 def test_demo_board_rig_is_the_cli_demo_and_the_node_rig():
-    from rwhec_ros.simulation import DEMO_RIG_FRAME, DEMO_WORLD_FRAME, demo_board, demo_board_rig
+    from rwhec_ros.simulation import (
+        DEMO_GRID_KINDS,
+        DEMO_RIG_FRAME,
+        DEMO_WORLD_FRAME,
+        demo_board,
+        demo_board_rig,
+    )
 
     rig = demo_board_rig(["aprilgrid", "charuco"])
     assert rig.boards == {0: demo_board("aprilgrid", 0), 1: demo_board("charuco", 1)}
     assert list(rig.target_names()) == ["tag_2", "tag_3", "tag_4", "tag_5", "board_0", "board_1"]
     assert demo_board_rig([]).boards == {} and demo_board_rig().tag_ids == demo_rig().tag_ids
+    grids = demo_board_rig(list(DEMO_GRID_KINDS))
+    assert [b.kind for _, b in sorted(grids.boards.items())] == list(DEMO_GRID_KINDS)
+    assert list(grids.target_names()) == ["tag_3", "tag_4", "tag_5", "board_0", "board_1",
+                                          "board_2"]
     with pytest.raises(ValueError, match=r"boards\[1\]: must be one of \['aprilgrid', "
-                                         r"'charuco'\], got 'chess'"):
+                                         r"'charuco', 'chessboard', .*\], got 'chess'"):
         demo_board_rig(["aprilgrid", "chess"])
     with pytest.raises(ValueError, match="--board: 3 boards for 2 tag positions"):
         demo_board_rig(["charuco"] * 3, 2, 2, what="--board")

@@ -43,20 +43,31 @@ through rendering, detection, synchronisation and the solver, and compares with 
 Every solving subcommand prints the verdict first (``GOOD: ...``, ``CAUTION: <reason>``,
 ``UNUSABLE: <reason>``; :mod:`rwhec_ros.core.verdict`). Exit codes: 0 a usable result (verdict
 good or caution; files written); 2 bad input or output (the message names the file and line or
-the parameter); 3 no solution (not enough data, solver failure); 4 a result whose verdict is
-unusable (files written, do not use it); 130 interrupted (Ctrl-C; ``bag`` saved the data set
-collected so far).
+the parameter); 3 no solution (not enough data, the solver stopped with an error); 4 a result
+whose verdict is unusable (files written, do not use it); 130 interrupted (Ctrl-C), 143
+terminated (SIGTERM); 141 the output pipe closed. However a run ends, the pairs gathered are
+kept: the data set is written as soon as reading ends, before the solve, and an interrupted or
+failed run prints the ``rwhec-calibrate dataset ...`` command that resumes it
+(:mod:`.run`; ``docs/robustness.md``).
 
 Modules: :mod:`.parser` (options and help), :mod:`.common` (output rule, settings, solving),
+:mod:`.run` (a run's phases, the data set kept, interrupts),
 :mod:`.files` (``csv``, ``dataset``, ``report``), :mod:`.replay` (``bag``, ``demo``),
 :mod:`.samples` (``samples``), :mod:`.pose_list` (``poses``),
 :mod:`.main` (dispatch).
 """
 
-from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NO_SOLUTION, EXIT_OK, EXIT_UNUSABLE
+from .common import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_NO_SOLUTION,
+    EXIT_OK,
+    EXIT_TERMINATED,
+    EXIT_UNUSABLE,
+)
 from .main import main
 from .parser import build_parser
 from .replay import demo_parameters
 
 __all__ = ["main", "build_parser", "demo_parameters", "EXIT_OK", "EXIT_BAD_INPUT",
-           "EXIT_NO_SOLUTION", "EXIT_UNUSABLE", "EXIT_INTERRUPTED"]
+           "EXIT_NO_SOLUTION", "EXIT_UNUSABLE", "EXIT_INTERRUPTED", "EXIT_TERMINATED"]

@@ -211,10 +211,11 @@ def run_and_write(args: argparse.Namespace, say: Printer, problem, naming, confi
     return check_exit_code(report)
 
 
-def _finish_session(say: Printer, session, paths, *, force: bool, report: bool, inputs=(),
+def _finish_session(say: Printer, session, run, *, report: bool, inputs=(),
                     args: argparse.Namespace) -> tuple[int, None]:
     """In place of ``calibrate_session`` for ``bag`` and ``samples``: the check of the
-    session's pairs."""
+    session's pairs (written with the check's outputs; ``run``, the reading's
+    :class:`~rwhec_ros.cli.run.Run`, keeps them only when the reading is interrupted)."""
     from ..data.results import FrameNaming
     from ..session.bringup import session_problem
 
@@ -239,9 +240,8 @@ def cmd_check(args: argparse.Namespace, say: Printer) -> int:
     kind = input_kind(args.input)
     args.check_kind = kind
 
-    def finish(say_, session, paths, *, force, report, inputs=()):
-        return _finish_session(say_, session, paths, force=force, report=report,
-                               inputs=inputs, args=args)
+    def finish(say_, session, run, *, report, inputs=()):
+        return _finish_session(say_, session, run, report=report, inputs=inputs, args=args)
 
     args.finish = finish
     if kind == "bag":

@@ -31,7 +31,9 @@ __all__ = [
     "EXIT_MOVED",
     "EXIT_UNDECIDED",
     "EXIT_INTERRUPTED",
+    "EXIT_TERMINATED",
     "EXIT_PIPE_CLOSED",
+    "Terminated",
     "exit_code",
     "Interrupted",
     "PROG",
@@ -59,7 +61,7 @@ EXIT_OK = 0
 #: Bad input or output: unreadable or malformed files, invalid configuration, outputs that exist
 #: (without ``--force``) or cannot be written.
 EXIT_BAD_INPUT = 2
-#: No solution: not enough data.
+#: No solution: not enough data, or the solver stopped with an error (the data set is kept).
 EXIT_NO_SOLUTION = 3
 #: A solution was computed and written, but its verdict is ``unusable``: do not use it.
 EXIT_UNUSABLE = 4
@@ -67,8 +69,10 @@ EXIT_UNUSABLE = 4
 EXIT_MOVED = 5
 #: ``check``: not enough data yet to decide for some camera, none moved (record more).
 EXIT_UNDECIDED = 6
-#: Interrupted (Ctrl-C); ``bag`` saved the data set collected so far.
+#: Interrupted (Ctrl-C, SIGINT): 128 + 2; the pairs gathered are kept (``dataset.yaml``).
 EXIT_INTERRUPTED = 130
+#: Terminated (SIGTERM: ``timeout``, a closing terminal, systemd): 128 + 15; as Ctrl-C.
+EXIT_TERMINATED = 143
 #: The reader of the output went away (``| head``): 128 + SIGPIPE, as a shell reports it.
 EXIT_PIPE_CLOSED = 141
 
@@ -79,6 +83,8 @@ def exit_code(verdict) -> int:
 
 PROG = "rwhec-calibrate"
 MODES = ("fast", "sdp", "local")
+#: ``--sdp-backend`` values (``solver.sdp_backend``).
+SDP_BACKENDS = ("auto", "structured", "cvxpy")
 #: Output root when no configuration names one (its ``output.directory``): ``./rwhec_output``,
 #: :data:`rwhec_ros.session.paths.DEFAULT_OUTPUT` (a literal here: the session package is slow
 #: to import and ``--help`` should not wait for it).
@@ -90,11 +96,21 @@ class BadInput(Exception):
 
 
 class NoSolution(Exception):
-    """No solution (e.g. not enough data): the message is printed on stdout, exit code 3."""
+    """No solution (e.g. not enough data): one line on stderr, exit code 3."""
 
 
 class Interrupted(Exception):
-    """Ctrl-C after the command saved what it could (the message says where), exit code 130."""
+    """Ctrl-C or SIGTERM after the command kept what it could (the message says where); exit
+    ``code`` (130 or 143)."""
+
+    def __init__(self, message: str, code: int = EXIT_INTERRUPTED) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread by the CLI's handler: a ``KeyboardInterrupt`` (every
+    clean-up of Ctrl-C applies) that ends with exit code 143."""
 
 
 class Printer:
@@ -172,13 +188,15 @@ def check_positive(name: str, value: float) -> None:
 
 
 def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
-    """The flat parameters that ``--mode``, ``--min-pairs``, ``--robust``, ``--folds`` and
-    ``--no-guidance`` set (those given)."""
+    """The flat parameters that ``--mode``, ``--sdp-backend``, ``--min-pairs``, ``--robust``,
+    ``--folds``, ``--no-guidance`` and ``--no-refine`` set (those given)."""
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
     out: dict[str, Any] = {}
     if args.mode is not None:
         out["solver.mode"] = args.mode
+    if getattr(args, "sdp_backend", None) is not None:
+        out["solver.sdp_backend"] = args.sdp_backend
     if args.min_pairs is not None:
         out["solver.min_pairs"] = int(args.min_pairs)
     if args.robust:
@@ -190,6 +208,8 @@ def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["accuracy.cross_validation_folds"] = int(folds)
     if getattr(args, "no_guidance", False):
         out["accuracy.guidance"] = False
+    if getattr(args, "no_refine", False):
+        out["solver.refine"] = False
     return out
 
 
@@ -232,13 +252,20 @@ class SolveSettings:
     min_scale: float = 0.01
     folds: int = 5
     guidance: bool = True
+    sdp_backend: str = "auto"
+    refine: bool = True
 
     @staticmethod
     def resolve(args: argparse.Namespace, parameters: Mapping[str, Any]) -> SolveSettings:
-        from ..session.paths import plain_output_root
-
         p = {**dict(parameters), **solver_overrides(args)}
         p.update(prior_overrides(args, p))
+        return SolveSettings.from_parameters(p)
+
+    @staticmethod
+    def from_parameters(p: Mapping[str, Any]) -> SolveSettings:
+        """The settings of flat parameters (a configuration's, possibly partial)."""
+        from ..session.paths import plain_output_root
+
         priors = tuple(zip(p.get("priors.frames", ()), p.get("priors.axes", ()),
                            (float(x) for x in p.get("priors.values_m", ())), strict=False))
         return SolveSettings(mode=str(p.get("solver.mode", "fast")),
@@ -249,7 +276,26 @@ class SolveSettings:
                              unobservable_std_m=float(p.get("solver.unobservable_std_m", 1.0)),
                              min_scale=float(p.get("solver.min_scale", 0.01)),
                              folds=int(p.get("accuracy.cross_validation_folds", 5)),
-                             guidance=bool(p.get("accuracy.guidance", True)))
+                             guidance=bool(p.get("accuracy.guidance", True)),
+                             sdp_backend=str(p.get("solver.sdp_backend", "auto")),
+                             refine=bool(p.get("solver.refine", True)))
+
+    def resume_options(self, report: bool) -> list[str]:
+        """The command-line options that give ``dataset`` these settings (for the resume
+        command of :class:`~rwhec_ros.cli.run.Run`)."""
+        out = ["--mode", self.mode, "--min-pairs", str(self.min_pairs)]
+        if self.robust:
+            out.append("--robust")
+        for f, a, x in self.priors:
+            out += ["--prior", f"{f}.{a}={x!r}"]
+        out += ["--folds", str(self.folds)]
+        if not self.guidance:
+            out.append("--no-guidance")
+        if not self.refine:
+            out.append("--no-refine")
+        if report:
+            out.append("--report")
+        return out
 
     def parameters(self) -> dict[str, Any]:
         """The ``solver.*``, ``priors.*`` and ``accuracy.*`` parameters of these settings."""
@@ -257,6 +303,7 @@ class SolveSettings:
                 "solver.reject_outliers": self.robust,
                 "solver.unobservable_std_m": self.unobservable_std_m,
                 "solver.min_scale": self.min_scale,
+                "solver.sdp_backend": self.sdp_backend,
                 "priors.frames": [f for f, _, _ in self.priors],
                 "priors.axes": [a for _, a, _ in self.priors],
                 "priors.values_m": [x for _, _, x in self.priors],
@@ -313,21 +360,51 @@ def output_dir(args: argparse.Namespace) -> Path | None:
     return d
 
 
-def output_paths(args: argparse.Namespace, *, report: bool):
+def output_paths(args: argparse.Namespace, *, report: bool, root: str | Path | None = None):
     """The files of ``-o DIR`` (None without ``-o``), checked before any work: existing ones
-    (the report included, ``report`` or not) are refused unless ``--force``."""
+    (the report included, ``report`` or not) are refused unless ``--force``, and the
+    directory (without ``-o``: ``root``, the output root, when given) must be writable with
+    room for the outputs (:func:`check_output_room`)."""
     from ..data.results import session_output_paths
 
     d = output_dir(args)
     if d is None:
+        if root is not None:
+            check_output_room(Path(root), report, "output.directory (or -o DIR)")
         return None
     paths = session_output_paths(d)
     # the report files too, with or without --report: a new result must not sit beside an older
-    # report (with --force and without --report they are removed once the result is written)
+    # report (with --force they are removed with every other file of the earlier run)
     targets = [paths.result, paths.launch, paths.dataset, paths.dataset.with_suffix(".npz"),
                paths.report_png, paths.report_html, paths.urdf, paths.frames]
     refuse_existing(targets, args.force)
+    check_output_room(d, report, "-o/--output")
     return paths
+
+
+#: Bytes a run's outputs need at least (result, launch file, URDF, frames YAML of a small rig
+#: and a few hundred pairs inline: ~200 KB measured on the demo bag), checked before any work.
+BASE_OUTPUT_BYTES = 256 * 1024
+#: The report's PNG and HTML page (~1-2 MB each on the paper's data), with ``--report``.
+REPORT_BYTES = 4 * 1024 * 1024
+
+
+def expected_output_bytes(report: bool) -> int:
+    """What the free-space check before any work asks for (:data:`BASE_OUTPUT_BYTES`, plus
+    :data:`REPORT_BYTES` with ``--report``)."""
+    return BASE_OUTPUT_BYTES + (REPORT_BYTES if report else 0)
+
+
+def check_output_room(directory: Path, report: bool, option: str) -> None:
+    """``BadInput`` when ``directory`` cannot receive the outputs (not writable, or less free
+    space than :func:`expected_output_bytes`), naming ``option``."""
+    from ..data.atomic import check_room
+
+    why = check_room(directory, expected_output_bytes(report))
+    if why:
+        fix = ("free some space or give another directory with -o" if "free on its" in why
+               else "give a writable directory with -o")
+        raise BadInput(f"{option}: cannot write the outputs into {directory}: {why}; {fix}")
 
 
 def write_report(say: Printer, doc: dict, problem, png: Path, html: Path, ident=None) -> None:
@@ -360,38 +437,35 @@ def solve_and_write(
     problem,
     dataset,
     naming,
-    paths,
+    run,
     settings: SolveSettings,
     *,
     excluded: dict[str, str],
     config: dict[str, Any],
     source: dict[str, Any],
-    force: bool,
     report: bool,
     verdict_config=None,
     publish_unusable: bool = False,
 ) -> int:
     """Solve ``problem``, assess it and write the outputs as the session does (``csv`` and
-    ``dataset``); ``paths`` None: a new directory under ``settings.output_root``. The verdict's
-    thresholds come from ``verdict_config`` (a configuration's ``verdict`` section, else the
-    defaults); the launch file holds the usable frames only unless ``publish_unusable``."""
+    ``dataset``) into the directory of ``run`` (:class:`~rwhec_ros.cli.run.Run`), which kept
+    ``dataset`` already. The verdict's thresholds come from ``verdict_config`` (a
+    configuration's ``verdict`` section, else the defaults); the launch file holds the usable
+    frames only unless ``publish_unusable``."""
     from ..data.corners import corner_data
-    from ..data.results import (
-        dump_document,
-        new_output_dir,
-        result_document,
-        session_output_paths,
-        write_outputs,
-    )
+    from ..data.fingerprint import dataset_fingerprint
+    from ..data.results import dump_document, result_document, write_outputs
     from ..session import static_transforms_launch, summary
     from ..session.accuracy import AccuracyOptions
     from ..session.outputs import description_texts, launch_header, publishable
-    from ..session.solving import solve_and_assess, verdict_options
+    from ..session.solving import solve_and_assess, solver_alternatives, verdict_options
 
     frames = list(dataset.y_names) + list(dataset.x_names)
     for f, a, x in settings.priors:
         if f not in frames:
-            raise BadInput(f"prior {f}.{a}={x:g}: no frame {f!r} in the data; frames: {frames}")
+            raise BadInput(f"--prior {f}.{a}={x:g}: no frame {f!r} in the data; frames: "
+                           f"{frames}")
+    run.enter("solving")
     say.progress(f"solving: {problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
                  f"{settings.mode}" + (", outlier rejection" if settings.robust else ""))
     cam_carrier = next((naming.frames[n][0] for n in naming.y_names if n in naming.frames), "")
@@ -400,47 +474,67 @@ def solve_and_write(
         solved = solve_and_assess(
             problem, mode=settings.mode, reject_outliers=settings.robust,
             priors=settings.priors, unobservable_std_m=settings.unobservable_std_m,
-            min_scale=settings.min_scale, thresholds=verdict_options(verdict_config),
+            min_scale=settings.min_scale, sdp_backend=settings.sdp_backend,
+            thresholds=verdict_options(verdict_config),
             expected_x=naming.x_names, expected_y=naming.y_names, excluded=excluded,
             carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
             accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,
                                      moving=_moving(config)),
-            corners=corner_data(dataset))
+            corners=corner_data(dataset), on_phase=run.enter, refine=settings.refine)
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
-        say(f"no solution: the solver failed ({type(exc).__name__}: {exc}); try --mode sdp, "
-            "or --robust if some pairs may be outliers")
-        return EXIT_NO_SOLUTION
+        raise NoSolution(
+            f"the solver stopped with an error in mode {settings.mode} ({type(exc).__name__}: "
+            f"{str(exc).split('. ')[0]}); "
+            + solver_alternatives(settings.mode, settings.robust)
+            + _kept(run)) from None
     result, verdict = solved.result, solved.verdict
     excluded.update(solved.dropped)
     ident = solved.identifiability
     doc = result_document(result, naming, excluded=excluded,
                           identifiability=solved.identifiability_dict, config=config,
                           source=source, verdict=verdict, accuracy=solved.accuracy,
-                          rejected_pairs=solved.rejected_pairs)
+                          rejected_pairs=solved.rejected_pairs,
+                          fingerprint=dataset_fingerprint(dataset))
     names = list(result.y_names) + list(result.x_names)
     transforms, left_out = publishable(naming.transforms(result), names, verdict,
                                        publish_unusable=publish_unusable)
     header = launch_header(result, verdict, left_out,
                            f"from {source.get('type', '?')} {source.get('path', '')}")
     launch = static_transforms_launch(transforms, header=header)
-    urdf, frames = description_texts(transforms, header)
+    urdf, frames_text = description_texts(transforms, header)
+    run.enter("writing")
     try:
-        if paths is None:
-            paths = session_output_paths(new_output_dir(settings.output_root))
-        files = write_outputs(paths, result_yaml=dump_document(doc),
-                              launch_text=launch, dataset=dataset, force=force,
-                              urdf_text=urdf, frames_text=frames)
-        if not report:
-            remove_stale_reports(say, paths)
+        paths = run.output_paths()
+        # the data set is on disk already (Run.keep): the rest, result.yaml last
+        files = write_outputs(paths, result_yaml=dump_document(doc), launch_text=launch,
+                              force=True, urdf_text=urdf, frames_text=frames_text)
     except OSError as exc:
-        if isinstance(exc, FileExistsError) and not exc.strerror:
-            raise
-        raise BadInput(f"cannot write the outputs: {describe_os_error(exc)}") from None
+        where = "" if run.paths is None else f" into {run.paths.result.parent}"
+        raise BadInput(f"cannot write the outputs{where}: {describe_os_error(exc)}"
+                       + _kept(run)) from None
+    files.update(_kept_files(run, dataset))
+    if not report:
+        remove_stale_reports(say, paths)
     say.summary(summary(result, solved.problem, excluded, naming, verdict, solved.accuracy))
     say.files(files)
     if report:
         write_report(say, doc, solved.problem, paths.report_png, paths.report_html, ident)
     return exit_code(verdict)
+
+
+def _kept(run) -> str:
+    """``; the N pairs gathered are in ...; resume with: ...`` for an error message."""
+    words = run.kept_words()
+    return f"; {words}" if words else ""
+
+
+def _kept_files(run, dataset) -> dict[str, str]:
+    if run.kept is None:
+        return {}
+    files = {"dataset": str(run.kept)}
+    if dataset.writes_npz():
+        files["dataset_arrays"] = str(run.kept.with_suffix(".npz"))
+    return files
 
 
 def _moving(parameters: Mapping[str, Any]) -> str:
@@ -451,25 +545,41 @@ def _moving(parameters: Mapping[str, Any]) -> str:
     return "x" if tag and not cam else "y"
 
 
-def calibrate_session(say: Printer, session, paths, *, force: bool, report: bool,
+def calibrate_session(say: Printer, session, run, *, report: bool,
                       inputs: Sequence[str] = ()) -> tuple[int, Any]:
-    """``session.calibrate()`` into ``paths`` (None: the session's new directory), printed: the
-    summary (the verdict first), then the lines ``inputs`` (what was read), then the files; the
-    report from the written data set and the result (``bag`` and ``demo``)."""
+    """``session.calibrate()`` into the directory of ``run`` (:class:`~rwhec_ros.cli.run.Run`;
+    the pairs are kept there first), printed: the summary (the verdict first), then the lines
+    ``inputs`` (what was read), then the files; the report from the written data set and the
+    result (``bag`` and ``demo``). No solution or outputs that cannot be written: one line
+    (:class:`NoSolution`, :class:`BadInput`) naming the data set kept and how to resume."""
     from ..data.dataset import Dataset
     from ..data.results import session_output_paths, solved_pairs
+    from ..session.outcomes import too_few_pairs_words
 
     solver = session.config.solver
+    run.keep(session.dataset())
+    run.enter("solving")
     say.progress(f"solving: {session.counters().get('pairs_kept', 0)} pairs kept, mode "
                  f"{solver.mode}" + (", outlier rejection" if solver.reject_outliers else ""))
-    outcome = session.calibrate(None if paths is None else paths.result.parent, force=force)
+    out = None if run.paths is None else run.paths.result.parent
+    outcome = session.calibrate(out, force=True, on_phase=run.enter)
+    if not outcome.success:
+        for line in inputs:  # what was read (stdout), the reason on stderr
+            say(line)
+        counts = {(r["x"], r["y"]): r["pairs"] for r in session.diagnostics()}
+        why = outcome.message
+        if counts and outcome.result is None and why.startswith("not enough data"):
+            why = too_few_pairs_words(counts, solver.min_pairs, "--min-pairs")
+        elif why.startswith("the solver stopped"):
+            why = why.replace("solver.mode", "--mode").replace("solver.reject_outliers",
+                                                               "--robust")
+        raise NoSolution(why.replace("; all data kept:", ";") + _kept(run))
+    if outcome.write_error:  # nothing printed as if it had been written
+        where = "" if run.paths is None else f" into {run.paths.result.parent}"
+        raise BadInput(f"cannot write the outputs{where}: {outcome.write_error}" + _kept(run))
     say.summary(outcome.message)
     for line in inputs:
         say(line)
-    if not outcome.success:
-        return EXIT_NO_SOLUTION, outcome
-    if not outcome.files:  # the summary says why (WRITING THE OUTPUTS FAILED: ...)
-        return EXIT_BAD_INPUT, outcome
     say.files(outcome.files)
     if not report and "result" in outcome.files:
         remove_stale_reports(say, session_output_paths(Path(outcome.files["result"]).parent))

@@ -14,6 +14,7 @@ from .common import (
     NoSolution,
     Printer,
     SolveSettings,
+    check_output_room,
     check_positive,
     config_from_parameters,
     output_dir,
@@ -23,6 +24,7 @@ from .common import (
     solve_and_write,
     write_report,
 )
+from .run import Run
 
 __all__ = ["cmd_csv", "cmd_dataset", "cmd_report"]
 
@@ -54,15 +56,40 @@ def verdict_settings(config) -> dict[str, Any]:
             "publish_unusable": config.output.publish_unusable}
 
 
-def _problem(data, min_pairs: int):
+def _problem(data, min_pairs: int, run=None):
     """The data set's problem and the edges below ``min_pairs`` left out (``excluded``);
-    :class:`~.common.NoSolution` when no edge is left."""
+    :class:`~.common.NoSolution` when no edge is left (the pairs per edge, the option to change
+    with its value, and the data set kept)."""
+    from ..session.outcomes import too_few_pairs_words
+
     excluded = {f"({e.x}, {e.y})": f"{e.n} pairs < min_pairs={min_pairs}"
                 for e in data.edges if e.n < min_pairs}
     try:
         return data.to_problem(min_pairs=min_pairs), excluded
-    except ValueError as exc:
-        raise NoSolution(f"not enough data: {exc}") from None
+    except ValueError:
+        words = too_few_pairs_words({(e.x, e.y): e.n for e in data.edges}, min_pairs,
+                                    "--min-pairs")
+        kept = "" if run is None or not run.kept_words() else f"; {run.kept_words()}"
+        raise NoSolution(words + kept) from None
+
+
+def check_fingerprint(say: Printer, command: str, doc: dict, result: Path, data,
+                      data_path: Path) -> None:
+    """``BadInput`` naming both files when the result ``doc`` (read from ``result``) records
+    the fingerprint of another data set than ``data`` (read from ``data_path``); a result
+    without one (written before fingerprints existed) is accepted with a warning."""
+    from ..data.fingerprint import FINGERPRINT_KEY, fingerprint_mismatch
+
+    recorded = doc.get(FINGERPRINT_KEY)
+    if not isinstance(recorded, dict):
+        say.warning(command, f"{result} records no data set fingerprint (written by an older "
+                    f"version): {data_path} is assumed to be the data set it was solved from")
+        return
+    words = fingerprint_mismatch(recorded, data)
+    if words:
+        raise BadInput(f"{result} was not solved from {data_path}: {words}; give the data set "
+                       "of that result with --dataset, or solve this data set again with "
+                       "rwhec-calibrate dataset")
 
 
 def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
@@ -81,37 +108,55 @@ def cmd_csv(args: argparse.Namespace, say: Printer) -> int:
     camera_carrier = args.camera_carrier or (config.camera_carrier.frame if config else "rig")
     tag_carrier = args.tag_carrier or (config.tag_carrier.frame if config else "world")
     check_carriers(camera_carrier, tag_carrier)
-    paths = output_paths(args, report=args.report)  # refuse early, before any work
-    # all edges first (min_pairs=1), so that the edges left out can be reported
-    everything = read_paper_csv(args.directory, sigma=sigma, kappa=kappa, min_pairs=1,
-                                unknown_scale=unknown_scale)
-    naming = FrameNaming.from_carriers(
-        everything.x_names, everything.y_names, camera_carrier=camera_carrier,
-        tag_carrier=tag_carrier, suffix=config.output.frame_suffix if config else "_calibrated")
-    source = {"type": "paper_csv", "path": str(args.directory)}
-    carriers = {n: p for n, (p, _) in naming.frames.items()}
-    dataset = Dataset.from_problem(everything, metadata={"source": source}, carriers=carriers)
-    problem, excluded = _problem(dataset, settings.min_pairs)
-    used = {
-        "camera_carrier.frame": camera_carrier,
-        "tag_carrier.frame": tag_carrier,
-        "tags.unknown_scale": unknown_scale,
-        "noise.sigma": float(sigma),
-        "noise.kappa": float(kappa),
-        **settings.parameters(),
-    }
-    return solve_and_write(say, problem, dataset, naming, paths, settings, excluded=excluded,
-                           config=used, source=source, force=args.force, report=args.report,
-                           **verdict_settings(config))
+    # refuse early, before any work
+    paths = output_paths(args, report=args.report, root=settings.output_root)
+    run = Run("csv", say, paths, settings.output_root, force=args.force,
+              resume_options=settings.resume_options(args.report))
+    try:
+        run.enter("reading")
+        # all edges first (min_pairs=1), so that the edges left out can be reported
+        everything = read_paper_csv(args.directory, sigma=sigma, kappa=kappa, min_pairs=1,
+                                    unknown_scale=unknown_scale)
+        naming = FrameNaming.from_carriers(
+            everything.x_names, everything.y_names, camera_carrier=camera_carrier,
+            tag_carrier=tag_carrier,
+            suffix=config.output.frame_suffix if config else "_calibrated")
+        source = {"type": "paper_csv", "path": str(args.directory)}
+        carriers = {n: p for n, (p, _) in naming.frames.items()}
+        dataset = Dataset.from_problem(everything, metadata={"source": source},
+                                       carriers=carriers)
+        run.keep(dataset)
+        problem, excluded = _problem(dataset, settings.min_pairs, run)
+        used = {
+            "camera_carrier.frame": camera_carrier,
+            "tag_carrier.frame": tag_carrier,
+            "tags.unknown_scale": unknown_scale,
+            "noise.sigma": float(sigma),
+            "noise.kappa": float(kappa),
+            **settings.parameters(),
+        }
+        return solve_and_write(say, problem, dataset, naming, run, settings,
+                               excluded=excluded, config=used, source=source,
+                               report=args.report, **verdict_settings(config))
+    except KeyboardInterrupt as exc:
+        raise run.interrupted(exc) from None
 
 
 def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
     from ..data.dataset import Dataset
-    from ..data.results import FrameNaming
+    from ..data.results import FrameNaming, load_result
 
     config = read_config(args)
-    paths = output_paths(args, report=args.report)  # refuse early, before any work
+    output_paths(args, report=args.report)  # refuse early, before any work
     data = Dataset.load(args.file)
+    beside = Path(args.file).parent / "result.yaml"
+    if beside.is_file() and beside != Path(args.file):
+        try:
+            doc = load_result(beside)
+        except ValueError:
+            doc = None
+        if doc is not None and isinstance(doc.get("dataset_fingerprint"), dict):
+            check_fingerprint(say, "dataset", doc, beside, data, Path(args.file))
     if config is None:
         params = dict(data.metadata.get("config") or {})
         if params:
@@ -119,6 +164,7 @@ def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
     else:
         params = config.to_parameters()
     settings = SolveSettings.resolve(args, params)
+    paths = output_paths(args, report=args.report, root=settings.output_root)
     if config is not None:
         naming = _with_carriers(FrameNaming.from_config(config), args)
     else:
@@ -134,10 +180,20 @@ def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
     for cam in cams:
         for tag in tags:
             check_carriers(cam, tag)
-    problem, excluded = _problem(data, settings.min_pairs)
-    return solve_and_write(say, problem, data, naming, paths, settings, excluded=excluded,
-                           config=params, source={"type": "dataset", "path": str(args.file)},
-                           force=args.force, report=args.report, **verdict_settings(config))
+    carrier_options = [o for flag, v in (("--camera-carrier", args.camera_carrier),
+                                         ("--tag-carrier", args.tag_carrier))
+                       if v is not None for o in (flag, v)]
+    run = Run("dataset", say, paths, settings.output_root, force=args.force,
+              resume_options=settings.resume_options(args.report) + carrier_options)
+    try:
+        run.enter("reading")  # read already: the pause is for the tests of every phase
+        run.keep(data)
+        problem, excluded = _problem(data, settings.min_pairs, run)
+        return solve_and_write(say, problem, data, naming, run, settings, excluded=excluded,
+                               config=params, source={"type": "dataset", "path": str(args.file)},
+                               report=args.report, **verdict_settings(config))
+    except KeyboardInterrupt as exc:
+        raise run.interrupted(exc) from None
 
 
 def cmd_report(args: argparse.Namespace, say: Printer) -> int:
@@ -150,12 +206,20 @@ def cmd_report(args: argparse.Namespace, say: Printer) -> int:
               else output_paths(args.result))
     data_path = args.dataset or beside.dataset
     if not data_path.exists():
-        raise BadInput(f"{data_path}: no data set (give it with --dataset)")
+        raise BadInput(f"{data_path}: no data set beside {args.result} (give it with "
+                       "--dataset FILE)")
     out = output_dir(args)
     target = beside if out is None else session_output_paths(out)
     refuse_existing([target.report_png, target.report_html], args.force)
+    check_output_room(target.report_png.parent, True, "-o/--output")
+    data = Dataset.load(data_path)
+    check_fingerprint(say, "report", doc, args.result, data, data_path)
     min_pairs = int((doc.get("config") or {}).get("solver.min_pairs", 1))
-    problem = Dataset.load(data_path).to_problem(min_pairs=min_pairs)
+    try:
+        problem = data.to_problem(min_pairs=min_pairs)
+    except ValueError:
+        raise BadInput(f"{args.result} does not fit the data set {data_path}: no edge has "
+                       f"the result's solver.min_pairs={min_pairs} pairs") from None
     try:  # the pairs the result was solved on (without the outliers it rejected)
         problem = solved_pairs(doc, problem)
     except ValueError as exc:

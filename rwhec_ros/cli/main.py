@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -16,11 +17,13 @@ from .common import (
     EXIT_INTERRUPTED,
     EXIT_NO_SOLUTION,
     EXIT_PIPE_CLOSED,
+    EXIT_TERMINATED,
     PROG,
     BadInput,
     Interrupted,
     NoSolution,
     Printer,
+    Terminated,
 )
 from .files import cmd_csv, cmd_dataset, cmd_report
 from .parser import build_parser
@@ -49,9 +52,11 @@ def main(argv: Sequence[str] | None = None, *, stdout: TextIO | None = None,
     Bad input (unreadable or malformed files, invalid configuration, existing outputs without
     ``--force``, outputs that cannot be written) is reported on stderr as
     ``rwhec-calibrate <command>: error: <message>`` in words with exit code 2, never a
-    traceback. Ctrl-C ends with one line (exit code 130; ``bag`` first saves the data set
-    collected so far); a closed output pipe (``| head``) ends quietly (141). Python warnings of
-    the libraries are printed once each as ``rwhec-calibrate <command>: note: <message>``.
+    traceback. Ctrl-C ends with one line naming the phase and the data set kept (exit code 130;
+    :mod:`.run`), SIGTERM the same with exit code 143; a closed output pipe (``| head``) ends
+    quietly (141). No solution (not enough data, a solver error) is one line on stderr (3).
+    Python warnings of the libraries are printed once each as
+    ``rwhec-calibrate <command>: note: <message>``.
     """
     from ..allocator import retain_freed_memory
 
@@ -72,13 +77,17 @@ def main(argv: Sequence[str] | None = None, *, stdout: TextIO | None = None,
             seen.add(text)
             print(f"{PROG} {args.command}: note: {text}", file=err)
 
+    previous = _terminate_as_interrupt()
     with warnings.catch_warnings():
         warnings.simplefilter("default")
+        # a library's deprecations are for its callers' developers, not for the user
+        warnings.simplefilter("ignore", DeprecationWarning)
+        warnings.simplefilter("ignore", PendingDeprecationWarning)
         warnings.showwarning = note
         try:
             return _COMMANDS[args.command](args, say)
         except NoSolution as exc:
-            say(f"no solution: {exc}")
+            print(f"{PROG} {args.command}: no solution: {exc}", file=err)
             return EXIT_NO_SOLUTION
         except (BadInput, ValueError, FileExistsError) as exc:
             print(f"{PROG} {args.command}: error: {exc}", file=err)
@@ -89,11 +98,38 @@ def main(argv: Sequence[str] | None = None, *, stdout: TextIO | None = None,
         except OSError as exc:
             print(f"{PROG} {args.command}: error: {describe_os_error(exc)}", file=err)
             return EXIT_BAD_INPUT
-        except (KeyboardInterrupt, Interrupted) as exc:
-            text = str(exc) if isinstance(exc, Interrupted) else ""
-            print(f"{PROG} {args.command}: interrupted" + (f"; {text}" if text else ""),
-                  file=err)
-            return EXIT_INTERRUPTED
+        except Interrupted as exc:
+            print(f"{PROG} {args.command}: {exc}", file=err)
+            return exc.code
+        except KeyboardInterrupt as exc:  # before a run started: nothing gathered
+            terminated = isinstance(exc, Terminated)
+            print(f"{PROG} {args.command}: interrupted "
+                  f"({'SIGTERM' if terminated else 'SIGINT'}) while starting; nothing was "
+                  "gathered yet, nothing written", file=err)
+            return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+        finally:
+            _restore(previous)
+
+
+def _terminate_as_interrupt():
+    """SIGTERM (``timeout``, a closing terminal, systemd) handled like Ctrl-C: raised as
+    :class:`~.common.Terminated` in the main thread; returns the handler it replaced (None when
+    it cannot be set: not the main thread)."""
+    def handler(signum, frame):
+        raise Terminated()
+
+    try:
+        return signal.signal(signal.SIGTERM, handler)
+    except (ValueError, OSError):
+        return None
+
+
+def _restore(previous) -> None:
+    if previous is not None:
+        try:
+            signal.signal(signal.SIGTERM, previous)
+        except (ValueError, OSError):
+            pass
 
 
 def _quiet_stdout(out: TextIO) -> None:

@@ -3,7 +3,7 @@
 Every solving subcommand (``csv``, ``bag``, ``samples``, ``poses``, ``dataset``, ``demo``) takes
 the same options with the same meaning: ``-o/--output DIR``, ``--force``, ``--config FILE``
 (``--node-name``), ``--mode``, ``--min-pairs``, ``--robust``, ``--prior``, ``--folds``,
-``--no-guidance``, ``--report`` and ``-q/--quiet``; ``report`` takes ``-o`` and
+``--no-refine``, ``--no-guidance``, ``--report`` and ``-q/--quiet``; ``report`` takes ``-o`` and
 ``--force``. Help texts end with ``(default: ...)``; a default that comes from the configuration
 reads "the configuration's <parameter>, else <value>".
 """
@@ -15,7 +15,7 @@ from pathlib import Path
 
 from .. import __version__
 from .check import add_check_parser
-from .common import DEFAULT_OUTPUT, MODES, PROG
+from .common import DEFAULT_OUTPUT, MODES, PROG, SDP_BACKENDS
 
 __all__ = ["build_parser"]
 
@@ -47,6 +47,10 @@ def _add_config(p: argparse.ArgumentParser, help_text: str, *, required: bool = 
 def _add_solver(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=MODES, default=None,
                    help="solver mode (default: the configuration's solver.mode, else fast)")
+    p.add_argument("--sdp-backend", choices=SDP_BACKENDS, default=None,
+                   help="the SDP's solver (mode sdp, and fast when its certificate is "
+                        "inconclusive): structured, cvxpy (cvxpy + Clarabel) or auto (default: "
+                        "the configuration's solver.sdp_backend, else auto)")
     p.add_argument("--min-pairs", type=int, default=None, metavar="N",
                    help="leave out edges with fewer pairs (default: the configuration's "
                         "solver.min_pairs, else 3)")
@@ -62,6 +66,9 @@ def _add_solver(p: argparse.ArgumentParser) -> None:
                    help="k-fold cross-validation over the pairs, per edge held-out vs in-sample "
                         "residuals; 0: off (default: the configuration's "
                         "accuracy.cross_validation_folds, else 5)")
+    p.add_argument("--no-refine", action="store_true",
+                   help="publish the certified pose-level estimate without the corner-level "
+                        "refinement (default: the configuration's solver.refine, else on)")
     p.add_argument("--no-guidance", action="store_true",
                    help="do not compute the next-motion guidance (default: the configuration's "
                         "accuracy.guidance, else on)")
@@ -115,8 +122,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="The first line printed is the verdict: GOOD, CAUTION or UNUSABLE, with the "
                "reason. Exit codes: 0 usable result (good or caution), 2 bad input or output, "
                "3 no solution, 4 result unusable (written, do not use it), 5 check: a camera "
-               "moved, 6 check: not enough data yet, 130 interrupted, 141 output pipe closed "
-               "(e.g. | head).",
+               "moved, 6 check: not enough data yet, 130 interrupted (Ctrl-C), 143 terminated "
+               "(SIGTERM), 141 output pipe closed (e.g. | head); the pairs gathered are kept in "
+               "dataset.yaml however a run ends.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -190,14 +198,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cameras on the rig (default: %(default)s)")
     p.add_argument("--tags", type=int, default=6, help="tags in the room (default: %(default)s)")
     p.add_argument("--board", action="append", default=[], metavar="KIND",
-                   choices=("aprilgrid", "charuco"),
+                   choices=("aprilgrid", "charuco", "chessboard", "circles",
+                            "asymmetric_circles"),
                    help="put a board of this kind (aprilgrid: 3 x 3 tags of 7 cm; charuco: "
-                        "5 x 4 squares of 5 cm) in place of the next tag, from tag 0 on; "
-                        "repeatable, e.g. --board aprilgrid --board charuco (default: none)")
+                        "5 x 4 squares of 5 cm; chessboard: 8 x 5 inner corners, 3 cm squares; "
+                        "circles: 6 x 5 with an origin circle; asymmetric_circles: 4 x 7) in "
+                        "place of the next tag, from tag 0 on; repeatable, e.g. --board "
+                        "aprilgrid --board chessboard (default: none)")
     p.add_argument("--seconds", type=float, default=24.0,
                    help="simulated duration [s] (default: %(default)s, one full yaw turn)")
     p.add_argument("--rate", type=float, default=5.0, help="image rate [Hz] (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--bag", type=Path, default=None, metavar="DIR",
+                   help="write the simulated recording as a rosbag2 directory DIR instead of "
+                        "calibrating (then: rwhec-calibrate bag DIR --config "
+                        "config/demo.yaml); an existing DIR is refused unless --force "
+                        "(default: calibrate)")
+    p.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3",
+                   help="storage of --bag (default: %(default)s)")
 
     add_check_parser(sub, _add_output, _add_config)
 

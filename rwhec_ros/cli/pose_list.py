@@ -14,6 +14,7 @@ from typing import Any
 
 from .common import BadInput, Printer, SolveSettings, check_positive, output_paths, read_config
 from .files import _problem, check_carriers, verdict_settings
+from .run import Run
 
 __all__ = ["cmd_poses", "POSES_SIGMA", "POSES_KAPPA"]
 
@@ -38,11 +39,6 @@ def _mount(args: argparse.Namespace, pose_list, config) -> str:
 
 
 def cmd_poses(args: argparse.Namespace, say: Printer) -> int:
-    from ..data.dataset import Dataset
-    from ..data.pose_list import pose_list_problem, read_pose_list, robot_frames
-    from ..data.results import FrameNaming
-    from .common import solve_and_write
-
     config = read_config(args)
     params: dict[str, Any] = {} if config is None else config.to_parameters()
     settings = SolveSettings.resolve(args, params)
@@ -53,7 +49,23 @@ def cmd_poses(args: argparse.Namespace, say: Printer) -> int:
     check_positive("--sigma", sigma)
     check_positive("--kappa", kappa)
     unknown_scale = bool(args.unknown_scale or (config and config.tags.unknown_scale))
-    paths = output_paths(args, report=args.report)  # refuse early, before any work
+    # refuse early, before any work
+    paths = output_paths(args, report=args.report, root=settings.output_root)
+    run = Run("poses", say, paths, settings.output_root, force=args.force,
+              resume_options=settings.resume_options(args.report))
+    try:
+        run.enter("reading")
+        return _solve_pose_list(args, say, config, settings, sigma, kappa, unknown_scale, run)
+    except KeyboardInterrupt as exc:
+        raise run.interrupted(exc) from None
+
+
+def _solve_pose_list(args, say, config, settings, sigma, kappa, unknown_scale, run) -> int:
+    from ..data.dataset import Dataset
+    from ..data.pose_list import pose_list_problem, read_pose_list, robot_frames
+    from ..data.results import FrameNaming
+    from .common import solve_and_write
+
     pose_list = read_pose_list(args.file)
     mount = _mount(args, pose_list, config)
     if config is not None:
@@ -72,7 +84,8 @@ def cmd_poses(args: argparse.Namespace, say: Printer) -> int:
     source = {"type": "pose_list", "path": str(args.file), "mount": mount}
     carriers = {n: p for n, (p, _) in naming.frames.items()}
     dataset = Dataset.from_problem(everything, metadata={"source": source}, carriers=carriers)
-    problem, excluded = _problem(dataset, settings.min_pairs)
+    run.keep(dataset)
+    problem, excluded = _problem(dataset, settings.min_pairs, run)
     say.progress(f"poses: {len(pose_list.pairs)} pairs, {mount.replace('_', '-')}: A = "
                  + ("inv(gripper2base)" if mount == "eye_in_hand" else "gripper2base")
                  + f", cameras on {camera_carrier}, targets on {tag_carrier}")
@@ -86,6 +99,6 @@ def cmd_poses(args: argparse.Namespace, say: Printer) -> int:
         "noise.kappa": float(kappa),
         **settings.parameters(),
     }
-    return solve_and_write(say, problem, dataset, naming, paths, settings, excluded=excluded,
-                           config=used, source=source, force=args.force, report=args.report,
+    return solve_and_write(say, problem, dataset, naming, run, settings, excluded=excluded,
+                           config=used, source=source, report=args.report,
                            **verdict_settings(config))

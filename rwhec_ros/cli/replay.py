@@ -10,13 +10,14 @@ from typing import Any
 import numpy as np
 
 from ..config.targets import target_parameters
-from ..errors import describe_os_error
+from ..session.paths import plain_output_root
 from ..vision.targets import TargetSpec
 from .common import (
+    EXIT_OK,
     BadInput,
-    Interrupted,
     Printer,
     Progress,
+    SolveSettings,
     calibrate_session,
     check_positive,
     config_from_parameters,
@@ -25,11 +26,10 @@ from .common import (
     read_config,
     solver_overrides,
 )
+from .run import Run, pause_for_test
 
 __all__ = ["cmd_bag", "cmd_demo", "demo_parameters", "LiveWatch"]
 
-#: Seconds ``bag`` waits for the live re-solve of the whole recording before calibrating.
-LIVE_FINAL_TIMEOUT_S = 60.0
 #: Prefixes of the parameters that describe the simulated rig itself (kept by ``demo --config``).
 RIG_PARAMETER_PREFIXES = ("camera_carrier.", "tag_carrier.", "pose_source.", "cameras.", "tags.",
                           "targets.")
@@ -48,7 +48,8 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     from ..session import CalibrationSession, MessageHandlers
 
     config = read_config(args, solver_overrides(args))
-    paths = output_paths(args, report=args.report)  # refuse early, before any work
+    root = plain_output_root(config.output.directory)
+    paths = output_paths(args, report=args.report, root=root)  # refuse early, before any work
     topics = bag_topics(args.bag)
     ps = config.pose_source
 
@@ -82,27 +83,31 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
 
     session = CalibrationSession(config)
     handlers = MessageHandlers(session)
+    settings = SolveSettings.from_parameters(config.to_parameters())
+    run = Run("bag", say, paths, root, force=args.force,
+              resume_options=settings.resume_options(args.report))
     try:
-        tf_failure, errors = _replay(args, say, session, handlers, routes, TfTree)
-        # the whole recording's convergence (only shown, so not with --quiet)
-        final = None if args.quiet else session.live.solve_now(LIVE_FINAL_TIMEOUT_S)
-    except KeyboardInterrupt:
+        run.enter("reading", pause=False)  # the pause: half-way through the messages
+        try:
+            tf_failure, errors = _replay(args, say, session, handlers, routes, TfTree)
+        except ValueError as exc:  # a bag damaged part-way: keep what was read
+            session.close()
+            kept = run.keep(session.dataset())
+            raise BadInput(f"{exc}" + (f"; {run.kept_words()}" if kept else "")) from None
         session.close()
-        raise Interrupted(_save_so_far(session, paths, say)) from None
-    session.close()
-    if final is not None:
-        say.progress(f"live estimate at the end of the bag: {final.line()}")
-    for exc in errors[:3]:
-        say.warning("bag", f"detection thread error: {type(exc).__name__}: {exc}")
-    counters = session.counters()
-    for sentence in session.rejections():
-        say.warning("bag", sentence)
-    if tf_failure and not counters.get("pairs_kept"):
-        say.warning("bag", tf_failure)
-    finish = getattr(args, "finish", None) or calibrate_session  # check: its own
-    code, _ = finish(say, session, paths, force=args.force, report=args.report,
-                     inputs=[input_line(counters)])
-    return code
+        for exc in errors[:3]:
+            say.warning("bag", f"detection thread error: {type(exc).__name__}: {exc}")
+        counters = session.counters()
+        for sentence in session.rejections():
+            say.warning("bag", sentence)
+        if tf_failure and not counters.get("pairs_kept"):
+            say.warning("bag", tf_failure)
+        finish = getattr(args, "finish", None) or calibrate_session  # check: its own
+        code, _ = finish(say, session, run, report=args.report, inputs=[input_line(counters)])
+        return code
+    except KeyboardInterrupt as exc:
+        session.close()
+        raise run.interrupted(exc, session.dataset) from None
 
 
 def input_line(counters: dict[str, int]) -> str:
@@ -164,6 +169,8 @@ def _replay(args, say: Printer, session, handlers, routes,
     def on_progress(done: int, total: int) -> None:
         watch(done, total)
         progress(done, total)
+        if done == total // 2:
+            pause_for_test("reading")
 
     try:
         for m in read_messages(args.bag, list(routes), on_progress=on_progress):
@@ -218,21 +225,6 @@ class LiveWatch:
         if est is not None and est.converged != self.shown:
             self.shown = est.converged
             self.say.progress(f"live estimate at message {done}/{total}: {est.line()}")
-
-
-def _save_so_far(session, paths, say: Printer) -> str:
-    """Ctrl-C during ``bag``: the data set collected so far, saved; returns what to tell."""
-    target = None if paths is None else paths.dataset
-    try:
-        if target is not None:
-            target.parent.mkdir(parents=True, exist_ok=True)
-        saved = session.save_dataset(target)
-    except ValueError as exc:
-        return f"nothing saved ({exc})"
-    except OSError as exc:
-        return f"nothing saved ({describe_os_error(exc)})"
-    return (f"the {session.counters().get('pairs_kept', 0)} pairs collected so far are in "
-            f"{saved}: rwhec-calibrate dataset {saved}")
 
 
 def _transport_hint(cam, topics) -> str:
@@ -293,12 +285,13 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
     check_positive("--rate", args.rate)
     overrides = solver_overrides(args)
     settings = read_config(args)
-    paths = output_paths(args, report=args.report)  # refuse early, before any work
     t0 = time.perf_counter()
     try:
         rig = demo_board_rig(args.board, args.cameras, args.tags, what="--board")
     except ValueError as exc:
         raise BadInput(str(exc)) from None
+    if args.bag is not None:
+        return _write_demo_bag(args, say, rig)
     flat = demo_parameters(rig)
     if settings is not None:
         flat.update({k: v for k, v in settings.to_parameters().items()
@@ -306,28 +299,40 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
     flat.update(overrides)
     flat.update(prior_overrides(args, flat))
     config = config_from_parameters(flat, "demo")
+    root = plain_output_root(config.output.directory)
+    paths = output_paths(args, report=args.report, root=root)  # refuse early, before any work
     session = CalibrationSession(config)
-    for cam in rig.cameras:
-        session.set_camera_info(cam, rig.intrinsics[cam])
-    say.progress(f"simulating: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} tags, "
-                 f"{len(rig.boards)} boards, "
-                 f"{args.seconds:g} s at {args.rate:g} Hz")
-    rng = np.random.default_rng(args.seed)
-    n_images = 0
-    for stamp, cam, data in simulated_stream(rig, rng, seconds=args.seconds,
-                                             image_rate_hz=args.rate):
-        if cam is None:
-            session.add_pose(stamp, data, source=config.pose_source.parent)
-        else:
-            session.add_image(cam, stamp, data)
-            n_images += 1
-    counters = session.counters()
-    simulated = (f"demo: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} tags, "
-                 f"{len(rig.boards)} boards, {args.seconds:g} s, {n_images} images rendered "
-                 f"and searched, {counters.get('pairs_kept', 0)} pairs kept "
-                 f"({time.perf_counter() - t0:.1f} s)")
-    code, outcome = calibrate_session(say, session, paths, force=args.force, report=args.report,
-                                      inputs=[simulated])
+    run = Run("demo", say, paths, root, force=args.force,
+              resume_options=SolveSettings.from_parameters(flat).resume_options(args.report))
+    try:
+        for cam in rig.cameras:
+            session.set_camera_info(cam, rig.intrinsics[cam])
+        say.progress(f"simulating: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} "
+                     f"tags, {len(rig.boards)} boards, {args.seconds:g} s at {args.rate:g} Hz")
+        rng = np.random.default_rng(args.seed)
+        n_images = 0
+        run.enter("reading", pause=False)  # the pause: half-way through the images
+        half = int(args.seconds * args.rate * len(rig.cameras)) // 2
+        for stamp, cam, data in simulated_stream(rig, rng, seconds=args.seconds,
+                                                 image_rate_hz=args.rate):
+            if cam is None:
+                session.add_pose(stamp, data, source=config.pose_source.parent)
+            else:
+                session.add_image(cam, stamp, data)
+                n_images += 1
+                if n_images == half:
+                    pause_for_test("reading")
+        session.close()
+        counters = session.counters()
+        simulated = (f"demo: {len(rig.cameras)} cameras, {len(rig.single_tag_ids)} tags, "
+                     f"{len(rig.boards)} boards, {args.seconds:g} s, {n_images} images "
+                     f"rendered and searched, {counters.get('pairs_kept', 0)} pairs kept "
+                     f"({time.perf_counter() - t0:.1f} s)")
+        code, outcome = calibrate_session(say, session, run, report=args.report,
+                                          inputs=[simulated])
+    except KeyboardInterrupt as exc:
+        session.close()
+        raise run.interrupted(exc, session.dataset) from None
     if outcome.result is None:
         return code
     result = outcome.result
@@ -344,3 +349,32 @@ def cmd_demo(args: argparse.Namespace, say: Printer) -> int:
     say(f"  max: {t_max:.2f} mm, {r_max:.3f} deg over {len(result.x_names) + len(result.y_names)}"
         f" frames ({time.perf_counter() - t0:.1f} s in total)")
     return code
+
+
+def _write_demo_bag(args: argparse.Namespace, say: Printer, rig) -> int:
+    """``demo --bag DIR``: the simulated recording written as a rosbag2 directory (sqlite3, or
+    ``--storage mcap``) instead of being calibrated; an existing DIR is refused unless
+    ``--force`` (then replaced once the new recording is complete)."""
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from ..simulation import write_simulated_bag
+
+    target = Path(args.bag)
+    if target.exists() and not args.force:
+        raise BadInput(f"--bag: {str(target)!r} already exists (a recording is never "
+                       "overwritten): give another directory, or --force to replace it")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    say.progress(f"recording the simulation: {len(rig.cameras)} cameras, "
+                 f"{len(rig.single_tag_ids)} tags, {args.seconds:g} s at {args.rate:g} Hz")
+    with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
+        staged = Path(tmp) / target.name
+        write_simulated_bag(staged, rig, np.random.default_rng(args.seed), seconds=args.seconds,
+                            image_rate_hz=args.rate, storage=args.storage)
+        if target.exists():  # --force: the new recording replaces the old one, complete
+            shutil.rmtree(target) if target.is_dir() else target.unlink()
+        staged.rename(target)  # the same name: the storage file is <name>.db3 / .mcap
+    say.files({"bag": target})
+    say(f"calibrate it with: rwhec-calibrate bag {target} --config config/demo.yaml")
+    return EXIT_OK

@@ -24,8 +24,8 @@ from typing import Any
 
 from .common import (
     BadInput,
-    Interrupted,
     Printer,
+    SolveSettings,
     calibrate_session,
     config_from_parameters,
     output_paths,
@@ -231,7 +231,9 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
     from ..data.sample_layouts import read_samples
     from ..session import CalibrationSession, MessageHandlers
     from ..session.capture import seen_words
-    from .replay import _save_so_far, input_line
+    from ..session.paths import plain_output_root
+    from .replay import input_line
+    from .run import Run
 
     samples = read_samples(args.path, args.layout)
     for note in samples.notes:
@@ -248,7 +250,8 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
     for text in warnings:
         say.warning("samples", text)
     stamps = samples.stamps_ns()
-    paths = output_paths(args, report=args.report)  # refuse early, before any work
+    root = plain_output_root(config.output.directory)
+    paths = output_paths(args, report=args.report, root=root)  # refuse early, before any work
 
     session = CalibrationSession(config)
     handlers = MessageHandlers(session)
@@ -264,23 +267,27 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
                  f"from the {samples.layout} layout {samples.source}; poses "
                  f"{config.pose_source.parent} -> {config.pose_source.child}, cameras on "
                  f"{config.camera_carrier.frame}")
+    settings = SolveSettings.from_parameters(config.to_parameters())
+    run = Run("samples", say, paths, root, force=args.force,
+              resume_options=settings.resume_options(args.report))
     try:
+        run.enter("reading")
         for view, stamp in zip(samples.views, stamps, strict=True):
             T = invert_transform(view.T_parent_child) if invert else np.array(view.T_parent_child)
             for cam, file in view.images.items():
                 outcome = handlers.on_compressed_image(cam, file_message(file, stamp), T)
                 say.progress(f"{view.name} {cam}: "
                              f"{seen_words(outcome, (kf.min_rotation_rad, kf.min_translation_m))}")
-    except KeyboardInterrupt:
         session.close()
-        raise Interrupted(_save_so_far(session, paths, say)) from None
-    session.close()
-    counters = session.counters()
-    for sentence in session.rejections():
-        say.warning("samples", sentence)
-    line = (f"samples: {len(samples.views)} views, {len(samples.cameras)} camera(s), "
-            f"{samples.layout} {samples.source}")
-    finish = getattr(args, "finish", None) or calibrate_session  # check: its own
-    code, _ = finish(say, session, paths, force=args.force, report=args.report,
-                     inputs=[input_line(counters), line])
-    return code
+        counters = session.counters()
+        for sentence in session.rejections():
+            say.warning("samples", sentence)
+        line = (f"samples: {len(samples.views)} views, {len(samples.cameras)} camera(s), "
+                f"{samples.layout} {samples.source}")
+        finish = getattr(args, "finish", None) or calibrate_session  # check: its own
+        code, _ = finish(say, session, run, report=args.report,
+                         inputs=[input_line(counters), line])
+        return code
+    except KeyboardInterrupt as exc:
+        session.close()
+        raise run.interrupted(exc, session.dataset) from None

@@ -11,6 +11,7 @@ from typing import Any
 
 import yaml
 
+from ..vision.detector_config import CHESSBOARD_REFINEMENTS
 from .sections import (
     AccuracyConfig,
     CameraConfig,
@@ -38,6 +39,7 @@ from .specs import (
     IMAGE_QOS,
     IMAGE_TRANSPORTS,
     POSE_SOURCE_TYPES,
+    SDP_BACKENDS,
     SOLVER_MODES,
 )
 from .targets import build_targets
@@ -268,11 +270,12 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         pose_buffer_size=check_positive_int(v, "sync.pose_buffer_size", 2),
         image_queue_size=check_positive_int(v, "sync.image_queue_size", 1),
         detection_threads=check_int_or_auto(v, "sync.detection_threads", 1),
-        max_pending_images=check_positive_int(v, "sync.max_pending_images", 0),
         tf_timeout_s=check_positive(v, "sync.tf_timeout_s", allow_zero=True),
         at_rest_max_gap_s=check_positive(v, "sync.at_rest_max_gap_s", allow_zero=True),
         at_rest_translation_m=check_positive(v, "sync.at_rest_translation_m", allow_zero=True),
         at_rest_rotation_rad=check_positive(v, "sync.at_rest_rotation_rad", allow_zero=True),
+        max_pose_wait_s=check_positive(v, "sync.max_pose_wait_s", allow_zero=True),
+        max_waiting_mb=check_positive(v, "sync.max_waiting_mb"),
     )
     capture = CaptureConfig(
         mode=check_choice(v, "capture.mode", CAPTURE_MODES),
@@ -289,6 +292,9 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
             v, "detection.corner_refinement", ("edge", "subpix", "apriltag", "contour", "none")
         ),
         max_reprojection_rms_px=check_positive(v, "detection.max_reprojection_rms_px"),
+        reprojection_gate_factor=_gate_factor(v),
+        chessboard_refinement=check_choice(v, "detection.chessboard_refinement",
+                                           CHESSBOARD_REFINEMENTS),
         min_side_px=check_positive(v, "detection.min_side_px", allow_zero=True),
         max_obliquity_deg=check_positive(v, "detection.max_obliquity_deg"),
         decimate=check_int_or_auto(v, "detection.decimate", 1),
@@ -306,6 +312,8 @@ def build_sections(v: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
         unobservable_std_m=check_positive(v, "solver.unobservable_std_m"),
         min_scale=check_positive(v, "solver.min_scale"),
         live_period_s=check_positive(v, "solver.live_period_s", allow_zero=True),
+        sdp_backend=check_choice(v, "solver.sdp_backend", SDP_BACKENDS),
+        refine=v["solver.refine"],
     )
     convergence = ConvergenceConfig(
         max_std_translation_m=check_positive(v, "convergence.max_std_translation_m"),
@@ -373,6 +381,16 @@ def _build_check(v: dict[str, Any]) -> CheckConfig:
         tf_frames=check_choice(v, "check.tf_frames", ("calibrated", "sensor")),
         period_s=check_positive(v, "check.period_s", allow_zero=True),
     )
+
+
+def _gate_factor(v: dict[str, Any]) -> float:
+    """``detection.reprojection_gate_factor``: finite and >= 1 (a gate below the camera's own
+    median noise would reject most of its images)."""
+    x = v["detection.reprojection_gate_factor"]
+    if not (math.isfinite(x) and x >= 1.0):
+        raise ValueError(f"detection.reprojection_gate_factor: must be finite and >= 1, got "
+                         f"{x!r}")
+    return x
 
 
 def _build_priors(v: dict[str, Any], camera_names: tuple[str, ...], x_names: list[str]

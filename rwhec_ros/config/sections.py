@@ -114,7 +114,9 @@ class SyncConfig:
     """Pose/image time matching. Seconds here; the session converts to integer nanoseconds.
 
     ``image_queue_size`` counts per camera; ``detection_threads`` is an integer or ``"auto"``
-    (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`). ``at_rest_*``: the
+    (see :meth:`rwhec_ros.config.CalibratorConfig.detection_thread_count`); an image waits for
+    the pose at its stamp at most ``max_pose_wait_s``, the waiting images of one holder take at
+    most ``max_waiting_mb`` megabytes (:mod:`rwhec_ros.sync.pose_wait`). ``at_rest_*``: the
     stop-and-go rule of :mod:`rwhec_ros.sync.at_rest`.
     """
 
@@ -123,11 +125,12 @@ class SyncConfig:
     pose_buffer_size: int
     image_queue_size: int
     detection_threads: int | str
-    max_pending_images: int
     tf_timeout_s: float
     at_rest_max_gap_s: float = 2.0
     at_rest_translation_m: float = 0.0005
     at_rest_rotation_rad: float = 0.001
+    max_pose_wait_s: float = 1.0
+    max_waiting_mb: float = 256.0
 
 
 @dataclass(frozen=True)
@@ -151,6 +154,8 @@ class DetectionConfig:
     decimate: int | str = "auto"
     motion_gate: bool = True
     discovery_step: float = 0.5
+    reprojection_gate_factor: float = 4.0
+    chessboard_refinement: str = "sb"
 
 
 @dataclass(frozen=True)
@@ -164,6 +169,8 @@ class SolverConfig:
     unobservable_std_m: float = 1.0
     min_scale: float = 0.01
     live_period_s: float = 2.0
+    sdp_backend: str = "auto"
+    refine: bool = True
 
 
 @dataclass(frozen=True)

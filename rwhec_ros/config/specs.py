@@ -24,6 +24,7 @@ __all__ = [
     "ROS_MANAGED_PREFIXES",
     "KINDS",
     "SOLVER_MODES",
+    "SDP_BACKENDS",
     "POSE_SOURCE_TYPES",
     "IMAGE_QOS",
     "IMAGE_TRANSPORTS",
@@ -48,14 +49,18 @@ KINDS = ("bool", "int", "double", "string", "int_array", "double_array", "string
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 SOLVER_MODES = ("fast", "sdp", "local")
+#: ``solver.sdp_backend`` values (:attr:`rwhec_ros.core.relaxation.SdpOptions.backend`).
+SDP_BACKENDS = ("auto", "structured", "cvxpy")
 POSE_SOURCE_TYPES = ("topic", "tf")
 IMAGE_QOS = ("sensor_data", "reliable")
 IMAGE_TRANSPORTS = ("raw", "compressed")
 #: ``capture.mode`` values: which images become candidate views (:mod:`rwhec_ros.session.capture`).
 CAPTURE_MODES = ("continuous", "capture", "both")
 #: ``targets.<name>.type`` values: one tag of ``tags.family`` with its own frame name, a
-#: Kalibr-style AprilGrid, a ChArUco board (:mod:`rwhec_ros.vision.boards`).
-TARGET_TYPES = ("tag", "aprilgrid", "charuco")
+#: Kalibr-style AprilGrid, a ChArUco board (:mod:`rwhec_ros.vision.boards`), a chessboard, a
+#: circle grid with a larger origin circle, OpenCV's asymmetric circle grid
+#: (:mod:`rwhec_ros.vision.grids`).
+TARGET_TYPES = ("tag", "aprilgrid", "charuco", "chessboard", "circles", "asymmetric_circles")
 #: ``check.hold`` values: what holds the reference while a frame is tested
 #: (:mod:`rwhec_ros.session.bringup`).
 CHECK_HOLDS = ("none", "targets")
@@ -141,8 +146,13 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("sync.detection_threads", "int_or_auto", "auto",
               doc="threads running tag detection (node and bag replay): 'auto' = the cores "
                   "available to the process, at most one per camera; or an integer >= 1"),
-    ParamSpec("sync.max_pending_images", "int", 32,
-              doc="images waiting for a later pose to bracket their stamp"),
+    ParamSpec("sync.max_pose_wait_s", "double", 1.0,
+              doc="longest wait [s] of an image for the pose at its stamp (it waits as long as "
+                  "the pose stream's measured lateness needs, at most this; see "
+                  "docs/ros-transport.md)"),
+    ParamSpec("sync.max_waiting_mb", "double", 256.0,
+              doc="memory [MB] of the images held while they wait for their pose (the node's "
+                  "queue; the session's own); beyond it the oldest is given up and counted"),
     ParamSpec("sync.tf_timeout_s", "double", 0.2,
               doc="wait [s] for tf at an image stamp (pose_source.type 'tf')"),
     ParamSpec("sync.at_rest_max_gap_s", "double", 2.0,
@@ -172,8 +182,18 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="corner refinement: 'edge' (sub-pixel edge-line fit, the most accurate "
                   "measured, see benchmarks/perception.md), or cv2.aruco's 'subpix', "
                   "'apriltag', 'contour', 'none'"),
+    ParamSpec("detection.chessboard_refinement", "string", "sb",
+              doc="chessboard corners: 'sb' as cv2.findChessboardCornersSB finds them (the "
+                  "more accurate on real images, benchmarks/real_data.md), or 'subpix': "
+                  "polished by cv2.cornerSubPix (more accurate on renders at an angle)"),
     ParamSpec("detection.max_reprojection_rms_px", "double", 1.0,
-              doc="reject a tag whose RMS corner reprojection error exceeds this [px]"),
+              doc="reprojection gate, floor [px]: a target whose RMS corner reprojection "
+                  "error is at or below this is never rejected for it"),
+    ParamSpec("detection.reprojection_gate_factor", "double", 4.0,
+              doc="reprojection gate above the floor: reject a target whose corner noise "
+                  "exceeds this factor times the median of its camera's (the camera's "
+                  "earlier poses and this one): the gate follows what the camera's images "
+                  "give, lens model errors included, instead of a fixed pixel count"),
     ParamSpec("detection.min_side_px", "double", 20.0,
               doc="reject a tag whose shortest side is below this [px]"),
     ParamSpec("detection.max_obliquity_deg", "double", 70.0,
@@ -196,6 +216,11 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "skipped)"),
     ParamSpec("solver.mode", "string", "fast", doc="'fast', 'sdp' or 'local'"),
     ParamSpec("solver.min_pairs", "int", 3, doc="edges with fewer pairs are left out"),
+    ParamSpec("solver.sdp_backend", "string", "auto",
+              doc="the SDP's solver (mode sdp and the fallback of fast): 'structured' (the "
+                  "interior-point method on the frame blocks, docs/sdp.md), 'cvxpy' (cvxpy + "
+                  "Clarabel) or 'auto' (structured unless Clarabel's chordal decomposition is "
+                  "estimated cheaper)"),
     ParamSpec("solver.reject_outliers", "bool", False,
               doc="outlier rejection: per-edge RANSAC on eq. (70) (paper Sec. 9.1), then a "
                   "GNC-TLS robust solve, re-certified on the inlier set"),
@@ -205,6 +230,12 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
                   "priors.* or the default and the result says so"),
     ParamSpec("solver.min_scale", "double", 0.01,
               doc="unknown scale: an estimate at or below this floor is never certified"),
+    ParamSpec("solver.refine", "bool", True,
+              doc="after the certified solve, refine the frames on the reprojection error of "
+                  "the detected corners when the data keep them (docs/refinement.md); the "
+                  "refined estimate is published when it lowers the corner residual and stays "
+                  "within the uncertainties of the certified one; false = the certified "
+                  "pose-level estimate only"),
     ParamSpec("solver.live_period_s", "double", 2.0,
               doc="re-solve in the background ('fast', no SDP fallback) at most this often [s] "
                   "while new pairs arrive, for the running estimate and its convergence "
@@ -342,15 +373,22 @@ CAMERA_SPECS: tuple[ParamSpec, ...] = (
 TARGET_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("type", "string", required=True,
               doc="'aprilgrid' (Kalibr-style grid of AprilTags), 'charuco' (OpenCV ChArUco "
-                  "board) or 'tag' (one tag of tags.family)"),
+                  "board), 'chessboard', 'circles' (a circle grid with a larger origin "
+                  "circle), 'asymmetric_circles' (OpenCV's) or 'tag' (one tag of tags.family); "
+                  "see docs/targets.md"),
     ParamSpec("min_corners", "int", None,
               doc="boards: fewest detected corners for a pose (>= 4; default 8, or all corners "
-                  "of a smaller board); a partly seen board gives a pose from the corners seen"),
+                  "of a smaller board); a partly seen board gives a pose from the corners seen "
+                  "(a chessboard only where its corner index is resolved)"),
     ParamSpec("tag_id", "int", None, doc="tag: id in tags.family"),
     ParamSpec("tag_size", "double", None,
               doc="tag, aprilgrid: edge of a tag's black square [m]"),
-    ParamSpec("rows", "int", None, doc="aprilgrid: rows of tags (Kalibr tagRows)"),
-    ParamSpec("cols", "int", None, doc="aprilgrid: columns of tags (Kalibr tagCols)"),
+    ParamSpec("rows", "int", None,
+              doc="aprilgrid: rows of tags (Kalibr tagRows); chessboard: inner corners along y; "
+                  "circles, asymmetric_circles: rows of circles (asymmetric: odd)"),
+    ParamSpec("cols", "int", None,
+              doc="aprilgrid: columns of tags (Kalibr tagCols); chessboard: inner corners "
+                  "along x (cols + rows odd); circles, asymmetric_circles: circles per row"),
     ParamSpec("spacing", "double", None,
               doc="aprilgrid: gap between tags as a fraction of tag_size (Kalibr tagSpacing; "
                   "default 0.3)"),
@@ -363,7 +401,17 @@ TARGET_SPECS: tuple[ParamSpec, ...] = (
               doc="aprilgrid: id of the bottom-left tag; charuco: id of marker 0 (default 0)"),
     ParamSpec("squares_x", "int", None, doc="charuco: chessboard squares along x (>= 2)"),
     ParamSpec("squares_y", "int", None, doc="charuco: chessboard squares along y (>= 2)"),
-    ParamSpec("square_size", "double", None, doc="charuco: edge of a chessboard square [m]"),
+    ParamSpec("square_size", "double", None,
+              doc="charuco, chessboard: edge of a chessboard square [m]"),
+    ParamSpec("circle_spacing", "double", None,
+              doc="circles: centre distance of neighbouring circles [m]; asymmetric_circles: "
+                  "OpenCV's square size (half the centre distance in a row) [m]"),
+    ParamSpec("origin_circle", "bool", None,
+              doc="circles: the bottom-left circle is larger (industrial_calibration's modified "
+                  "circle grid); required true: a plain symmetric grid has no orientation"),
+    ParamSpec("circle_diameter", "double", None,
+              doc="circles, asymmetric_circles: printed circle diameter [m] (default: measured "
+                  "in each image; it corrects the circle-centre projection bias)"),
     ParamSpec("marker_size", "double", None,
               doc="charuco: edge of a marker's black square [m] (< square_size)"),
     ParamSpec("dictionary", "string", None,

@@ -16,8 +16,18 @@ Types (:data:`~rwhec_ros.config.specs.TARGET_TYPES`) and their keys:
   (0), ``family`` (tag36h11), ``border_bits`` (2), ``min_corners``;
 * ``charuco``: ``squares_x``, ``squares_y``, ``square_size``, ``marker_size`` (required),
   ``dictionary`` (DICT_5X5_100), ``first_id`` (0), ``legacy_pattern`` (false), ``min_corners``;
+* ``chessboard``: ``cols``, ``rows`` (inner corners, one odd and one even), ``square_size``
+  (required), ``min_corners``;
+* ``circles``: ``cols``, ``rows``, ``circle_spacing`` (required), ``origin_circle`` (must be true:
+  a larger bottom-left circle), ``circle_diameter`` (measured when unset), ``min_corners``;
+* ``asymmetric_circles``: ``cols``, ``rows`` (odd), ``circle_spacing`` (OpenCV's square size),
+  ``circle_diameter``, ``min_corners``;
 * ``tag``: ``tag_id``, ``tag_size`` (required): one tag of ``tags.family``, like ``tags.ids`` but
   with its own frame name.
+
+A layout that looks the same turned (a chessboard with both counts even or both odd, a circle
+grid without an origin circle, an asymmetric grid with an even number of rows) is refused with
+the reason and the fix: its point order could flip between views.
 
 A key of another type is refused by name (a typo would otherwise be silently ignored). Marker
 ids must be unique per dictionary across ``tags.ids``, the tag targets and every board
@@ -31,6 +41,7 @@ from typing import Any
 
 from ..vision.boards import AprilGridSpec, CharucoSpec
 from ..vision.families import dictionary_key, dictionary_size
+from ..vision.grids import ChessboardSpec, CircleGridSpec
 from ..vision.targets import TargetSpec
 from .specs import TARGET_SPECS, TARGET_TYPES
 from .validation import check_choice, check_positive
@@ -46,12 +57,22 @@ TYPE_KEYS: dict[str, dict[str, Any]] = {
     "charuco": {"squares_x": ..., "squares_y": ..., "square_size": ..., "marker_size": ...,
                 "dictionary": "DICT_5X5_100", "first_id": 0, "legacy_pattern": False,
                 "min_corners": None},
+    "chessboard": {"cols": ..., "rows": ..., "square_size": ..., "min_corners": None},
+    "circles": {"cols": ..., "rows": ..., "circle_spacing": ..., "origin_circle": False,
+                "circle_diameter": None, "min_corners": None},
+    "asymmetric_circles": {"cols": ..., "rows": ..., "circle_spacing": ...,
+                           "circle_diameter": None, "min_corners": None},
 }
+
+#: Layout field names of the vision specs -> parameter keys (in error messages).
+_FIELD_KEYS = {"tag_spacing": "spacing", "spacing": "circle_spacing",
+               "diameter": "circle_diameter"}
 
 #: ``min_corners`` of a board when unset (capped at the board's corner count).
 DEFAULT_MIN_CORNERS = 8
 
-_SIZES = ("tag_size", "square_size", "marker_size", "spacing")
+_SIZES = ("tag_size", "square_size", "marker_size", "spacing", "circle_spacing",
+          "circle_diameter")
 _COUNTS = {"rows": 1, "cols": 1, "squares_x": 2, "squares_y": 2, "border_bits": 1}
 
 
@@ -87,7 +108,8 @@ def _values(v: dict[str, Any], name: str, kind: str) -> dict[str, Any]:
     return out
 
 
-def _board(name: str, kind: str, k: dict[str, Any]) -> AprilGridSpec | CharucoSpec:
+def _board(name: str, kind: str, k: dict[str, Any]
+           ) -> AprilGridSpec | CharucoSpec | ChessboardSpec | CircleGridSpec:
     """The layout, its own checks (spacing range, marker size, ids within the dictionary)
     reported under ``targets.<name>``."""
     try:
@@ -95,13 +117,23 @@ def _board(name: str, kind: str, k: dict[str, Any]) -> AprilGridSpec | CharucoSp
             return AprilGridSpec(k["rows"], k["cols"], tag_size=k["tag_size"],
                                  tag_spacing=k["spacing"], first_id=k["first_id"],
                                  family=k["family"], border_bits=k["border_bits"])
-        return CharucoSpec(k["squares_x"], k["squares_y"], square_size=k["square_size"],
-                           marker_size=k["marker_size"], dictionary=k["dictionary"],
-                           first_id=k["first_id"], legacy_pattern=k["legacy_pattern"])
+        if kind == "charuco":
+            return CharucoSpec(k["squares_x"], k["squares_y"], square_size=k["square_size"],
+                               marker_size=k["marker_size"], dictionary=k["dictionary"],
+                               first_id=k["first_id"], legacy_pattern=k["legacy_pattern"])
+        if kind == "chessboard":
+            return ChessboardSpec(k["cols"], k["rows"], square_size=k["square_size"])
+        return CircleGridSpec(k["cols"], k["rows"], k["circle_spacing"],
+                              asymmetric=kind == "asymmetric_circles",
+                              origin_circle=bool(k.get("origin_circle", False)),
+                              diameter=k["circle_diameter"])
     except ValueError as exc:
         # "aprilgrid: tag_spacing must be ..." -> the parameter's name
-        words = str(exc).split(": ", 1)[-1].replace("tag_spacing", "spacing")
+        words = str(exc).split(": ", 1)[-1]
         key = words.split(" ", 1)[0]
+        if key in _FIELD_KEYS and _FIELD_KEYS[key] in TYPE_KEYS[kind]:
+            words = _FIELD_KEYS[key] + words[len(key):]
+            key = _FIELD_KEYS[key]
         key = key if key in TYPE_KEYS[kind] else "type"
         raise ValueError(f"targets.{name}.{key}: invalid {kind} layout: {words}") from None
 
@@ -148,7 +180,7 @@ def build_targets(v: dict[str, Any], tag_family: str, single_tag_ids: tuple[int,
             except ValueError as exc:
                 raise ValueError(f"{p}min_corners: {str(exc).split(': ', 1)[-1]}") from None
             dictionary = board.dictionary
-        id_key = p + ("tag_id" if kind == "tag" else "first_id")
+        id_key = p + ("tag_id" if kind == "tag" else "first_id")  # no ids for grids
         for marker in spec.marker_ids():
             other = owners.get((dictionary, marker))
             if other is not None:
@@ -175,6 +207,14 @@ def target_parameters(spec: TargetSpec) -> dict[str, Any]:
     if isinstance(b, AprilGridSpec):
         keys = {"rows": b.rows, "cols": b.cols, "tag_size": b.tag_size, "spacing": b.tag_spacing,
                 "first_id": b.first_id, "family": b.family, "border_bits": b.border_bits}
+    elif isinstance(b, ChessboardSpec):
+        keys = {"cols": b.cols, "rows": b.rows, "square_size": b.square_size}
+    elif isinstance(b, CircleGridSpec):
+        keys = {"cols": b.cols, "rows": b.rows, "circle_spacing": b.spacing}
+        if b.diameter is not None:
+            keys["circle_diameter"] = b.diameter
+        if not b.asymmetric:
+            keys["origin_circle"] = b.origin_circle
     else:
         keys = {"squares_x": b.squares_x, "squares_y": b.squares_y,
                 "square_size": b.square_size, "marker_size": b.marker_size,

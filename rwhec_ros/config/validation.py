@@ -36,6 +36,13 @@ __all__ = [
     "check_topic",
 ]
 
+#: Parameters that no longer exist, and what replaced them (said when a file still sets one).
+RETIRED_PARAMETERS = {
+    "sync.max_pending_images": "retired (issue 39): images wait for their pose as long as the "
+    "pose stream's measured lateness needs, bounded by sync.max_pose_wait_s and "
+    "sync.max_waiting_mb; remove it from the file",
+}
+
 _FRAME_RE = re.compile(r"^[A-Za-z0-9_/.\-]+$")
 _TOPIC_RE = re.compile(r"^[~/A-Za-z_][A-Za-z0-9_/~{}]*$")
 
@@ -72,6 +79,8 @@ def typed_parameters(flat: Mapping[str, Any]) -> tuple[dict[str, Any], tuple[str
             if k.startswith(section + ".") and k.split(".")[1] not in listed:
                 hint_s += (f"; {what} {k.split('.')[1]!r} is not in {section}.names "
                            f"{list(listed)}")
+        if k in RETIRED_PARAMETERS:
+            hint_s = f"; {RETIRED_PARAMETERS[k]}"
         raise ValueError(f"{k}: unknown parameter (value {params[k]!r}){hint_s}{more}")
     v = {name: reader.get(s) for name, s in specs.items()}
     return v, names

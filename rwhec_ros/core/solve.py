@@ -11,7 +11,8 @@ A solve runs the stages of :mod:`rwhec_ros.core` in order:
    tolerance is relative to the optimal cost;
 3. **the local solve** (:mod:`~rwhec_ros.core.local`): Riemannian Newton on SO(3)^n (``fast``,
    ``local``), or the dual SDP of Algorithm 1 (``sdp``, and ``fast`` when its certificate is
-   inconclusive);
+   inconclusive), solved by the structured interior-point method of
+   :mod:`~rwhec_ros.core.certify.sdp_ipm` or cvxpy + Clarabel (``SdpOptions.backend``);
 4. **the certificate** (:mod:`~rwhec_ros.core.certify`): a dual bound that holds in floating
    point, with ``p`` the cost of the returned estimate evaluated directly from the residuals of
    eq. (33) (plus the prior's term), never the reduced cost;

@@ -55,6 +55,7 @@ import yaml
 from ..core.problem import Edge, Problem
 from ..errors import describe_os_error, describe_yaml_error
 from ..sync.edge_pairs import DatasetEdge, check_name
+from .atomic import atomic_write_bytes, atomic_write_text
 
 if TYPE_CHECKING:
     from ..sync.accumulator import PairAccumulator
@@ -350,7 +351,7 @@ class Dataset:
                               if getattr(e, k) is not None})
             np.savez(buffer, **named)
             payload = buffer.getvalue()
-            npz_path.write_bytes(payload)
+            atomic_write_bytes(npz_path, payload)  # whole or absent (module atomic)
             doc["arrays"] = {"file": npz_path.name, "sha256": hashlib.sha256(payload).hexdigest()}
             for e in self.edges:
                 edges_doc.append({"x": e.x, "y": e.y, "n": e.n})
@@ -372,7 +373,7 @@ class Dataset:
                                       if getattr(e, k) is not None})
         doc["edges"] = edges_doc
         text = yaml.dump(doc, Dumper=_Dumper, sort_keys=False, default_flow_style=None, width=100)
-        path.write_text(text, encoding="utf-8")
+        atomic_write_text(path, text)
         return path
 
     @staticmethod
@@ -483,7 +484,10 @@ def _read_npz(path: Path, arrays: Any) -> dict[str, np.ndarray]:
     try:
         payload = npz_path.read_bytes()
     except OSError as exc:
-        raise ValueError(f"{path}: key 'arrays.file': cannot read {npz_path}: {exc}") from None
+        raise ValueError(f"{path}: key 'arrays.file': cannot read {npz_path.name} beside it "
+                         f"({describe_os_error(exc).rsplit(': ', 1)[-1]}); the arrays of a data "
+                         "set above 2,000 pairs are in that file: copy it with the YAML file"
+                         ) from None
     digest = hashlib.sha256(payload).hexdigest()
     if arrays.get("sha256") != digest:
         raise ValueError(

@@ -32,6 +32,7 @@ import yaml
 
 from ..core.result import CalibrationResult
 from ..errors import describe_os_error, describe_yaml_error
+from .atomic import StagedFiles
 
 __all__ = [
     "FrameNaming",
@@ -44,6 +45,7 @@ __all__ = [
     "write_outputs",
     "solved_pairs",
     "load_result",
+    "incomplete_result",
     "dump_document",
     "plain",
     "describe_os_error",
@@ -154,6 +156,7 @@ def result_document(
     verdict=None,
     accuracy=None,
     rejected_pairs: Mapping[str, Sequence[int]] | None = None,
+    fingerprint: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The result YAML mapping, with the keys of the session's
     :meth:`~rwhec_ros.session.CalibrationSession.result_document`.
@@ -179,6 +182,10 @@ def result_document(
     (convention, variance factor, ``scale_std``), ``cross_validation`` (per edge held-out and
     in-sample residuals in mm and deg) and ``guidance`` (the next motion), each ``null`` when not
     computed, with ``accuracy_notes`` saying why.
+
+    ``fingerprint`` (:func:`rwhec_ros.data.fingerprint.dataset_fingerprint` of the data set
+    written beside the result) is stored as ``dataset_fingerprint``: ``report`` and ``dataset``
+    refuse a result beside another data set.
     """
     doc = {"verdict": "unknown" if verdict is None else verdict.level,
            "reasons": [] if verdict is None else verdict.messages()}
@@ -196,6 +203,8 @@ def result_document(
     doc["identifiability"] = None if identifiability is None else dict(identifiability)
     doc["config"] = dict(config or {})
     doc["source"] = dict(source or {})
+    if fingerprint is not None:
+        doc["dataset_fingerprint"] = dict(fingerprint)
     if verdict is not None:
         doc["verdict_details"] = verdict.to_dict()
     if accuracy is not None:
@@ -304,17 +313,24 @@ def write_outputs(
             f"refusing to overwrite existing file(s) {existing} (use --force to overwrite)"
         )
     paths.result.parent.mkdir(parents=True, exist_ok=True)
-    mode = "w" if force else "x"
     files = {}
-    for path, kind, text in texts:
-        with open(path, mode, encoding="utf-8") as fh:
-            fh.write(text)
-        files[kind] = str(path)
-    if dataset is not None:
-        files["dataset"] = str(dataset.save(paths.dataset))
-        if dataset.writes_npz():
-            files["dataset_arrays"] = str(paths.dataset.with_suffix(".npz"))
-    return files
+    # every file whole or absent (rwhec_ros.data.atomic): the texts staged first, so that a full
+    # disk leaves the directory as it was; the data set next; result.yaml, which says the set is
+    # complete, renamed last
+    with StagedFiles() as staged:
+        for path, kind, text in [*texts[1:], texts[0]]:
+            staged.stage(path, text)
+            files[kind] = str(path)
+        if dataset is not None:
+            files["dataset"] = str(dataset.save(paths.dataset))
+            npz = paths.dataset.with_suffix(".npz")
+            if dataset.writes_npz():
+                files["dataset_arrays"] = str(npz)
+            elif npz.exists():  # an earlier, larger data set's arrays (force): never left stale
+                npz.unlink()
+        staged.commit()
+    return {k: files[k] for k in ("result", "launch", "urdf", "frames", "dataset",
+                                  "dataset_arrays") if k in files}
 
 
 def solved_pairs(doc: Mapping[str, Any], problem):
@@ -379,4 +395,48 @@ def load_result(path: str | Path) -> dict[str, Any]:
         if f["role"] not in ("X", "Y"):
             raise ValueError(f"{path}: frames[{i}] ({f['name']}): role must be 'X' or 'Y', "
                              f"got {f['role']!r}")
+    missing = incomplete_result(doc)
+    if missing:
+        raise ValueError(f"{path}: incomplete result: {missing} (the file was cut short, e.g. "
+                         "written on a full disk); solve its data set again with "
+                         "rwhec-calibrate dataset")
     return doc
+
+
+#: Keys a complete result YAML has whatever wrote it (older versions included).
+_COMPLETE_KEYS = ("certified", "suboptimality_bound", "scale", "frames", "timing_s",
+                  "identifiability", "config")
+
+
+def incomplete_result(doc: Mapping[str, Any]) -> str:
+    """What shows a result mapping cut short, in words (``""`` when nothing does): a key every
+    result has, missing, or the last entry of a list of mappings lacking keys that the entry
+    before it has (a YAML file truncated inside a list still parses)."""
+    for key in _COMPLETE_KEYS:
+        if key not in doc:
+            return f"key {key!r} is missing"
+    # keys written after others by the same version (result_document): the later ones absent
+    if doc.get("verdict") in ("good", "caution", "unusable") and "verdict_details" not in doc:
+        return "key 'verdict_details' is missing (the verdict is there)"
+    frames = doc["frames"] if isinstance(doc["frames"], list) else []
+    if any(isinstance(f, Mapping) and "std_kind" in f for f in frames):
+        for key in ("uncertainty", "cross_validation", "guidance", "accuracy_notes"):
+            if key not in doc:
+                return f"key {key!r} is missing (the frames have their uncertainty)"
+
+    def walk(node: Any, where: str) -> str:
+        if isinstance(node, Mapping):
+            for k, v in node.items():
+                found = walk(v, f"{where}.{k}" if where else str(k))
+                if found:
+                    return found
+        elif isinstance(node, list) and node:
+            if len(node) >= 2 and all(isinstance(v, Mapping) for v in node[-2:]):
+                lost = [k for k in node[-2] if k not in node[-1]]
+                if lost:
+                    return (f"{where}[{len(node) - 1}] has no {', '.join(map(repr, lost))}, "
+                            f"which {where}[{len(node) - 2}] has")
+            return walk(node[-1], f"{where}[{len(node) - 1}]")
+        return ""
+
+    return walk(doc, "")

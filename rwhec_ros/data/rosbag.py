@@ -34,6 +34,7 @@ from ..sync.buffer import PoseBuffer
 
 __all__ = [
     "BagMessage",
+    "damaged_bag_words",
     "jazzy_typestore",
     "bag_topics",
     "read_messages",
@@ -85,10 +86,40 @@ def _open_reader(path: str | Path):
         reader = Reader(path)
         reader.open()
     except Exception as exc:  # noqa: BLE001 - rosbags raises several types for a bad bag
-        raise ValueError(
-            f"bag {str(path)!r}: cannot open as a rosbag2 recording ({type(exc).__name__}: {exc})"
-        ) from None
+        raise ValueError(damaged_bag_words(path, exc)) from None
     return reader
+
+
+#: What rosbags says of a storage file that is cut short or damaged (its own words).
+_DAMAGE_WORDS = ("magic", "malformed", "truncated", "not a database", "footer", "summary",
+                 "unexpected end", "record length", "could not read", "exceeds")
+
+
+def damaged_bag_words(path: str | Path, exc: BaseException, read: int | None = None,
+                      total: int | None = None) -> str:
+    """One line for a recording ``rosbags`` cannot open or read on (``exc``): its reason, what
+    could still be read (``read`` of ``total`` messages; rosbags reads nothing of a storage
+    file whose end is missing) and how to repair it (``ros2 bag reindex``; a cut-off MCAP file:
+    ``mcap recover``; a damaged sqlite3 file: ``sqlite3 ... .recover``)."""
+    path = Path(path)
+    reason = str(exc).strip().rstrip(".") or type(exc).__name__
+    files = [*sorted(path.glob("*.mcap")), *sorted(path.glob("*.db3"))] if path.is_dir() \
+        else [path]
+    storage = files[0] if files else path
+    mcap = storage.suffix == ".mcap"
+    damaged = any(w in reason.lower() for w in _DAMAGE_WORDS)
+    if read:
+        got = f"{read} of {total} messages were read before the damage"
+    else:
+        got = "nothing could be read from it (rosbags does not read past damage)"
+    if not damaged and not read:
+        return f"bag {str(path)!r}: cannot open as a rosbag2 recording ({reason})"
+    fixed = storage.with_name(storage.stem + "_recovered" + storage.suffix)
+    fix = (f"recover the readable part with `mcap recover {storage} -o {fixed}` (mcap CLI)"
+           if mcap else
+           f"recover the readable part with `sqlite3 {storage} .recover | sqlite3 {fixed}`")
+    return (f"bag {str(path)!r}: the recording is cut short or damaged ({reason}); {got}; "
+            f"{fix} and rebuild its metadata with `ros2 bag reindex {path}`")
 
 
 def bag_topics(path: str | Path) -> dict[str, tuple[str, int]]:
@@ -143,13 +174,21 @@ def read_messages(
         done = 0
         if not conns:
             return
-        for conn, log_time, raw in reader.messages(connections=conns):
+        messages = reader.messages(connections=conns)
+        while True:
+            try:
+                conn, log_time, raw = next(messages)
+            except StopIteration:
+                break
+            except Exception as exc:  # noqa: BLE001 - the storage file is damaged part-way
+                raise ValueError(damaged_bag_words(path, exc, done, total)) from None
             try:
                 msg = store.deserialize_cdr(raw, conn.msgtype)
             except Exception as exc:  # noqa: BLE001 - unknown type or corrupt payload
                 raise ValueError(
                     f"bag {str(path)!r}: cannot deserialise a {conn.msgtype} message on "
-                    f"{conn.topic} at log time {log_time} ns ({type(exc).__name__}: {exc})"
+                    f"{conn.topic} at log time {log_time} ns ({type(exc).__name__}: {exc}); "
+                    f"{done} of {total} messages were read before it"
                 ) from None
             done += 1
             yield BagMessage(conn.topic, int(log_time), conn.msgtype, msg)
@@ -387,7 +426,8 @@ def write_bag(
         raise ValueError(f"storage: expected one of {list(_STORAGES)}, got {storage!r}")
     path = Path(path)
     if path.exists():
-        raise ValueError(f"bag {str(path)!r}: already exists (never overwritten)")
+        raise ValueError(f"bag {str(path)!r}: already exists (a recording is never "
+                         "overwritten): give another path, or remove it first")
     store = typestore if typestore is not None else jazzy_typestore()
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     conns: dict[str, Any] = {}

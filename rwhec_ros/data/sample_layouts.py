@@ -6,8 +6,9 @@
   ``poses/N.yaml`` holds ``x y z`` [m] and ``qx qy qz qw`` = ``T_base_tool`` (the flange), so the
   pose frames are ``base`` -> ``tool``. Targets: ``CharucoGridTargetFinder`` (``rows``,
   ``cols``, ``chessboard_dim``, ``aruco_marker_dim``, ``dictionary`` as OpenCV's enum number)
-  becomes a ``charuco`` target ``board``; ``ModifiedCircleGridTargetFinder`` a ``circles``
-  target where this installation has that type.
+  becomes a ``charuco`` target ``board``; ``ModifiedCircleGridTargetFinder`` (``rows``,
+  ``cols``, ``spacing`` between dot centres, the bottom-left dot larger) a ``circles`` target
+  with ``origin_circle: true`` where this installation has that type.
 * **camera_calibration_toolkit** (yizhongzhang1989): ``N.jpg`` (or ``.png``) with ``N.json``
   holding ``end2base``, the 4 x 4 ``T_base_end`` (rows, metres); frames ``base`` -> ``end``. No
   intrinsics are shipped (the toolkit calibrates them from the same images): they must be given
@@ -97,9 +98,13 @@ def _ic_target(finder: Any, where: str) -> tuple[dict[str, Any], str]:
                  f"{finder.get('spacing')} m spacing, big origin dot")
         if "circles" not in _target_types():
             return {}, words
-        return {"targets.names": [BOARD_NAME], p + "type": "circles",
-                p + "rows": int(finder["rows"]), p + "cols": int(finder["cols"]),
-                p + "spacing": float(finder["spacing"])}, words
+        try:
+            return {"targets.names": [BOARD_NAME], p + "type": "circles",
+                    p + "rows": int(finder["rows"]), p + "cols": int(finder["cols"]),
+                    p + "circle_spacing": float(finder["spacing"]),
+                    p + "origin_circle": True}, words
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{where}: target_finder of type {kind}: {exc}") from None
     return {}, f"target_finder type {kind!r}"
 
 

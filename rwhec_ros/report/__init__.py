@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.problem import Problem
+from ..data.atomic import StagedFiles
 from .images import render_report, save_png
 from .page import render_page
 from .residuals import (
@@ -91,12 +92,16 @@ def write_report(
 
         identifiability = analyze(problem, solution=(X, Y, scale))
     images = render_report(doc, problem, residuals, fit, identifiability, title, dpi)
-    save_png(png_path, images.png, dpi)
     with tempfile.TemporaryDirectory() as tmp:
+        png = save_png(Path(tmp) / "report.png", images.png, dpi)
         figure = save_png(Path(tmp) / "figure.png", images.page, dpi)
         sections = {name: save_png(Path(tmp) / f"{name}.png", image, dpi)
                     for name, image in images.sections.items()}
         page = render_page(doc, problem, residuals, fit, identifiability, figure, title,
                            sections=sections)
-    html_path.write_text(page, encoding="utf-8")
+        # both files whole or absent, the page (which embeds the figure) last
+        with StagedFiles() as staged:
+            staged.stage(png_path, png.read_bytes())
+            staged.stage(html_path, page)
+            staged.commit()
     return ReportFiles(png_path, html_path)

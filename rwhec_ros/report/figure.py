@@ -47,22 +47,18 @@ from .edges import (
 )
 from .labels import place_labels
 from .residuals import EdgeResiduals, natural_key
+from .words import BANNER_COLORS, certificate_words
 
 __all__ = ["BANNER_COLORS", "ReportFigure", "build_report_figure", "place_labels"]
 
-#: Banner colours (text, background) of each verdict level.
-BANNER_COLORS = {
-    "good": ("#1b5e20", "#e8f5e9"),
-    "caution": ("#7a4f00", "#fff3cd"),
-    "unusable": ("#b71c1c", "#fdecea"),
-    "unknown": ("#424242", "#eeeeee"),
-}
 _AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
 _STATUS_COLORS = {
     "identifiable": (0.13, 0.36, 0.80),
     "weak": (0.60, 0.74, 0.95),
     "insufficient": (0.84, 0.15, 0.16),
     "insufficient_fixed": (0.98, 0.78, 0.45),
+    "rejected": (0.45, 0.45, 0.45),
+    "left_out": (0.80, 0.80, 0.80),
     None: (1.0, 1.0, 1.0),
 }
 _STATUS_LABELS = {
@@ -70,6 +66,8 @@ _STATUS_LABELS = {
     "weak": "identifiable, below comfortable thresholds",
     "insufficient": "not identifiable, and the graph does not fix it",
     "insufficient_fixed": "not identifiable on its own, fixed through the graph",
+    "rejected": "rejected (outlier rejection: every pair)",
+    "left_out": "left out (too few pairs)",
     None: "not observed",
 }
 
@@ -157,10 +155,17 @@ def _grid(ax, x_names, y_names, colors, title: str, *, hatch=None, frame=None) -
     ax.set_title(title, fontsize=11)
 
 
-def _identifiability(ax, ident, x_names, y_names) -> None:
+def _identifiability(ax, ident, x_names, y_names,
+                     excluded: Mapping[str, str] | None = None) -> None:
+    """The identifiability grid; edges the solve left out (the result's ``excluded_edges``)
+    are drawn as rejected (outlier rejection) or left out, never as not observed."""
     from matplotlib.patches import Patch
 
     status = {}
+    for name, reason in (excluded or {}).items():
+        x, _, y = str(name).strip("()").partition(", ")
+        status[(x, y)] = ("rejected" if str(reason).startswith("outlier rejection")
+                          else "left_out")
     for e in getattr(ident, "edges", ()):
         s = getattr(e.status, "value", e.status)
         if s == "insufficient" and ident.identifiable:
@@ -226,11 +231,21 @@ def _ranked(ax, fit: FitStatistics, edge_ratio: float, n: int = 15) -> None:
         if e.flagged:
             label.set_color("#b71c1c")
             label.set_fontweight("bold")
-    from matplotlib.ticker import FuncFormatter, NullFormatter
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
 
     ax.set_xscale("log")
+    values = [v for e in edges for v in (e.ratio_translation, e.ratio_rotation)
+              if np.isfinite(v) and v > 0]
+    lo, hi = min([*values, edge_ratio]), max([*values, edge_ratio])
+    ax.set_xlim(lo / 1.3, hi * 1.3)
+    # every tick labelled: 1-2-5 steps within the range (a log axis over less than a decade
+    # would label only its power of ten)
+    ticks = [m * 10.0 ** k for k in range(int(np.floor(np.log10(lo / 1.3))),
+                                          int(np.ceil(np.log10(hi * 1.3))) + 1)
+             for m in (1, 2, 5) if lo / 1.3 <= m * 10.0 ** k <= hi * 1.3]
+    ax.xaxis.set_major_locator(FixedLocator(ticks))
     ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.xaxis.set_minor_locator(NullLocator())
     ax.set_xlabel("noise of the edge / noise of the median edge", fontsize=9)
     ax.set_title(f"the {len(edges)} worst-fitting edges (RMS residuals)", fontsize=11)
     ax.legend(loc="lower right", fontsize=8)
@@ -294,8 +309,6 @@ def _label_3d(fig, ax, labels: list[tuple[str, np.ndarray]]) -> None:
 
 def _summary_lines(doc: Mapping[str, Any], problem: Problem,
                    residuals: Sequence[EdgeResiduals]) -> list[str]:
-    from .page import certificate_words
-
     t_all = np.concatenate([r.translation_m for r in residuals])
     r_all = np.concatenate([r.rotation_rad for r in residuals])
     total_s = (doc.get("timing_s") or {}).get("total", float("nan"))
@@ -431,7 +444,7 @@ def build_report_figure(doc: Mapping[str, Any], problem: Problem,
     text_axes.append(fig.add_subplot(gs[2, 0]))
     _text(text_axes[2], fit_text)
     ax = fig.add_subplot(gs[1, 1:3])
-    _identifiability(ax, ident, x_names, y_names)
+    _identifiability(ax, ident, x_names, y_names, doc.get("excluded_edges") or {})
     _color_ticks(ax, levels)
     ax = fig.add_subplot(gs[2, 1:3])
     _fit_grid(fig, ax, fit, x_names, y_names, edge_ratio)

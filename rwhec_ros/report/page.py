@@ -12,46 +12,15 @@ from typing import Any
 import numpy as np
 
 from ..core.problem import Problem
-from ..core.result import rounding_decides
 from ..core.verdict import FitStatistics
 from .accuracy import REPROJECTION_HEADING, accuracy_sections
-from .figure import BANNER_COLORS
 from .residuals import EdgeResiduals, natural_key
+from .words import BANNER_COLORS, certificate_words
 
 __all__ = ["certificate_words", "render_page"]
 
-_STATUS_WORDS = {
-    "certified_optimal": "certified globally optimal",
-    "not_tight": "not certified: the certificate does not close (may be a local optimum)",
-    "not_identifiable": "not certified: the data do not determine every frame",
-    "ill_conditioned": "not certified: no bound can be proven (ill-conditioned)",
-    "solver_inaccurate": "not certified: the conic solver did not reach its tolerances",
-    "solver_failed": "not certified: the solver failed",
-    "local_only": "not certified: local solution only (mode local)",
-}
 _EDGE_WORDS = {"identifiable": "identifiable on its own", "weak": "weakly identifiable",
                "insufficient": "not on its own"}
-
-
-def certificate_words(doc: Mapping[str, Any]) -> str:
-    """The certificate in words, e.g. ``certified globally optimal (suboptimality bound
-    rho_hat = 5.4e-09)``."""
-    status = str(doc.get("status", ""))
-    words = _STATUS_WORDS.get(status, status.replace("_", " ") or "no certificate")
-    c = doc.get("certificate") or {}
-    try:
-        if rounding_decides(status, doc.get("suboptimality_bound"), c["tolerance"],
-                            c["primal_cost"], c["dual_bound"], c["null_space_dim"],
-                            c.get("margins") or {}):
-            words = ("not certified: the bound's rounding exceeds the tolerance (coordinates "
-                     "large for the residuals: express the poses about a nearby origin)")
-    except (KeyError, TypeError, ValueError):  # an older or partial result: the status words
-        pass
-    rho = doc.get("suboptimality_bound", float("nan"))
-    rho = float("nan") if rho is None else float(rho)
-    if np.isfinite(rho):
-        words += f" (suboptimality bound rho_hat = {rho:.2g})"
-    return words
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
@@ -194,7 +163,7 @@ def render_page(doc: Mapping[str, Any], problem: Problem, residuals: list[EdgeRe
         "that of the median edge (the larger of translation and rotation).</p>",
         _table(("tag (X)", "camera (Y)", "pairs", "identifiability", "translation RMS [mm]",
                 "translation max [mm]", "rotation RMS [deg]", "rotation max [deg]",
-                "vs. median edge", ""), rows),
+                "vs. median edge", "outlier"), rows),
         *_accuracy_html(doc, sections),
         "<h2>Edges left out</h2>",
         _table(("edge", "reason"), excluded) if excluded else "<p>none</p>",

@@ -88,6 +88,7 @@ class NodeCheck:
         self._diag_timer = node.create_timer(node.config.ros.diagnostics_period_s,
                                              self.publish_diagnostics, callback_group=group)
         self._last_periodic = time.monotonic()
+        self._stopping = False
         self._period_timer = node.create_timer(PERIOD_TICK_S, self._periodic,
                                                callback_group=group)
 
@@ -196,6 +197,8 @@ class NodeCheck:
 
     def _periodic(self) -> None:
         """Every :data:`PERIOD_TICK_S`: a look when ``check.period_s`` (live) has passed."""
+        if self._stopping:
+            return
         c = self.node.config.check
         now = time.monotonic()
         if c.period_s <= 0 or now - self._last_periodic < c.period_s or not c.reference:
@@ -210,6 +213,8 @@ class NodeCheck:
                 self._waiting = f"check failed: {type(exc).__name__}: {exc}"
 
     def publish_diagnostics(self) -> None:
+        if self._stopping:
+            return
         report = None if self._check is None else self._check.last
         rows = check_rows(report, self.node.get_name(), waiting=self._waiting)
         msg = DiagnosticArray()
@@ -223,9 +228,10 @@ class NodeCheck:
         self._diag_pub.publish(msg)
 
     def stop(self) -> None:
-        for timer in (self._diag_timer, self._period_timer):
-            if timer is not None:
-                timer.cancel()
+        """The node is stopping: the timer callbacks return at once from now on. The timers are
+        not cancelled (a timer cancelled while the executor holds a task of it makes that task
+        fail at exit: :meth:`CalibratorNode.stop_activity`); ``destroy_node`` destroys them."""
+        self._stopping = True
 
 
 def add_check_service(node) -> NodeCheck:

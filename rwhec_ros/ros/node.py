@@ -45,8 +45,11 @@ Start-up errors and Ctrl-C (also the double SIGINT of ``ros2 launch``) are handl
 
 Threading: sensor callbacks (reentrant group) only convert cheap messages or enqueue images;
 tag detection runs on ``sync.detection_threads`` worker threads fed by a
-:class:`~rwhec_ros.session.FairImageQueue` (one bounded drop-oldest queue per camera, served
-round-robin, one image per camera at a time, each held until the pose at its stamp has arrived);
+:class:`~rwhec_ros.session.FairImageQueue` (one queue per camera, served round-robin, one image
+per camera at a time, each held until the pose at its stamp has arrived or will not come: as long
+as the pose stream's measured lateness needs, on the node's ROS clock, at most
+``sync.max_pose_wait_s``, the waiting images within ``sync.max_waiting_mb``; a camera's backlog of
+ready images bounded by ``sync.image_queue_size``, drop-oldest; docs/ros-transport.md);
 the services have their own mutually exclusive group, so ``calibrate`` answers while data keep
 flowing under a ``MultiThreadedExecutor``. The live re-solve runs on the session's own worker
 thread; a timer in a separate mutually exclusive group (every :data:`LIVE_TICK_S`) only asks it
@@ -93,12 +96,15 @@ from ..messages import (
 )
 from ..session import CalibrationSession, FairImageQueue, MessageHandlers, QueueWorker
 from ..session.camera_monitor import CameraDiagnostics
+from ..session.handlers import message_bytes
 from ..session.paths import node_output_root
+from ..session.pose_loss import warn_row
 from ..session.rate_gate import RateGate
 from ..session.responses import (
     RESET_MESSAGE,
     calibrate_message,
     save_dataset_message,
+    save_on_shutdown,
     should_publish_tf,
 )
 from ..vision.annotate import annotate_detections
@@ -111,6 +117,9 @@ __all__ = ["CalibratorNode", "main"]
 
 #: Seconds between two log lines of the same warning key.
 WARN_THROTTLE_S = 5.0
+#: Seconds the detection workers get, all together, to finish their image when the node stops
+#: (``ros2 launch`` escalates to SIGTERM 5 s after SIGINT).
+WORKER_STOP_TIMEOUT_S = 1.5
 #: Period [s] of the live timer: it starts a due re-solve (``solver.live_period_s``, a live
 #: parameter, is checked at every tick) and publishes a finished one on ``~/estimate``.
 LIVE_TICK_S = 0.25
@@ -143,7 +152,9 @@ class CalibratorNode(Node):
             raise
         cfg = self.config
         self.output_root = node_output_root(cfg.output.directory)
-        self.session = CalibrationSession(cfg, output_root=self.output_root)
+        self.session = CalibrationSession(cfg, output_root=self.output_root,
+                                          clock=lambda: self.get_clock().now().nanoseconds)
+        self._stopping = False  # stop_activity began: workers leave rclpy alone
         self._warn_lock = threading.Lock()
         self._warn_last: dict[str, float] = {}
         self._warn_suppressed: dict[str, int] = {}
@@ -156,11 +167,14 @@ class CalibratorNode(Node):
         self._live_group = MutuallyExclusiveCallbackGroup()
 
         # --- detection off the executor: per-camera drop-oldest queues + worker threads -------
-        # Images wait in the queue (undecoded) until the session has the pose at their stamp; a
-        # full camera queue drops first an image the motion gate would skip anyway.
+        # Images wait in the queue (undecoded) until the session has the pose at their stamp (or
+        # knows it will not come), within sync.max_waiting_mb; a camera whose backlog of ready
+        # images is full drops first an image the motion gate would skip anyway.
         ready = None if cfg.pose_source.type == "tf" else self._pose_ready
-        self._queue = FairImageQueue(cfg.camera_names, cfg.sync.image_queue_size, ready=ready,
-                                     expendable=self._gate_would_skip)
+        self._queue = FairImageQueue(
+            cfg.camera_names, cfg.sync.image_queue_size, ready=ready,
+            expendable=self._gate_would_skip, weight=lambda item: message_bytes(item[0]),
+            max_bytes=int(cfg.sync.max_waiting_mb * 1e6), on_drop=self._on_queue_drop)
         self._camera_diagnostics = CameraDiagnostics(cfg.camera_names)
         self._workers = [
             QueueWorker(
@@ -249,7 +263,10 @@ class CalibratorNode(Node):
 
     # --- logging ------------------------------------------------------------------------------
     def _warn_throttled(self, key: str, text: str) -> None:
-        """Log ``text`` at warning level at most every WARN_THROTTLE_S seconds per ``key``."""
+        """Log ``text`` at warning level at most every WARN_THROTTLE_S seconds per ``key`` (not
+        while stopping: a worker finishing its image then leaves rclpy alone)."""
+        if self._stopping:
+            return
         now = time.monotonic()
         with self._warn_lock:
             last = self._warn_last.get(key)
@@ -308,15 +325,24 @@ class CalibratorNode(Node):
         try:
             stamp_ns = stamp_to_ns(msg.header.stamp)
         except (ValueError, TypeError, AttributeError):
-            stamp_ns = None  # rejected and counted by the handlers
+            stamp_ns = arrived = None  # rejected and counted by the handlers
         else:
             self._camera_diagnostics.record(camera, stamp_ns)
-        if not self._queue.put(camera, (msg, stamp_ns, compressed)):
+            arrived = self.session.image_arrival(stamp_ns)
+        if not self._queue.put(camera, (msg, stamp_ns, compressed, arrived)):
+            self.session.record("image_queue_dropped")
+
+    def _on_queue_drop(self, camera: str, item, waiting: bool) -> None:
+        """The queue dropped an image for memory (``sync.max_waiting_mb``): one that waited for
+        its pose is an image without a pose, one ready a detection backlog drop."""
+        if waiting:
+            self.session.record_no_pose(camera, "wait_memory")
+        else:
             self.session.record("image_queue_dropped")
 
     def _pose_ready(self, item) -> bool:
-        stamp_ns = item[1]
-        return stamp_ns is None or self.session.pose_ready(stamp_ns)
+        stamp_ns, arrived = item[1], item[3]
+        return stamp_ns is None or self.session.pose_ready(stamp_ns, arrived)
 
     def _gate_would_skip(self, camera: str, item) -> bool:
         stamp_ns = item[1]
@@ -324,22 +350,25 @@ class CalibratorNode(Node):
 
     def _process_image(self, entry) -> None:
         """Worker thread: optional tf lookup at the image stamp, then gate, decode, detect."""
-        camera, (msg, _, compressed) = entry
+        camera, (msg, _, compressed, arrived) = entry
+        if self._stopping:
+            return
         T = None
         if self._tf_buffer is not None:
             T = self._lookup_pose(camera, msg)
             if T is None:
                 return
         if compressed:
-            outcome = self.handlers.on_compressed_image(camera, msg, T)
+            outcome = self.handlers.on_compressed_image(camera, msg, T, arrived_ns=arrived)
         else:
-            outcome = self.handlers.on_image(camera, msg, T)
+            outcome = self.handlers.on_image(camera, msg, T, arrived_ns=arrived)
         self._publish_detections(camera, outcome)
 
     def _publish_detections(self, camera: str, outcome) -> None:
         """``~/detections``: the searched image annotated, rate-limited, only when subscribed."""
         pub = self._detections_pub
-        if (pub is None or outcome is None or getattr(outcome, "detection", None) is None
+        if (self._stopping or pub is None or outcome is None
+                or getattr(outcome, "detection", None) is None
                 or outcome.image is None or pub.get_subscription_count() == 0
                 or not self._detections_gate.take()):
             return
@@ -422,6 +451,8 @@ class CalibratorNode(Node):
         """Start a due live re-solve (returns at once) and publish a new estimate once, while
         ``~/estimate`` has a subscriber (without one the YAML is never built; the latest
         estimate is published when one appears)."""
+        if self._stopping:
+            return
         live = self.session.live
         live.tick()
         if self._estimate_pub.get_subscription_count() == 0:
@@ -442,6 +473,8 @@ class CalibratorNode(Node):
 
     # --- diagnostics --------------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
+        if self._stopping:
+            return
         counters = self.session.counters()
         counters["image_queue_length"] = len(self._queue)
         counters["image_queue_dropped_total"] = self._queue.dropped
@@ -458,9 +491,14 @@ class CalibratorNode(Node):
             verdict="" if report is None else str(report.verdict), calibration=calibration,
             accuracy=accuracy,
         )
+        cameras = self._camera_diagnostics.rows(
+            self.session.camera_counters(), self._queue.stats(), prefix=self.get_name(),
+            no_pose=self.session.no_pose_counts())
+        session_row = warn_row(rows[0], self._camera_diagnostics.no_pose.problem())
+        session_row["values"] = list(session_row["values"]) + self.session.pose_wait_values()
+        rows[0] = session_row
         rows[1:1] = [self.session.live.status().diagnostic_row(self.get_name())]
-        rows[2:2] = self._camera_diagnostics.rows(
-            self.session.camera_counters(), self._queue.stats(), prefix=self.get_name())
+        rows[2:2] = cameras
         msg = DiagnosticArray()
         fill_message(msg.header, {"stamp": ns_to_stamp_fields(self.get_clock().now().nanoseconds)})
         for row in rows:
@@ -476,19 +514,31 @@ class CalibratorNode(Node):
         self._diag_pub.publish(msg)
 
     def stop_activity(self) -> None:
-        """Stop the timers, the detection workers and the live re-solve (before the executor
-        and the node go away)."""
-        for name in ("_diag_timer", "_live_timer"):
-            timer = getattr(self, name, None)
-            if timer is not None:
-                timer.cancel()
+        """Stop the timer callbacks, the detection workers and the live re-solve (before the
+        executor and the node go away, while the context is valid): the images still queued are
+        dropped, not examined, and the workers finish the image they are on within
+        :data:`WORKER_STOP_TIMEOUT_S` (all together); meanwhile they neither log nor publish.
+        The timers are not cancelled (a timer cancelled while the executor holds a task of it
+        makes that task fail: ``failed to call timer: timer is canceled`` on stderr at exit):
+        their callbacks return at once, ``executor.shutdown`` waits for them, ``destroy_node``
+        destroys them."""
+        self._stopping = True
+        workers = getattr(self, "_workers", ())
+        for worker in workers:
+            worker.request_stop()
+        queue = getattr(self, "_queue", None)
+        if queue is not None:
+            queue.discard()
+            queue.close()
+        deadline = time.monotonic() + WORKER_STOP_TIMEOUT_S
+        for worker in workers:
+            worker.join(max(0.0, deadline - time.monotonic()))
         if getattr(self, "_bringup", None) is not None:
             self._bringup.stop()
-        for worker in getattr(self, "_workers", ()):
-            worker.stop()
         session = getattr(self, "session", None)
         if session is not None:
             session.close()
+            save_on_shutdown(session, self.get_logger())  # pairs never lost at shutdown
 
     def destroy_node(self) -> None:
         self.stop_activity()
@@ -501,8 +551,8 @@ EXECUTOR_SHUTDOWN_TIMEOUT_S = 3.0
 
 
 def main(args=None) -> int:
-    """Console script ``calibrator``: init, spin a MultiThreadedExecutor, stop cleanly
-    (:func:`rwhec_ros.ros.process.rclpy_main`)."""
+    """Console script ``calibrator`` (through :mod:`rwhec_ros.ros.entry`): init, spin a
+    MultiThreadedExecutor, stop cleanly (:func:`rwhec_ros.ros.process.rclpy_main`)."""
     return rclpy_main(DEFAULT_NODE_NAME, CalibratorNode, args,
                       shutdown_timeout_s=EXECUTOR_SHUTDOWN_TIMEOUT_S)
 

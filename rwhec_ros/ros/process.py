@@ -12,18 +12,24 @@ What a ROS user expects, and what :func:`run_node_program` does for both console
   read; the program prints one line naming the file (:func:`start_failure_message`) and exits
   with :data:`EXIT_START_FAILED`. An invalid configuration (``ValueError`` naming the parameter)
   exits with :data:`EXIT_BAD_CONFIG`.
-* **Ctrl-C is quiet, under ``ros2 run`` and ``ros2 launch``.** ``ros2 launch`` delivers SIGINT to
-  each child twice (once from the terminal's process group, once forwarded by launch). The
-  program installs, *before* ``rclpy.init`` (so that rclpy's own SIGINT handler, which wakes the
-  executor, chains to it), a handler that turns the first SIGINT into ``KeyboardInterrupt`` and
-  ignores every later one (:func:`install_first_sigint_handler`). The clean-up then runs with
-  SIGINT and SIGTERM ignored (:func:`signals_ignored`), step by step, each step guarded, so a
-  late signal can neither interrupt ``destroy_node()`` nor skip ``rclpy.try_shutdown()``; the
-  exit code is 0.
-* **Activity stops before destruction.** The clean-up steps a node gives (timers cancelled, worker
-  threads joined, ``executor.shutdown(timeout)`` waiting for running callbacks) come before
-  ``destroy_node()`` and ``try_shutdown()``, so no callback publishes on a destroyed publisher or
-  an invalid context.
+* **Ctrl-C and SIGTERM are quiet, under ``ros2 run`` and ``ros2 launch``, exit code 0.**
+  ``ros2 launch`` delivers SIGINT to each child twice (once from the terminal's process group,
+  once forwarded by launch), at any spacing; it escalates to SIGTERM after 5 s. The program owns
+  both signals: :func:`rclpy_main` starts rclpy *without* its signal handlers
+  (``SignalHandlerOptions.NO``: rclpy's SIGTERM handler would shut the context down at once,
+  under the feet of the worker threads, issue 39), and :func:`install_stop_handlers` makes the
+  first SIGINT or SIGTERM ask the program to stop (``NodeProgram.stop``, and
+  ``KeyboardInterrupt`` in the main thread unless the program's spin watches ``stop``) and
+  ignore every later one *until the process exits*. The previous handlers are not restored
+  (only with ``restore_signals``, for in-process callers): a second Ctrl-C 0.3 s after the first
+  used to land in the interpreter's shutdown after the old handler was back and kill the node
+  (exit code -2 under launch, 254 under ``ros2 run``). The clean-up runs step by step, each step
+  guarded, so nothing can interrupt ``destroy_node()`` or skip ``rclpy.try_shutdown()``.
+* **Activity stops before destruction.** The main thread stops spinning first (no callback
+  starts any more), then the clean-up steps a node gives (timers cancelled, worker threads
+  stopped and joined, ``executor.shutdown(timeout)`` waiting for running callbacks) run before
+  ``destroy_node()`` and ``try_shutdown()``, so no worker or callback uses a destroyed publisher
+  or an invalid context.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -46,13 +53,20 @@ __all__ = [
     "rclpy_main",
     "params_file_arguments",
     "start_failure_message",
-    "install_first_sigint_handler",
+    "install_stop_handlers",
+    "wait_for_tasks",
     "signals_ignored",
+    "STOP_SIGNALS",
 ]
 
 EXIT_OK = 0
 EXIT_START_FAILED = 1
 EXIT_BAD_CONFIG = 2
+
+#: The signals that stop a node program.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: Longest wait [s] of one ``spin_once`` of :func:`rclpy_main`: how soon a stop request is seen.
+SPIN_POLL_S = 0.1
 
 
 def params_file_arguments(argv: Sequence[str]) -> list[str]:
@@ -103,21 +117,24 @@ def start_failure_message(exc: BaseException, argv: Sequence[str] = (),
     return "; ".join(parts)
 
 
-def _first_sigint(signum, frame) -> None:
-    """SIGINT handler: ignore every further SIGINT, then stop the program with
-    ``KeyboardInterrupt`` (the second SIGINT of ``ros2 launch`` then cannot land in the
-    clean-up)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    raise KeyboardInterrupt
-
-
-def install_first_sigint_handler() -> Any:
-    """Install :func:`_first_sigint` as the Python SIGINT handler; returns the previous handler
-    (None when not called from the main thread, where Python cannot set handlers). Call it
-    before ``rclpy.init``: rclpy's handler keeps the one it finds and calls it."""
+def install_stop_handlers(stop: threading.Event, *, interrupt: bool = True) -> dict:
+    """Make the first SIGINT or SIGTERM set ``stop`` (and raise ``KeyboardInterrupt`` in the
+    main thread when ``interrupt``) and every later one of either be ignored; returns the
+    previous handlers (empty when not called from the main thread, where Python cannot set
+    handlers)."""
     if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGINT, _first_sigint)
+        return {}
+    if stop.is_set():  # a signal came already (handlers installed earlier): ignore the rest
+        return {s: signal.signal(s, signal.SIG_IGN) for s in STOP_SIGNALS}
+
+    def first(signum, frame) -> None:
+        for s in STOP_SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+        stop.set()
+        if interrupt:
+            raise KeyboardInterrupt
+
+    return {s: signal.signal(s, first) for s in STOP_SIGNALS}
 
 
 @contextmanager
@@ -163,6 +180,12 @@ class NodeProgram:
         Also mean "stop" (``rclpy.executors.ExternalShutdownException``).
     argv : sequence of str
         The program's arguments (to name unreadable ``--params-file`` paths).
+    stop : threading.Event
+        Set by the first SIGINT or SIGTERM (:func:`install_stop_handlers`).
+    interrupt : bool
+        The first signal also raises ``KeyboardInterrupt`` in the main thread; False when
+        ``spin`` returns by itself once ``stop`` is set (:func:`rclpy_main`: no exception in
+        the middle of rclpy's executor).
     """
 
     name: str
@@ -174,6 +197,8 @@ class NodeProgram:
     fatal: Callable[[str], object]
     quiet_exceptions: tuple[type[BaseException], ...] = ()
     argv: Sequence[str] = field(default_factory=lambda: list(sys.argv))
+    stop: threading.Event = field(default_factory=threading.Event)
+    interrupt: bool = True
 
 
 def _run_quietly(step: Callable[[], object], program: NodeProgram) -> None:
@@ -187,13 +212,19 @@ def _run_quietly(step: Callable[[], object], program: NodeProgram) -> None:
             pass
 
 
-def run_node_program(program: NodeProgram) -> int:
+def run_node_program(program: NodeProgram, *, restore_signals: bool = False) -> int:
     """Run ``program`` as described in the module docstring; returns the exit code
-    (:data:`EXIT_OK`, :data:`EXIT_START_FAILED`, :data:`EXIT_BAD_CONFIG`)."""
-    previous = install_first_sigint_handler()
+    (:data:`EXIT_OK`, :data:`EXIT_START_FAILED`, :data:`EXIT_BAD_CONFIG`).
+
+    On return SIGINT and SIGTERM stay ignored (the process is about to exit: a late signal must
+    not kill it in the interpreter's shutdown), unless ``restore_signals`` (in-process callers,
+    tests) puts the previous handlers back."""
+    previous = install_stop_handlers(program.stop, interrupt=program.interrupt)
     code = EXIT_OK
     built = None
     try:
+        if program.stop.is_set():  # stopped while starting: nothing to start, nothing to stop
+            return EXIT_OK
         try:
             program.init()
         except KeyboardInterrupt:
@@ -222,21 +253,46 @@ def run_node_program(program: NodeProgram) -> int:
     except KeyboardInterrupt:  # a first Ctrl-C in the instant after the clean-up
         pass
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+        for s, handler in previous.items():
+            if restore_signals:
+                signal.signal(s, handler if handler is not None else signal.SIG_DFL)
+            else:
+                signal.signal(s, signal.SIG_IGN)
     return code
+
+
+def wait_for_tasks(executor: Any, timeout_s: float) -> bool:
+    """Wait up to ``timeout_s`` for the callbacks a ``MultiThreadedExecutor`` handed to its
+    threads; True when none is left.
+
+    Call it after the spin stopped and before ``executor.shutdown``: rclpy 7.1 (Jazzy)
+    ``Executor.shutdown(timeout_sec)`` does not wait for them (it tests ``_is_shutdown`` right
+    after setting it) and destroys its guard condition, which a task still queued then triggers:
+    ``The following exception was never retrieved: cannot use Destroyable because destruction
+    was requested`` on stderr at exit (seen under ``ros2 launch``). The executor keeps them in
+    ``_futures`` (private; without it nothing is waited for)."""
+    deadline = time.monotonic() + timeout_s
+    for task in list(getattr(executor, "_futures", ())):
+        while not task.done():
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.01)
+    return True
 
 
 def rclpy_main(name: str, make_node: Callable[[], Any], args: Sequence[str] | None = None, *,
                shutdown_timeout_s: float = 3.0) -> int:
-    """Body of a node's console script: ``rclpy.init(args=args)``, ``make_node()`` spun by a
-    ``MultiThreadedExecutor``, then ``node.stop_activity()``,
-    ``executor.shutdown(shutdown_timeout_s)`` (waits for running callbacks), ``destroy_node()``
+    """Body of a node's console script: ``rclpy.init(args=args)`` without rclpy's signal
+    handlers, ``make_node()`` spun by a ``MultiThreadedExecutor`` (``spin_once`` until the first
+    SIGINT or SIGTERM, seen within :data:`SPIN_POLL_S`), then ``node.stop_activity()``, the
+    callbacks handed to the executor's threads finished (:func:`wait_for_tasks`, up to
+    ``shutdown_timeout_s``), ``executor.shutdown(shutdown_timeout_s)``, ``destroy_node()``
     and ``rclpy.try_shutdown()``, as :func:`run_node_program` runs them; returns the exit code.
     """
     import rclpy
     from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
     from rclpy.logging import get_logger
+    from rclpy.signals import SignalHandlerOptions
 
     from ..allocator import retain_freed_memory
 
@@ -251,14 +307,24 @@ def rclpy_main(name: str, make_node: Callable[[], Any], args: Sequence[str] | No
     def stop_steps(built):
         node, executor = built
         return [node.stop_activity,
+                lambda: wait_for_tasks(executor, shutdown_timeout_s),
                 lambda: executor.shutdown(timeout_sec=shutdown_timeout_s),
                 node.destroy_node]
 
+    stop = threading.Event()
+
+    def spin(built) -> None:
+        executor = built[1]
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_POLL_S)
+
     return run_node_program(NodeProgram(
         name=name,
-        init=lambda: rclpy.init(args=args),
+        init=lambda: rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO),
         build=build,
-        spin=lambda built: built[1].spin(),
+        spin=spin,
+        stop=stop,
+        interrupt=False,
         stop_steps=stop_steps,
         shutdown=rclpy.try_shutdown,
         fatal=get_logger(name).fatal,

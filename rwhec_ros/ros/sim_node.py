@@ -12,7 +12,9 @@ Parameters: ``rate_hz`` (image rate, 5.0), ``pose_rate_hz`` (100.0), ``seed`` (0
 ``pose_noise_m`` / ``pose_noise_rad`` (pose-stream noise per axis, 0.0005), ``image_noise_std``
 (grey levels, 2.0), ``n_cameras`` (3), ``n_tags`` (6), ``boards`` (string array, default empty:
 board ``boards[j]``, ``aprilgrid`` or ``charuco``, in place of tag ``j``, as the CLI demo's
-``--board``; ``['aprilgrid', 'charuco']`` is what ``config/demo_boards.yaml`` describes).
+``--board``; also ``chessboard``, ``circles``, ``asymmetric_circles``; ``['aprilgrid', 'charuco']``
+is what ``config/demo_boards.yaml`` describes, ``['chessboard', 'circles', 'asymmetric_circles']``
+``config/demo_grids.yaml``).
 Rendering runs in its own callback group so the pose stream keeps its rate under the
 ``MultiThreadedExecutor``. No maths here: the model is
 :func:`rwhec_ros.simulation.demo_board_rig`. Stopping (Ctrl-C, also under ``ros2 launch``) cancels
@@ -45,6 +47,7 @@ from ..messages import (
 from ..simulation import (
     DEMO_POSE_TOPIC,
     DEMO_RIG_FRAME,
+    DEMO_SUPERSAMPLE,
     DEMO_WORLD_FRAME,
     demo_board_rig,
     demo_camera_topics,
@@ -75,7 +78,8 @@ class DemoSimulatorNode(Node):
         # unset, its value is None
         boards = self.declare_parameter(
             "boards", Parameter.Type.STRING_ARRAY,
-            ParameterDescriptor(description="board kinds (aprilgrid, charuco) in place of tags "
+            ParameterDescriptor(description="board kinds (aprilgrid, charuco, chessboard, "
+                                            "circles, asymmetric_circles) in place of tags "
                                             "0, 1, ... (default: none)")).value
         for name, value in (("rate_hz", rate), ("pose_rate_hz", pose_rate)):
             if not value > 0:
@@ -121,10 +125,10 @@ class DemoSimulatorNode(Node):
             for parent, child, T in self.rig.true_frames()])
 
     def stop_activity(self) -> None:
-        """Cancel the timers; callbacks already running return before publishing again."""
+        """Stop publishing: the timer callbacks return at once, those running return before
+        publishing again (the timers are not cancelled: a task of a cancelled timer fails,
+        see :meth:`rwhec_ros.ros.node.CalibratorNode.stop_activity`)."""
         self._stopping.set()
-        for timer in getattr(self, "_timers", ()):
-            timer.cancel()
 
     def _on_pose_timer(self) -> None:
         if self._stopping.is_set():
@@ -145,7 +149,8 @@ class DemoSimulatorNode(Node):
         T_world_rig = self.rig.T_world_rig(self._sim_time(stamp))
         for cam in self.rig.cameras:
             gray = self.rig.render(cam, T_world_rig, self._image_rng,
-                                   noise_std=self._image_noise, supersample=2)
+                                   noise_std=self._image_noise,
+                                   supersample=DEMO_SUPERSAMPLE, shift_pattern=True)
             if self._stopping.is_set():  # rendering takes a while: stop before publishing
                 return
             frame = f"{cam}_optical"
@@ -157,8 +162,8 @@ class DemoSimulatorNode(Node):
 
 
 def main(args=None) -> int:
-    """Console script ``rwhec_demo_sim`` (stops cleanly: see
-    :func:`rwhec_ros.ros.process.rclpy_main`)."""
+    """Console script ``rwhec_demo_sim`` (through :mod:`rwhec_ros.ros.entry`; stops cleanly:
+    see :func:`rwhec_ros.ros.process.rclpy_main`)."""
     return rclpy_main("rwhec_demo_sim", DemoSimulatorNode, args,
                       shutdown_timeout_s=EXECUTOR_SHUTDOWN_TIMEOUT_S)
 

@@ -42,6 +42,7 @@ from ..core.analysis.uncertainty import Uncertainty, UncertaintyOptions, frame_u
 from ..core.analysis.validation import CrossValidation, cross_validate
 from ..core.problem import Problem
 from ..core.verdict.words import deg, mm
+from .refinement import CornerRefinement
 
 __all__ = ["AccuracyOptions", "Accuracy", "assess_accuracy", "accuracy_lines", "std_words",
            "unobservable_axes"]
@@ -95,7 +96,10 @@ class Accuracy:
     validation : CrossValidation or None
     guidance : Guidance or None
     reprojection : dict of str to CameraReprojection, or None
-        Per camera (None without corners).
+        Per camera (None without corners), through the certified estimate.
+    refinement : CornerRefinement or None
+        The corner-level refinement (:mod:`.refinement`; None when not asked for or without
+        corners): which estimate is published and why.
     options : AccuracyOptions
     notes : list of str
         Why a part is missing (switched off, or failed and how).
@@ -107,6 +111,7 @@ class Accuracy:
     validation: CrossValidation | None = None
     guidance: Guidance | None = None
     reprojection: dict | None = None
+    refinement: CornerRefinement | None = None
     options: AccuracyOptions = field(default_factory=AccuracyOptions)
     notes: list[str] = field(default_factory=list)
     timing_s: dict[str, float] = field(default_factory=dict)
@@ -123,15 +128,17 @@ class Accuracy:
             fu = self.uncertainty.frame(name)
         except KeyError:
             return {}
-        d = fu.to_dict()
-        return {"std_kind": "predicted from the stated noise (sigma, kappa); a_posteriori: "
-                            "times the variance factor of the residuals", **d}
+        d = {"std_kind": "predicted from the stated noise (sigma, kappa); a_posteriori: "
+                         "times the variance factor of the residuals", **fu.to_dict()}
+        return d if self.refinement is None else self.refinement.frame_fields(name, d)
 
     def to_dict(self) -> dict:
         """The top-level result-YAML keys ``uncertainty`` (convention, variance factor, scale
         std, unobservable directions in words; the frames' numbers are with the frames),
-        ``cross_validation``, ``guidance`` and ``reprojection`` (per camera; None when not
-        computed), and ``accuracy_notes``."""
+        ``cross_validation``, ``guidance`` and ``reprojection`` (per camera, through the
+        certified estimate, with ``rms_px_refined`` when a refinement ran; None when not
+        computed), ``accuracy_notes`` and, with a refinement, ``refinement``
+        (:meth:`~rwhec_ros.session.refinement.CornerRefinement.to_dict`)."""
         unc = None
         if self.uncertainty is not None:
             unc = self.uncertainty.to_dict()
@@ -145,12 +152,20 @@ class Accuracy:
         if self.validation is not None:
             cv = {"seed": int(self.options.seed), **self.validation.to_dict(),
                   "timing_s": float(self.validation.timing_s)}
-        return {"uncertainty": unc, "cross_validation": cv,
-                "guidance": None if self.guidance is None else self.guidance.to_dict(),
-                "reprojection": None if self.reprojection is None else {
-                    cam: r.to_dict() for cam, r in self.reprojection.items()},
-                "accuracy_notes": list(self.notes),
-                "accuracy_timing_s": {k: float(v) for k, v in self.timing_s.items()}}
+        rep = None if self.reprojection is None else {
+            cam: r.to_dict() for cam, r in self.reprojection.items()}
+        ref = self.refinement.refinement if self.refinement is not None else None
+        for cam, r in (rep or {}).items():
+            if ref is not None and cam in ref.rms_px:
+                r["rms_px_refined"] = float(ref.rms_px[cam])
+        out = {"uncertainty": unc, "cross_validation": cv,
+               "guidance": None if self.guidance is None else self.guidance.to_dict(),
+               "reprojection": rep,
+               "accuracy_notes": list(self.notes),
+               "accuracy_timing_s": {k: float(v) for k, v in self.timing_s.items()}}
+        if self.refinement is not None:
+            out["refinement"] = self.refinement.to_dict()
+        return out
 
     def worst_held_out(self):
         """The edge with the largest held-out RMS translation residual (or None)."""
@@ -312,6 +327,8 @@ def accuracy_lines(accuracy: Accuracy | None) -> list[str]:
                      "(RMS): "
                      + ", ".join(f"{cam} {r.rms_px:.2f} px" for cam, r in
                                  accuracy.reprojection.items()))
+    if accuracy.refinement is not None:
+        lines += accuracy.refinement.lines()
     if accuracy.guidance is not None:
         lines.append(f"next motion: {accuracy.guidance.message}")
     lines += [f"note: {n}" for n in accuracy.notes if "failed" in n]

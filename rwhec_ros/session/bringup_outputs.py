@@ -237,6 +237,8 @@ def check_document(report: CheckReport, naming: FrameNaming, *,
             "notes": list(report.notes),
         },
         "verdict_details": None if v is None else v.to_dict(),
+        "timing_s": {k: float(x) for k, x in res.timing_s.items()},
+        "identifiability": None,  # the check's own per-frame tests are under ``check``
         "config": dict(config or {}),
         "source": dict(source or {}),
     }

@@ -29,7 +29,30 @@ from ..messages import (
 from .live import CalibrationSession
 from .outcomes import ImageOutcome
 
-__all__ = ["MessageHandlers"]
+__all__ = ["MessageHandlers", "LazyImage", "message_bytes"]
+
+
+def message_bytes(msg: Any) -> int:
+    """Bytes an image message holds (its ``data`` plus 1 kB for the rest); 1 kB when it has no
+    ``data`` of a known length."""
+    try:
+        return len(msg.data) + 1024
+    except (AttributeError, TypeError):
+        return 1024
+
+
+class LazyImage:
+    """An image message decoded only when called (the session's motion gate decides), with the
+    bytes it holds meanwhile (``nbytes``: the session's memory bound of waiting images)."""
+
+    __slots__ = ("convert", "msg", "nbytes")
+
+    def __init__(self, convert: Callable[[Any], np.ndarray], msg: Any) -> None:
+        self.convert, self.msg = convert, msg
+        self.nbytes = message_bytes(msg)
+
+    def __call__(self) -> np.ndarray:
+        return self.convert(self.msg)
 
 
 class MessageHandlers:
@@ -103,32 +126,37 @@ class MessageHandlers:
         return ok
 
     def on_image(
-        self, camera: str, msg: Any, T_parent_child: np.ndarray | None = None
+        self, camera: str, msg: Any, T_parent_child: np.ndarray | None = None, *,
+        arrived_ns: int | None = None,
     ) -> ImageOutcome:
         """A ``sensor_msgs/Image`` of ``camera`` (call it off the executor thread: it detects).
 
-        ``T_parent_child`` is the pose at the image stamp when the node looked it up on tf. The
-        pixels are converted only when the session's motion gate lets the image through.
+        ``T_parent_child`` is the pose at the image stamp when the node looked it up on tf;
+        ``arrived_ns`` when the message arrived, on the session's clock
+        (:meth:`~rwhec_ros.session.CalibrationSession.image_arrival`; default now). The pixels
+        are converted only when the session's motion gate lets the image through.
         """
-        return self._image(camera, msg, image_to_gray, T_parent_child)
+        return self._image(camera, msg, image_to_gray, T_parent_child, arrived_ns)
 
     def on_compressed_image(
-        self, camera: str, msg: Any, T_parent_child: np.ndarray | None = None
+        self, camera: str, msg: Any, T_parent_child: np.ndarray | None = None, *,
+        arrived_ns: int | None = None,
     ) -> ImageOutcome:
         """A ``sensor_msgs/CompressedImage`` of ``camera`` (JPEG, PNG; ``image_transport``'s
         ``compressed`` format strings), decoded with OpenCV only when the session's motion gate
         lets the image through; undecodable or truncated data is counted
         ``bad_image_message`` like a bad raw image."""
-        return self._image(camera, msg, compressed_image_to_gray, T_parent_child)
+        return self._image(camera, msg, compressed_image_to_gray, T_parent_child, arrived_ns)
 
     def _image(self, camera: str, msg: Any, convert: Callable[[Any], np.ndarray],
-               T_parent_child: np.ndarray | None) -> ImageOutcome:
+               T_parent_child: np.ndarray | None, arrived_ns: int | None) -> ImageOutcome:
         try:
             stamp_ns = stamp_to_ns(msg.header.stamp)
         except (ValueError, TypeError, AttributeError) as exc:
             self._warn("bad_image_message", f"image of {camera!r} rejected: {exc}")
             return ImageOutcome(camera, -1, "rejected", reasons=["bad_image_message"])
-        outcome = self.session.add_image(camera, stamp_ns, lambda: convert(msg), T_parent_child)
+        outcome = self.session.add_image(camera, stamp_ns, LazyImage(convert, msg),
+                                         T_parent_child, arrived_ns=arrived_ns)
         if outcome.status == "rejected" and self.on_warning is not None:
             for reason in outcome.reasons:
                 detail = f": {outcome.detail}" if outcome.detail else ""

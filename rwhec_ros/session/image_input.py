@@ -7,13 +7,14 @@ pair accumulator, counters) and is kept in its own module only for size.
 Order of the work for one image of camera ``c`` at stamp ``s``:
 
 1. cheap checks (known camera, intrinsics, stamp; for an array its type and size);
-2. ``A`` at ``s``: the given pose (tf), or the pose buffer. An image newer than the newest pose
-   waits, *undecoded*, for a pose after its stamp (``sync.max_pending_images``; the pose that
-   brackets it processes it); where the buffer cannot serve ``s`` the stop-and-go rule of
-   :mod:`rwhec_ros.sync.at_rest` may (counted ``pose_at_rest``); then ``capture.mode`` and the
-   pending captures (:mod:`rwhec_ros.session.capture`): in capture-only mode an image no
-   capture takes is left out here, undecoded (``images_not_captured``); an image a capture
-   takes skips the motion gate;
+2. ``A`` at ``s``: the given pose (tf), or the pose buffer. An image that no pose brackets yet
+   waits, *undecoded*, for one (:mod:`rwhec_ros.session.image_wait`: as long as the pose stream's
+   measured lateness needs, at most ``sync.max_pose_wait_s``, or while the stream may be at rest;
+   the pose that brackets it processes it); where the buffer cannot serve ``s`` the stop-and-go
+   rule of :mod:`rwhec_ros.sync.at_rest` may (counted ``pose_at_rest``); then ``capture.mode``
+   and the pending captures (:mod:`rwhec_ros.session.capture`): in capture-only mode an image no
+   capture takes is left out here, undecoded (``images_not_captured``); an image a capture takes
+   skips the motion gate;
 3. **motion gate** (``detection.motion_gate``): the keyframe test of
    :class:`~rwhec_ros.sync.accumulator.PairAccumulator` depends on the stamp and ``A`` only, so
    before any pixel is read the session asks every edge ``(target, c)`` whether it would keep a
@@ -32,7 +33,13 @@ Order of the work for one image of camera ``c`` at stamp ``s``:
    <rwhec_ros.vision.target_detector.TargetDetector.detect>`; the others are counted
    ``tags_skipped_no_motion``);
 5. one pair per target -- a board is one ``B`` from all its corners -- is offered to the
-   accumulator (which applies the same keyframe test again);
+   accumulator (which applies the same keyframe test again). The corner noise each pose
+   measured goes to the camera's noise history, which scales the reprojection gate of its next
+   images (:meth:`DetectorConfig.reprojection_limit
+   <rwhec_ros.vision.detector_config.DetectorConfig.reprojection_limit>`). An image searched is
+   counted once by what it gave: ``images_used``, ``images_no_new_pairs``,
+   ``images_without_tags`` (no configured target found) or ``images_targets_rejected:<reason>``
+   (targets found, all rejected: the first whole-target reason);
 6. **look-back** (discovery step > 0): the targets this search found and the camera's previous
    search had not (they came into view meanwhile) are searched for in the images of the camera
    that the gate skipped in between (at most :data:`LOOK_BACK_IMAGES`, held undecoded), oldest
@@ -59,17 +66,15 @@ is never decoded, so bad data in it goes unnoticed.
 
 from __future__ import annotations
 
-import collections
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from ..sync.at_rest import AtRestRule, at_rest_lookup, waits_at_rest
-from ..sync.buffer import LookupStatus
 from ..vision.detection import RejectReason
 from ..vision.target_detector import TargetDetector
 from .capture import NOT_CAPTURED
+from .image_wait import NO_POSE_PREFIX, ImageWait
 from .outcomes import ImageOutcome
 
 __all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS", "LOOK_BACK_IMAGES"]
@@ -89,7 +94,8 @@ LOOK_BACK_IMAGES = 8
 _GATE_MEMO_SIZE = 4096
 
 #: Per-camera counters of :meth:`ImageInput.camera_counters` (all present from the start).
-CAMERA_COUNTERS = ("images", "skipped_no_motion", "detected", "used", "rejected", "pairs_kept")
+CAMERA_COUNTERS = ("images", "skipped_no_motion", "detected", "used", "rejected", "no_pose",
+                   "pairs_kept")
 
 
 def safe_int(value: Any) -> int | None:
@@ -103,10 +109,23 @@ def safe_int(value: Any) -> int | None:
         return None
 
 
-class ImageInput:
+def _first_target_rejection(detection) -> str | None:
+    """The reason an image whose configured targets were all rejected gave no pair: the first
+    whole-target rejection of a configured target, else its first marker's; None when no
+    configured target was found (markers of no target do not count)."""
+    own = [r for r in detection.rejections if r.name]
+    if not own:
+        return None
+    own.sort(key=lambda r: r.marker_id != -1)
+    return own[0].reason
+
+
+class ImageInput(ImageWait):
     """Mixin of :class:`~rwhec_ros.session.CalibrationSession`: the image path (see the module
-    docstring). It uses the session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
+    docstring; waiting for poses: :class:`~rwhec_ros.session.image_wait.ImageWait`). It uses the
+    session's ``_lock``, ``_buffer``, ``_acc``, ``_tracker``,
     ``_pending``, ``_counters``, ``_camera_counts``, ``_rejections``, ``_intrinsics``,
+    ``_corner_noise``,
     ``_data_version``, ``_x_names``, ``_target_specs``, ``_local``, ``_detector_config``,
     ``_capture``, ``config`` and
     ``_pose_to_A``."""
@@ -118,6 +137,8 @@ class ImageInput:
         stamp_ns: int,
         image: ImageSource,
         T_parent_child: np.ndarray | None = None,
+        *,
+        arrived_ns: int | None = None,
     ) -> ImageOutcome:
         """Take one image: pose, motion gate, tags, pairs (module docstring).
 
@@ -132,8 +153,11 @@ class ImageInput:
             image is examined (a skipped image is never decoded).
         T_parent_child : ndarray (4, 4), optional
             The pose at exactly this stamp (e.g. a tf lookup); otherwise it is looked up in the
-            pose buffer, and the image waits (bounded, ``sync.max_pending_images``) when the
-            buffer has no pose after the stamp yet.
+            pose buffer, and the image waits (bounded in time and memory,
+            :mod:`~rwhec_ros.session.image_wait`) while no pose brackets the stamp yet.
+        arrived_ns : int, optional
+            When the image arrived, on the session's clock (:meth:`image_arrival`); default:
+            now.
 
         Returns
         -------
@@ -165,32 +189,23 @@ class ImageInput:
             if A is None:
                 return self._reject(camera, stamp, "image_bad_pose")
             return self._examine(camera, stamp, image, intrinsics, A)
-        overflow = None
+        arrived = self.image_arrival(stamp) if arrived_ns is None else int(arrived_ns)
+        overflow: list[tuple] = []
         with self._lock:
-            state, A, reason = self._pose_at(stamp, final=self.config.sync.max_pending_images == 0)
+            state, A, reason = self._pose_at(stamp, arrived, final=False)
             if state == "wait":
-                if len(self._pending) >= self.config.sync.max_pending_images:
-                    overflow = self._pending.popleft()
-                self._pending.append((camera, stamp, image, intrinsics))
-                self._count("images_pending")
+                overflow = self._hold(camera, stamp, image, intrinsics, arrived)
+        for item in overflow:  # the oldest waiting images get what the buffer has now
+            self._finish_pending(item, final=True, cause="wait_memory")
         if state == "wait":
-            if overflow is not None:  # the oldest waiting image gets what the buffer has now
-                self._finish_pending(overflow, final=True)
+            self._serve_pending()  # the clock moved: others may be due
             return ImageOutcome(camera, stamp, "pending")
         if A is None:
-            return self._reject(camera, stamp, reason)
-        return self._examine(camera, stamp, image, intrinsics, A)
-
-    def pose_ready(self, stamp_ns: int) -> bool:
-        """True when an image stamped ``stamp_ns`` would not wait for a pose now: a pose after
-        its stamp is in the buffer, or the lookup can never succeed (an invalid stamp too, so
-        that it is rejected at once). The node's image queue holds images back until then, so
-        that they are gated (and examined) in order without waiting in the session."""
-        stamp = safe_int(stamp_ns)
-        if stamp is None or stamp < 0:
-            return True
-        with self._lock:
-            return not self._waits(stamp)
+            outcome = self._reject(camera, stamp, reason)
+        else:
+            outcome = self._examine(camera, stamp, image, intrinsics, A)
+        self._serve_pending()
+        return outcome
 
     def gate_would_skip(self, camera: str, stamp_ns: int) -> bool:
         """True when the motion gate would skip an image of ``camera`` stamped ``stamp_ns``
@@ -209,11 +224,11 @@ class ImageInput:
                 return memo[1]
             if memo is not None:
                 A = memo[2]  # the pose at a bracketed stamp does not change
-            elif self._waits(stamp):
-                return False
             else:
-                A = self._buffer.lookup(stamp, count=False)
-                if A is None:
+                newest = self._buffer.newest_ns
+                A = (self._buffer.lookup(stamp, count=False)
+                     if newest is not None and stamp <= newest else None)
+                if A is None:  # the pose is not there (yet): not known
                     return False
             skip = not self._worth_searching(camera, A, self._keepable_targets(camera, stamp, A))
             if len(self._gate_memo) >= _GATE_MEMO_SIZE:
@@ -227,60 +242,6 @@ class ImageInput:
         one pair kept), ``rejected`` (any reason) and ``pairs_kept``."""
         with self._lock:
             return {c: dict(self._camera_counts[c]) for c in self.config.camera_names}
-
-    # --- pose ----------------------------------------------------------------------------------
-    def _waits(self, stamp: int) -> bool:
-        """The image should wait for a later pose (lock held): newer than the newest pose and
-        a later pose could still serve it, so that ``A`` is interpolated, not held; or the
-        stream is at rest and a later pose may confirm it (:func:`~rwhec_ros.sync.at_rest.
-        waits_at_rest`)."""
-        newest = self._buffer.newest_ns
-        status = self._buffer.lookup_status(stamp)
-        bracketed = newest is not None and stamp <= newest
-        if bracketed:
-            return False
-        if status.retry or status is LookupStatus.OK:
-            return True
-        return waits_at_rest(self._buffer, stamp, AtRestRule.from_sync(self.config.sync))
-
-    def _pose_at(self, stamp: int, *, final: bool) -> tuple[str, np.ndarray | None, str]:
-        """``("wait", None, "")``, ``("ok", A, "")`` or ``("rejected", None, reason)`` for an
-        image at ``stamp`` (lock held); ``final``: never wait."""
-        if not final and self._waits(stamp):
-            return "wait", None, ""
-        A = self._buffer.lookup(stamp)
-        if A is not None:
-            return "ok", A, ""
-        A = at_rest_lookup(self._buffer, stamp, AtRestRule.from_sync(self.config.sync))
-        if A is not None:  # stop-and-go: the stream was at rest across the image
-            self._count("pose_at_rest")
-            return "ok", A, ""
-        return "rejected", None, f"no_pose_at_stamp:{self._buffer.lookup_status(stamp).value}"
-
-    def _take_ready_pending(self) -> list[tuple]:
-        """Remove the waiting images that a pose now serves (lock held), oldest first, as
-        ``(camera, stamp, image, intrinsics, A, reason)``."""
-        ready, still = [], collections.deque()
-        for item in self._pending:
-            state, A, reason = self._pose_at(item[1], final=False)
-            if state == "wait":
-                still.append(item)
-            else:
-                ready.append((*item, A, reason))
-        self._pending = still
-        return ready
-
-    def _finish_pending(self, item: tuple, *, final: bool = False) -> ImageOutcome:
-        """Examine (or reject) one image that waited for its pose (lock NOT held)."""
-        if final:
-            camera, stamp, image, intrinsics = item
-            with self._lock:
-                _, A, reason = self._pose_at(stamp, final=True)
-        else:
-            camera, stamp, image, intrinsics, A, reason = item
-        if A is None:
-            return self._reject(camera, stamp, reason)
-        return self._examine(camera, stamp, image, intrinsics, A)
 
     # --- gate, decode, detect, offer -------------------------------------------------------------
     def _keepable_targets(self, camera: str, stamp: int, A: np.ndarray) -> list[str]:
@@ -339,8 +300,11 @@ class ImageInput:
         gray, reason, detail, words = self._decoded(image, intrinsics)
         if gray is None:
             return self._reject(camera, stamp, reason, detail, words=words)
+        with self._lock:
+            history = tuple(self._corner_noise[camera])
         try:  # outside the lock: detection is the expensive part
-            detection = self._detector().detect(gray, intrinsics, only=wanted)
+            detection = self._detector().detect(gray, intrinsics, only=wanted,
+                                                noise_history=history)
         except Exception as exc:  # noqa: BLE001 - the live path never raises
             return self._reject(camera, stamp, f"image_detector_error:{type(exc).__name__}",
                                 str(exc))
@@ -379,9 +343,12 @@ class ImageInput:
             if not wanted:
                 continue
             gray, *_ = self._decoded(image, intrinsics)
+            with self._lock:
+                history = tuple(self._corner_noise[camera])
             try:
                 detection = (None if gray is None
-                             else self._detector().detect(gray, intrinsics, only=wanted))
+                             else self._detector().detect(gray, intrinsics, only=wanted,
+                                                          noise_history=history))
             except Exception:  # noqa: BLE001 - the live path never raises
                 detection = None
             with self._lock:
@@ -389,6 +356,7 @@ class ImageInput:
                     self._count("look_back_bad_image")
                     continue
                 self._count("images_searched_back")
+                self._corner_noise[camera].extend(detection.corner_noise_px.values())
                 kept = self._offer(camera, stamp, A, detection.observations)
                 self._camera_count(camera, "pairs_kept", len(kept))
 
@@ -397,6 +365,7 @@ class ImageInput:
         with self._lock:
             self._camera_count(camera, "detected")
             self._remember_view(camera, A, detection)
+            self._corner_noise[camera].extend(detection.corner_noise_px.values())
             for r in detection.rejections:
                 key = (
                     "tag_not_in_config"
@@ -410,7 +379,9 @@ class ImageInput:
             obs = detection.observations
             self._count("tags_detected", len(obs))
             if not obs and not detection.skipped:
-                self._count("images_without_tags")
+                why = _first_target_rejection(detection)
+                self._count("images_without_tags" if why is None
+                            else f"images_targets_rejected:{why}")
                 return ImageOutcome(camera, stamp, "no_tags", reasons=reasons,
                                     detection=detection)
             names = self._offer(camera, stamp, A, obs)
@@ -481,6 +452,9 @@ class ImageInput:
         """Count a rejected image; ``words`` (what was wrong, with the numbers) also go to the
         session's :class:`~rwhec_ros.session.rejections.RejectionLog`."""
         with self._lock:
+            if reason.startswith(NO_POSE_PREFIX):
+                self._count_no_pose(str(camera), reason[len(NO_POSE_PREFIX):])
+                return ImageOutcome(camera, stamp, "rejected", reasons=[reason], detail=detail)
             self._count(reason)
             self._camera_count(camera, "rejected")
             if words:

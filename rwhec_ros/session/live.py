@@ -20,6 +20,7 @@ from ..core.lie import invert_transform
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict
 from ..data.corners import corner_data
+from ..data.fingerprint import dataset_fingerprint
 from ..data.results import (
     FrameNaming,
     dump_document,
@@ -31,21 +32,30 @@ from ..data.results import (
 from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
 from ..sync.buffer import PoseBuffer
+from ..sync.pose_wait import PoseLatency
 from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .accuracy import AccuracyOptions
 from .capture import CaptureGate, CaptureMixin
 from .image_input import CAMERA_COUNTERS, LOOK_BACK_IMAGES, ImageInput
 from .live_solve import LiveSolver, PairsSnapshot
-from .outcomes import SolveOutcome, edge_rows
+from .outcomes import SolveOutcome, edge_rows, no_pairs_words, too_few_pairs_words
 from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
 from .rejections import RejectionLog
-from .solving import make_tracker, report_dict, solve_and_assess, verdict_options
+from .solving import (
+    make_tracker,
+    report_dict,
+    solve_and_assess,
+    solver_alternatives,
+    verdict_options,
+)
 
 __all__ = ["CalibrationSession"]
 
 _NS_PER_S = 1_000_000_000
+#: Poses per camera whose corner noise scales the reprojection gate (the median of the latest).
+NOISE_HISTORY = 64
 
 
 class CalibrationSession(ImageInput, CaptureMixin):
@@ -69,6 +79,10 @@ class CalibrationSession(ImageInput, CaptureMixin):
     live_solve : callable, optional
         The live re-solve of :attr:`live` (default
         :func:`~rwhec_ros.session.live_solve.solve_with_uncertainty`); injectable for tests.
+    clock : callable returning int, optional
+        The time [ns] on the clock of the stamps (the node: its ROS clock), for the images
+        waiting for their pose (:mod:`rwhec_ros.session.image_wait`); default: the newest stamp
+        received.
 
     Attributes
     ----------
@@ -91,8 +105,10 @@ class CalibrationSession(ImageInput, CaptureMixin):
         now: Callable[[], _dt.datetime] | None = None,
         output_root: str | Path | None = None,
         live_solve: Callable | None = None,
+        clock: Callable[[], int] | None = None,
     ) -> None:
         self.config = config
+        self._clock = clock
         self.output_root = (Path(output_root) if output_root is not None
                             else plain_output_root(config.output.directory))
         self._now = now if now is not None else (lambda: _dt.datetime.now(_dt.timezone.utc))
@@ -106,6 +122,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
             unknown_scale=config.tags.unknown_scale,
             corner_refinement=config.detection.corner_refinement,
             max_reprojection_rms_px=config.detection.max_reprojection_rms_px,
+            reprojection_gate_factor=config.detection.reprojection_gate_factor,
+            chessboard_refinement=config.detection.chessboard_refinement,
             min_side_px=config.detection.min_side_px,
             max_obliquity_deg=config.detection.max_obliquity_deg,
             estimate_precision=True,
@@ -116,6 +134,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         self._intrinsics: dict[str, CameraIntrinsics] = {}
         self._last_outcome: SolveOutcome | None = None
         self._capture = CaptureGate()  # capture.mode and ~/capture (rwhec_ros.session.capture)
+        self._saved_sha = ""  # fingerprint of the pairs last written (unsaved_pairs)
         # never reset: the live solver compares them across resets
         self._data_version = 0
         self._calibrations = 0
@@ -142,6 +161,10 @@ class CalibrationSession(ImageInput, CaptureMixin):
         )
         self._tracker = make_tracker(c.tags.unknown_scale)
         self._pending: collections.deque = collections.deque()
+        self._pending_bytes = 0
+        self._latency = PoseLatency()  # the pose stream's ages (image_wait)
+        self._proxy_now = 0  # the clock without one: the newest stamp received
+        self._no_pose: dict[str, collections.Counter] = {}  # camera -> cause -> images
         self._views: dict = {}  # camera -> (A, targets found) of its last searched image
         # the motion gate's remembered verdicts (image_input.gate_would_skip), valid while the
         # camera's epoch is unchanged: (camera, stamp) -> (epoch, skip, A at the stamp)
@@ -150,6 +173,9 @@ class CalibrationSession(ImageInput, CaptureMixin):
         # camera -> (stamp, A, image, intrinsics) the gate skipped since its last search
         self._skipped_since_search = collections.defaultdict(
             lambda: collections.deque(maxlen=LOOK_BACK_IMAGES))
+        # camera -> corner noise [px] of its latest poses (the scaled reprojection gate)
+        self._corner_noise = collections.defaultdict(
+            lambda: collections.deque(maxlen=NOISE_HISTORY))
         self._counters: collections.Counter = collections.Counter()
         self._camera_counts = {name: collections.Counter(dict.fromkeys(CAMERA_COUNTERS, 0))
                                for name in c.camera_names}
@@ -244,11 +270,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         sample was stored. Never raises for bad data.
         """
         ok = self._store_pose(stamp_ns, T_parent_child, source)
-        if self._pending:
-            with self._lock:
-                ready = self._take_ready_pending()
-            for item in ready:
-                self._finish_pending(item)
+        self._serve_pending()
         return ok
 
     def _store_pose(self, stamp_ns: int, T_parent_child: Any, source: str | None) -> bool:
@@ -266,12 +288,15 @@ class CalibrationSession(ImageInput, CaptureMixin):
             if A is None:
                 self._count("pose_rejected_invalid")
                 return False
+            resets = self._buffer.resets
             try:
                 ok = self._buffer.add(stamp_ns, A)
             except (TypeError, ValueError):
                 ok = False
             if not ok:
                 self._count("pose_rejected_buffer")
+            if ok or resets != self._buffer.resets:
+                self._note_pose(int(stamp_ns), bool(ok), resets)
             return bool(ok)
 
     def rejections(self) -> list[str]:
@@ -322,7 +347,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
 
     # --- solve -------------------------------------------------------------------------------
     def calibrate(self, output_dir: str | Path | None = None, *,
-                  force: bool = False) -> SolveOutcome:
+                  force: bool = False,
+                  on_phase: Callable[[str], None] | None = None) -> SolveOutcome:
         """Solve with the data so far and write the outputs; never discards data.
 
         Never waits for a live re-solve (:attr:`live`); one that overlaps it is dropped.
@@ -335,6 +361,9 @@ class CalibrationSession(ImageInput, CaptureMixin):
             ``output.directory``, never reused.
         force : bool
             Overwrite existing files in ``output_dir``.
+        on_phase : callable, optional
+            Called with ``"analysing"`` once the solver returned and ``"writing"`` before the
+            files are written (the CLI's progress and interrupt messages).
 
         Returns
         -------
@@ -345,7 +374,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         with self._solve_lock:
             with self._lock:
                 self._calibrations += 1
-            outcome = self._calibrate(output_dir, force)
+            outcome = self._calibrate(output_dir, force, on_phase)
         with self._lock:
             self._last_outcome = outcome
         return outcome
@@ -367,7 +396,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
             counts = self._acc.counts()
         return problem, excluded, err, report, dataset, counts
 
-    def _calibrate(self, output_dir: str | Path | None, force: bool) -> SolveOutcome:
+    def _calibrate(self, output_dir: str | Path | None, force: bool,
+                   on_phase: Callable[[str], None] | None = None) -> SolveOutcome:
         c = self.config
         problem, excluded, err, report, dataset, counts = self._snapshot()
         ident = report_dict(report)
@@ -375,43 +405,50 @@ class CalibrationSession(ImageInput, CaptureMixin):
         if problem is None:
             n = sum(counts.values())
             if n == 0:
-                why = self.rejections() or [
-                    "no tag was detected in an image with a pose at its stamp (see the "
-                    "counters)"]
-                message = "no measurement pairs: " + "; ".join(why)
+                searched = sum(v.get("detected", 0) for v in self.camera_counters().values())
+                message = no_pairs_words(self.counters(), searched, c, self.rejections())
             else:
-                message = (f"not enough data: {n} pairs on {len(counts)} edges, no edge has "
-                           f"solver.min_pairs={c.solver.min_pairs} pairs ({err}); the {n} "
-                           "pairs are kept: record more and calibrate again")
+                message = too_few_pairs_words(counts, c.solver.min_pairs, "solver.min_pairs") \
+                    + f"; the {n} pairs are kept"
             return SolveOutcome(False, message, excluded=excl, identifiability=ident)
         try:
             solved = solve_and_assess(
                 problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
                 priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
-                min_scale=c.solver.min_scale, thresholds=verdict_options(c.verdict),
+                min_scale=c.solver.min_scale, sdp_backend=c.solver.sdp_backend,
+                thresholds=verdict_options(c.verdict),
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
-                accuracy=self._accuracy_options(), corners=corner_data(dataset))
+                accuracy=self._accuracy_options(), corners=corner_data(dataset),
+                on_phase=on_phase, refine=c.solver.refine)
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
-                False, f"the solver failed ({type(exc).__name__}: {exc}); all data kept: try "
-                "again with solver.mode sdp, or with more data",
+                False, f"the solver stopped with an error in mode {c.solver.mode} "
+                f"({type(exc).__name__}: {str(exc).split('. ')[0]}); all data kept: "
+                + solver_alternatives(c.solver.mode, c.solver.reject_outliers,
+                                      "solver.mode", "solver.reject_outliers"),
                 excluded=excl, identifiability=ident,
             )
         result, verdict = solved.result, solved.verdict
         excl.update(solved.dropped)
         ident = solved.identifiability_dict or ident
-        text = dump_document(self.result_document(result, excl, ident, verdict,
-                                                  solved.accuracy, solved.rejected_pairs))
+        text = dump_document(self.result_document(
+            result, excl, ident, verdict, solved.accuracy, solved.rejected_pairs,
+            fingerprint=None if dataset is None else dataset_fingerprint(dataset)))
+        if on_phase is not None:
+            on_phase("writing")
         try:
             files = self._write_outputs(result, text, dataset, output_dir, force, verdict)
             write_error = ""
+            if dataset is not None and "dataset" in files:
+                self._saved_sha = dataset_fingerprint(dataset)["sha256"]
         except OSError as exc:
-            files, write_error = {}, f"\nWRITING THE OUTPUTS FAILED: {describe_os_error(exc)}"
+            files, write_error = {}, describe_os_error(exc)
         message = summary(result, solved.problem, excl, self.config, verdict,
-                          solved.accuracy) + write_error
+                          solved.accuracy) + (
+            f"\nWRITING THE OUTPUTS FAILED: {write_error}" if write_error else "")
         return SolveOutcome(True, message, result, excl, files, ident, text, verdict,
-                            solved.accuracy)
+                            solved.accuracy, write_error)
 
     def _accuracy_options(self) -> AccuracyOptions:
         """``accuracy.*`` of the configuration; the guidance moves the carrier that moves (the
@@ -447,6 +484,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         verdict: Verdict | None = None,
         accuracy=None,
         rejected_pairs: dict[str, list[int]] | None = None,
+        fingerprint: dict[str, Any] | None = None,
     ) -> dict[str, Any]:
         """The result YAML as a mapping (:func:`rwhec_ros.data.results.result_document`:
         ``certified``, ``suboptimality_bound``, ``scale``, ``frames`` with published
@@ -459,7 +497,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
                               identifiability=identifiability,
                               config=self.config.to_parameters(), source={"type": "session"},
                               verdict=verdict, accuracy=accuracy,
-                              rejected_pairs=rejected_pairs)
+                              rejected_pairs=rejected_pairs, fingerprint=fingerprint)
         doc["counters"] = plain(self.counters())
         return doc
 
@@ -496,7 +534,25 @@ class CalibrationSession(ImageInput, CaptureMixin):
             raise ValueError(f"save_dataset: nothing to save ({n} pairs)")
         target = Path(path) if path is not None else self._output_dir("dataset") / "dataset.yaml"
         saved = dataset.save(target)
+        self._saved_sha = dataset_fingerprint(dataset)["sha256"]
         return str(saved if saved is not None else target)
+
+    def dataset(self):
+        """The kept pairs as a :class:`~rwhec_ros.data.dataset.Dataset` (a copy), or None
+        when there is none."""
+        with self._lock:
+            if not sum(self._acc.counts().values()):
+                return None
+            return self._dataset_locked()
+
+    def unsaved_pairs(self) -> int:
+        """How many pairs the session holds that no :meth:`save_dataset` or :meth:`calibrate`
+        wrote (all of them when the kept pairs changed since the last write; 0 when they are
+        the pairs last written, or when there are none)."""
+        dataset = self.dataset()
+        if dataset is None or dataset_fingerprint(dataset)["sha256"] == self._saved_sha:
+            return 0
+        return dataset.n_pairs
 
     def reset(self) -> None:
         """Forget poses, pairs, pending images, counters and the live estimate (intrinsics are

@@ -8,7 +8,8 @@ from typing import Any
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict
 
-__all__ = ["ImageOutcome", "SolveOutcome", "edge_statuses", "edge_rows"]
+__all__ = ["ImageOutcome", "SolveOutcome", "edge_statuses", "edge_rows", "no_pairs_words",
+           "too_few_pairs_words"]
 
 
 @dataclass
@@ -82,6 +83,9 @@ class SolveOutcome:
     accuracy : Accuracy or None
         Per-frame uncertainty, cross-validation and guidance
         (:class:`~rwhec_ros.session.accuracy.Accuracy`); None on failure.
+    write_error : str
+        Why the outputs could not be written (in words, also the end of ``message``); empty
+        when they were (or nothing was to be written).
     """
 
     success: bool
@@ -93,6 +97,7 @@ class SolveOutcome:
     result_yaml: str = ""
     verdict: Verdict | None = None
     accuracy: Any = None
+    write_error: str = ""
 
     @property
     def usable(self) -> bool:
@@ -135,3 +140,52 @@ def edge_rows(counts: dict[tuple[str, str], int], report,
              "reasons": reasons}
         )
     return rows
+
+
+def no_pairs_words(counters: dict[str, int], searched: int, config,
+                   rejections: list[str]) -> str:
+    """Why a session holds no measurement pair, in words with the numbers and the parameter to
+    check: data rejected wholesale (``rejections``), no image searched, or no target found in
+    the ``searched`` images (``tags.family`` / ``tags.ids`` and the board targets named)."""
+    if rejections:
+        return "no measurement pairs: " + "; ".join(rejections)
+    images = counters.get("images", 0)
+    if not images:
+        return ("no measurement pairs: no image arrived (check cameras.<name>.image_topic and "
+                "image_transport)")
+    if not searched:
+        return (f"no measurement pairs: none of the {images} images was searched for tags "
+                "(no pose at their stamps, or no camera info: see the counters)")
+    if counters.get("tags_detected", 0) == 0:
+        tags = config.tags
+        what = [f"tags.family={tags.family} (ids {list(tags.ids)})"] if tags.ids else []
+        what += [f"target {t.name} ({_target_kind(t)})" for t in config.target_specs()
+                 if t.board is not None]
+        return (f"no measurement pairs: no target was found in the {searched} images searched "
+                f"(looked for {', '.join(what) or 'nothing'}); check tags.family, tags.ids and "
+                "targets.* against the printed targets")
+    return (f"no measurement pairs: {counters.get('tags_detected', 0)} tags detected in "
+            f"{searched} images searched, none with a pose at its stamp kept (see the counters)")
+
+
+def _target_kind(spec) -> str:
+    board = spec.board
+    kind = type(board).__name__.replace("Spec", "").lower()
+    family = getattr(board, "family", None) or getattr(board, "dictionary", None)
+    return f"{kind} {family}" if family else kind
+
+
+def too_few_pairs_words(counts: dict[tuple[str, str], int], min_pairs: int,
+                        parameter: str) -> str:
+    """Not enough data: no edge has ``min_pairs`` pairs; the pairs per edge and the fix
+    (``parameter``: how the user sets ``min_pairs``, e.g. ``solver.min_pairs`` or
+    ``--min-pairs``)."""
+    n = sum(counts.values())
+    most = max(counts.values(), default=0)
+    per_edge = ", ".join(f"({x}, {y}): {k}" for (x, y), k in sorted(
+        counts.items(), key=lambda kv: -kv[1])[:5])
+    more = f" and {len(counts) - 5} more edges" if len(counts) > 5 else ""
+    fix = (f"lower {parameter} to {most} or record more" if most >= 1 and most < min_pairs
+           else "record more")
+    return (f"not enough data: no edge has {min_pairs} pairs ({parameter}={min_pairs}); "
+            f"{n} pairs on {len(counts)} edges: {per_edge}{more}; {fix}")

@@ -41,6 +41,10 @@ def summary(result: CalibrationResult, problem, excluded: dict, config,
     lines.append(f"CERTIFIED globally optimal (rho_hat={c.suboptimality_bound:.2e})"
                  if result.certified else
                  f"NOT certified: {c.status.value} (rho_hat={c.suboptimality_bound:.2e})")
+    refined = accuracy is not None and accuracy.refinement is not None and \
+        accuracy.refinement.published
+    if refined:  # the certificate covers the pose-level optimum, not the published frames
+        lines[-1] += ": the pose-level optimum; the frames below are its corner-level refinement"
     lines.append(f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
                  f"{result.mode}")
     if problem.unknown_scale:

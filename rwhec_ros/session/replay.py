@@ -10,6 +10,10 @@ number of threads: each edge ``(tag, camera)`` sees the same offers in the same 
 accumulator's decisions per edge depend on nothing else
 (:mod:`rwhec_ros.sync.accumulator`). Only the interleaving of different cameras varies, which
 changes the order in which the identifiability tracker receives pairs, not the pairs.
+
+An image waits for its pose as live (:mod:`rwhec_ros.session.image_wait`), on the session's clock
+(the newest stamp read: the recording's time); at the end of the recording every image still
+waiting gets its final answer (:meth:`ReplayFeeder.close`).
 """
 
 from __future__ import annotations
@@ -69,7 +73,11 @@ class ReplayFeeder:
               T_parent_child: np.ndarray | None = None) -> None:
         """An image of ``camera`` (``sensor_msgs/Image``, or ``CompressedImage`` when
         ``compressed``), with the pose at its stamp when it is known (tf)."""
-        item = (msg, compressed, T_parent_child)
+        try:
+            arrived = self.session.image_arrival(stamp_to_ns(msg.header.stamp))
+        except (ValueError, TypeError, AttributeError):
+            arrived = None  # a bad stamp: rejected and counted by the handlers
+        item = (msg, compressed, T_parent_child, arrived)
         if self._queue is None:
             self._handle(camera, item)
             return
@@ -80,13 +88,14 @@ class ReplayFeeder:
         self._release(final=False)
 
     def close(self, timeout: float | None = None) -> None:
-        """Hand over every held image, wait until all are examined, stop the workers."""
-        if self._queue is None:
-            return
-        self._release(final=True)
-        self._queue.join(timeout)
-        for w in self._workers:
-            w.stop()
+        """Hand over every held image, wait until all are examined, stop the workers; then every
+        image still waiting for a pose gets its final answer (no pose comes any more)."""
+        if self._queue is not None:
+            self._release(final=True)
+            self._queue.join(timeout)
+            for w in self._workers:
+                w.stop()
+        self.session.flush_pending()
 
     def abort(self) -> None:
         """Stop the workers after their current image (Ctrl-C): images still held or queued
@@ -98,14 +107,10 @@ class ReplayFeeder:
 
     # --- internals -----------------------------------------------------------------------------
     def _ready(self, item: tuple) -> bool:
-        msg, _, T = item
-        if T is not None:
-            return True
-        try:
-            stamp = stamp_to_ns(msg.header.stamp)
-        except (ValueError, TypeError, AttributeError):
-            return True  # rejected and counted by the handlers
-        return self.session.pose_ready(stamp)
+        msg, _, T, arrived = item
+        if T is not None or arrived is None:
+            return True  # arrived None: a bad stamp, rejected and counted by the handlers
+        return self.session.pose_ready(stamp_to_ns(msg.header.stamp), arrived)
 
     def _release(self, *, final: bool) -> None:
         """Queue each camera's held images, oldest first, while their pose is there."""
@@ -118,11 +123,11 @@ class ReplayFeeder:
         self._handle(camera, item)
 
     def _handle(self, camera: str, item: tuple) -> None:
-        msg, compressed, T = item
+        msg, compressed, T, arrived = item
         if compressed:
-            self.handlers.on_compressed_image(camera, msg, T)
+            self.handlers.on_compressed_image(camera, msg, T, arrived_ns=arrived)
         else:
-            self.handlers.on_image(camera, msg, T)
+            self.handlers.on_image(camera, msg, T, arrived_ns=arrived)
 
     def _error(self, exc: BaseException) -> None:
         with self._lock:

@@ -19,6 +19,7 @@ __all__ = [
     "should_publish_tf",
     "calibrate_message",
     "save_dataset_message",
+    "save_on_shutdown",
     "RESET_MESSAGE",
 ]
 
@@ -81,3 +82,23 @@ def calibrate_message(outcome: SolveOutcome, output, *, published: bool,
 def save_dataset_message(path: str | Path) -> str:
     """The ``save_dataset`` answer naming the written data set absolutely."""
     return f"data set written: {_absolute(path)}"
+
+
+def save_on_shutdown(session, logger) -> str | None:
+    """At the node's shutdown (Ctrl-C, SIGTERM): write the pairs no ``~/save_dataset`` or
+    ``calibrate`` wrote (:meth:`CalibrationSession.unsaved_pairs`) as a new data set under the
+    output root (the ``~/save_dataset`` path), and log where with ``logger.info`` (a failure
+    with ``logger.error``: the pairs are lost then, and the log says why). Returns the path
+    written, or None. Never raises: a shutdown must go on."""
+    try:
+        n = session.unsaved_pairs()
+        if not n:
+            return None
+        path = session.save_dataset()
+    except Exception as exc:  # noqa: BLE001 - the shutdown goes on, the log says what was lost
+        logger.error(f"shutdown: the unsaved pairs could not be written ({type(exc).__name__}: "
+                     f"{exc})")
+        return None
+    logger.info(f"shutdown: {n} unsaved pairs written: {_absolute(path)} (solve them with "
+                f"rwhec-calibrate dataset {_absolute(path)})")
+    return str(path)

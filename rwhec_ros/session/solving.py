@@ -4,7 +4,7 @@ shared by the CLI and the node."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -14,6 +14,7 @@ from ..core.result import CalibrationResult
 from ..core.verdict import Verdict, VerdictOptions, assess
 from ..data.results import plain
 from .accuracy import Accuracy, AccuracyOptions, assess_accuracy
+from .refinement import published_result, refine_solution
 
 __all__ = [
     "solve_options",
@@ -25,6 +26,7 @@ __all__ = [
     "Solved",
     "solve_and_assess",
     "verdict_options",
+    "solver_alternatives",
 ]
 
 
@@ -60,11 +62,12 @@ def report_dict(report) -> dict | None:
 
 def solve_options(
     problem, *, mode: str = "fast", priors=(), unobservable_std_m: float = 1.0,
-    min_scale: float = 0.01,
+    min_scale: float = 0.01, sdp_backend: str = "auto",
 ):
     """:class:`~rwhec_ros.core.solve.SolveOptions` for ``problem`` with the translation priors
-    ``(frame, axis, value_m)`` of the frames it has (returns the options and a note per prior
-    whose frame has no usable edge)."""
+    ``(frame, axis, value_m)`` of the frames it has and the SDP backend (returns the options and
+    a note per prior whose frame has no usable edge)."""
+    from ..core.certify.relaxation import SdpOptions
     from ..core.model.gauge import GaugeOptions, TranslationPrior
     from ..core.solve import SolveOptions
 
@@ -75,7 +78,8 @@ def solve_options(
         else:
             notes.append(f"prior {frame}.{axis} = {value:g} m not used: {frame} has no usable edge")
     gauge = GaugeOptions(max_std_m=unobservable_std_m, priors=tuple(kept))
-    return SolveOptions(mode=mode, gauge=gauge, min_scale=min_scale), notes
+    return SolveOptions(mode=mode, gauge=gauge, min_scale=min_scale,
+                        sdp=SdpOptions(backend=sdp_backend)), notes
 
 
 def _solve(problem: Problem, options, reject_outliers: bool):
@@ -108,18 +112,17 @@ def _solve(problem: Problem, options, reject_outliers: bool):
 
 def solve_problem(
     problem, *, mode: str = "fast", reject_outliers: bool = False, priors=(),
-    unobservable_std_m: float = 1.0, min_scale: float = 0.01,
+    unobservable_std_m: float = 1.0, min_scale: float = 0.01, sdp_backend: str = "auto",
 ) -> tuple[CalibrationResult, dict[str, str], list[str]]:
     """The solve step shared by the session and the CLI: ``solve`` in ``mode``, or with
     ``reject_outliers`` RANSAC (paper Section 9.1) + GNC-TLS re-certified on the inlier set
     (:func:`rwhec_ros.core.outliers.robust_solve`). ``priors`` (``(frame, axis, value_m)``) and
     ``unobservable_std_m`` fix translation directions the data do not determine
-    (:mod:`rwhec_ros.core.model.gauge`); ``min_scale`` is the unknown scale's floor. Returns
-    (result,
-    dropped edges, notes)."""
+    (:mod:`rwhec_ros.core.model.gauge`); ``min_scale`` is the unknown scale's floor;
+    ``sdp_backend`` the SDP's solver. Returns (result, dropped edges, notes)."""
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
-                                         min_scale=min_scale)
+                                         min_scale=min_scale, sdp_backend=sdp_backend)
     result, _, dropped, notes, _ = _solve(problem, options, reject_outliers)
     notes = prior_notes + notes
     result.notes.extend(notes)
@@ -133,6 +136,9 @@ class Solved:
     Attributes
     ----------
     result : CalibrationResult
+        The published estimate: the certified solve, or its corner-level refinement when that
+        is published (``accuracy.refinement`` says which and why; the certificate is the
+        pose-level one either way).
     problem : Problem
         The pairs the result solves (with outlier rejection: the inlier problem).
     dropped : dict of str to str
@@ -183,6 +189,7 @@ def solve_and_assess(
     priors=(),
     unobservable_std_m: float = 1.0,
     min_scale: float = 0.01,
+    sdp_backend: str = "auto",
     thresholds: VerdictOptions | None = None,
     expected_x: Iterable[str] = (),
     expected_y: Iterable[str] = (),
@@ -190,30 +197,40 @@ def solve_and_assess(
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
     accuracy: AccuracyOptions | None = DEFAULT_ACCURACY,
     corners=None,
+    on_phase: Callable[[str], None] | None = None,
+    refine: bool = True,
 ) -> Solved:
     """Solve ``problem`` (as :func:`solve_problem`: ``mode``, ``reject_outliers``, ``priors``,
-    ``unobservable_std_m``, ``min_scale``), analyse identifiability at the solution and
-    :func:`~rwhec_ros.core.verdict.assess` it with ``thresholds``. ``expected_x``/``expected_y``
-    are the tags and cameras the user asked for, ``excluded`` the edges left out before the
-    solve (with reasons), ``carriers`` the camera and tag carrier frame names. ``accuracy``
-    says what of the per-frame uncertainty, cross-validation and guidance to compute
-    (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the verdict's
-    precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
-    reprojection error per camera and the verdict's focal check (with ``accuracy`` only).
-    Exceptions of the solver propagate."""
+    ``unobservable_std_m``, ``min_scale``, ``sdp_backend``), analyse identifiability at the
+    solution and :func:`~rwhec_ros.core.verdict.assess` it with ``thresholds``.
+    ``expected_x``/``expected_y`` are the tags and cameras the user asked for, ``excluded`` the
+    edges left out before the solve (with reasons), ``carriers`` the camera and tag carrier frame
+    names. ``accuracy`` says what of the per-frame uncertainty, cross-validation and guidance to
+    compute (:func:`~rwhec_ros.session.accuracy.assess_accuracy`; None: none of it); the
+    verdict's precision uses that uncertainty; ``corners`` ``(observations, intrinsics)`` add the
+    reprojection error per camera and the verdict's focal check (with ``accuracy`` only), and
+    with ``refine`` the corner-level refinement (:mod:`.refinement`), whose estimate becomes the
+    result when it is published (the verdict judges the certified solve).
+    ``on_phase`` is called with ``"analysing"`` when the solver returned. Exceptions of the
+    solver propagate."""
     from ..core.solve import blas_threads
 
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
-                                         min_scale=min_scale)
+                                         min_scale=min_scale, sdp_backend=sdp_backend)
     result, solved, dropped, notes, rejected = _solve(problem, options, reject_outliers)
     notes = prior_notes + notes
     result.notes.extend(notes)
+    if on_phase is not None:
+        on_phase("analysing")
     ident = analyze_at_solution(solved, result)
     acc = None
     if accuracy is not None:
         acc = assess_accuracy(solved, result, solve_options=options, options=accuracy,
                               carriers=carriers, corners=corners)
+    if acc is not None and corners is not None and refine:  # the corner-level refinement
+        acc.refinement = refine_solution(solved, result, corners, acc.uncertainty,
+                                         accuracy.moving)
     with blas_threads(1):
         verdict = assess(result, solved, identifiability=ident, options=thresholds,
                          uncertainty=None if acc is None else acc.uncertainty,
@@ -222,4 +239,21 @@ def solve_and_assess(
                          expected_x=[*expected_x, *problem.x_names],
                          expected_y=[*expected_y, *problem.y_names],
                          excluded={**dict(excluded or {}), **dropped}, carriers=carriers)
+    result = published_result(result, None if acc is None else acc.refinement)
     return Solved(result, solved, dropped, notes, ident, verdict, acc, rejected)
+
+
+def solver_alternatives(mode: str, robust: bool, mode_option: str = "--mode",
+                        robust_option: str = "--robust") -> str:
+    """What is left to try after the solver stopped with an error in ``mode`` (with or
+    without outlier rejection), naming the option (``mode_option``, ``robust_option``) and its
+    current value; never what already ran."""
+    tries = []
+    if mode == "sdp":
+        tries.append(f"{mode_option} fast (now sdp)")
+    elif mode == "local":
+        tries.append(f"{mode_option} fast (now local: with a certificate and the SDP fallback)")
+    if not robust:
+        tries.append(f"{robust_option} (outlier rejection, now off)")
+    tries.append("more pairs from motion that rotates about two axes")
+    return "left to try: " + "; ".join(tries)

@@ -23,8 +23,12 @@ import numpy as np
 
 from ..core.lie import invert_transform, make_transform, so3_exp
 from ..vision.boards import AprilGridSpec, CharucoSpec
+from ..vision.grids import ChessboardSpec, CircleGridSpec
 from ..vision.intrinsics import CameraIntrinsics
 from ..vision.render import RenderedBoard, RenderedTag, look_at, render_tags
+
+#: Any board layout the simulation renders.
+Board = AprilGridSpec | CharucoSpec | ChessboardSpec | CircleGridSpec
 
 __all__ = [
     "DEMO_POSE_TOPIC",
@@ -37,6 +41,7 @@ __all__ = [
     "demo_board",
     "demo_board_rig",
     "DEMO_BOARD_KINDS",
+    "DEMO_GRID_KINDS",
 ]
 
 #: PoseStamped topic of the demo (``header.frame_id`` = world, pose of the rig).
@@ -104,7 +109,7 @@ class SimulatedRig:
     family : str
         AprilTag family.
     trajectory : Trajectory
-    boards : dict of int to AprilGridSpec or CharucoSpec
+    boards : dict of int to a board layout
         Positions ``j`` that hold a board instead of tag ``j`` (board frame at
         ``T_world_tag[j]``); drawn by :meth:`render`, named ``board_<j>``.
     """
@@ -116,7 +121,7 @@ class SimulatedRig:
     tag_size: float = 0.25
     family: str = "tag36h11"
     trajectory: Trajectory = field(default_factory=Trajectory)
-    boards: Mapping[int, AprilGridSpec | CharucoSpec] = field(default_factory=dict)
+    boards: Mapping[int, Board] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.boards) - set(self.T_world_tag))
@@ -206,7 +211,8 @@ class SimulatedRig:
         noise_std: float = 2.0,
         blur_sigma: float = 0.6,
         supersample: int = 3,
-        boards: Mapping[int, AprilGridSpec | CharucoSpec] | None = None,
+        boards: Mapping[int, Board] | None = None,
+        shift_pattern: bool = False,
     ) -> np.ndarray:
         """(H, W) uint8 image of ``camera`` at rig pose ``T_world_rig`` (true pose).
 
@@ -218,7 +224,8 @@ class SimulatedRig:
         tag's pose, so ``X_j = T_world_tag[j]`` and ``B = T_cam_tag(camera, j, T_world_rig)``
         stay the truth with the same trajectory and images. A board is drawn when its centre is
         in front of the camera and its face toward it, also when only partly in view (a board
-        gives a pose from the corners seen).
+        gives a pose from the corners seen). ``shift_pattern``: see
+        :func:`~rwhec_ros.vision.render.render_tags` (the demo's images use it).
         """
         boards = dict(self.boards if boards is None else boards)
         unknown = sorted(set(boards) - set(self.tag_ids))
@@ -238,6 +245,7 @@ class SimulatedRig:
             noise_std=noise_std if rng is not None else 0.0,
             rng=rng,
             supersample=supersample,
+            shift_pattern=shift_pattern,
         )
 
 
@@ -251,7 +259,7 @@ def demo_rig(
     height: int = 480,
     focal_px: float = 500.0,
     trajectory: Trajectory | None = None,
-    boards: Mapping[int, AprilGridSpec | CharucoSpec] | None = None,
+    boards: Mapping[int, Board] | None = None,
 ) -> SimulatedRig:
     """The demo scene: ``n_cameras`` cameras looking outward from a small rig (evenly spread in
     yaw, each with a different pitch and roll), ``n_tags`` tags on a ring of radius
@@ -298,20 +306,30 @@ def demo_rig(
     )
 
 
+#: The boards of ``demo.launch.py boards:=grids`` (``config/demo_grids.yaml``).
+DEMO_GRID_KINDS = ("chessboard", "circles", "asymmetric_circles")
 #: Board kinds of :func:`demo_board`.
-DEMO_BOARD_KINDS = ("aprilgrid", "charuco")
+DEMO_BOARD_KINDS = ("aprilgrid", "charuco", "chessboard", "circles", "asymmetric_circles")
 
 
-def demo_board(kind: str, position: int = 0) -> AprilGridSpec | CharucoSpec:
+def demo_board(kind: str, position: int = 0) -> Board:
     """A board about the size of a demo tag (25 cm) for position ``position`` of the demo:
     ``"aprilgrid"`` 3 x 3 tags of 7 cm (Kalibr layout, ids ``100 + 9 position ...``, clear of
     the single tags 0..n_tags-1), ``"charuco"`` 5 x 4 squares of 5 cm with 3.8 cm DICT_4X4_250
-    markers (ids ``10 position ...``)."""
+    markers (ids ``10 position ...``), ``"chessboard"`` 8 x 5 inner corners (9 x 6 squares) of
+    3 cm, ``"circles"`` 6 x 5 circles of 2 cm every 4 cm with a larger origin circle,
+    ``"asymmetric_circles"`` OpenCV's layout, 4 x 7 circles of 1.5 cm, square size 3 cm."""
     if kind == "aprilgrid":
         return AprilGridSpec(3, 3, tag_size=0.07, tag_spacing=0.3, first_id=100 + 9 * position)
     if kind == "charuco":
         return CharucoSpec(5, 4, square_size=0.05, marker_size=0.038, dictionary="DICT_4X4_250",
                            first_id=10 * position)
+    if kind == "chessboard":
+        return ChessboardSpec(8, 5, square_size=0.03)
+    if kind == "circles":
+        return CircleGridSpec(6, 5, 0.04, origin_circle=True, diameter=0.02)
+    if kind == "asymmetric_circles":
+        return CircleGridSpec(4, 7, 0.03, asymmetric=True, diameter=0.015)
     raise ValueError(f"kind: must be one of {list(DEMO_BOARD_KINDS)}, got {kind!r}")
 
 
@@ -320,7 +338,8 @@ def demo_board_rig(boards: Sequence[str] = (), n_cameras: int = 3, n_tags: int =
     """The demo rig with board ``boards[j]`` (a kind of :data:`DEMO_BOARD_KINDS`, laid out by
     :func:`demo_board`) in place of tag ``j``: what the CLI demo (``--board``) and the simulator
     node (parameter ``boards``) render, and what ``config/demo_boards.yaml`` describes for
-    ``["aprilgrid", "charuco"]``. ``what`` names the option in the ``ValueError`` of a bad kind
+    ``["aprilgrid", "charuco"]`` and ``config/demo_grids.yaml`` for
+    :data:`DEMO_GRID_KINDS`. ``what`` names the option in the ``ValueError`` of a bad kind
     or of more boards than tag positions."""
     kinds = list(boards)
     if len(kinds) > n_tags:

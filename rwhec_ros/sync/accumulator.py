@@ -44,21 +44,24 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.problem import DEFAULT_ROTATION_TOL, Edge, Problem, check_transforms
+from ..core.problem import DEFAULT_ROTATION_TOL, Problem, check_transforms
 from .edge_pairs import DatasetEdge
+from .edge_store import (
+    _BYTES_PER_EDGE_OVERHEAD,
+    _BYTES_PER_SLOT,
+    KeptPairs,
+    _corners,
+    _EdgeStore,
+)
+from .problems import problem_from_edges
 
 __all__ = ["PairAccumulator", "PairListener", "KeptPairs", "problem_from_edges"]
 
 #: ``callback(x_name, y_name, A (4, 4), B (4, 4))``, called for every kept pair.
 PairListener = Callable[[str, str, np.ndarray, np.ndarray], None]
-
-_BYTES_PER_SLOT = 8 + 128 + 128 + 8 + 8 + 64 + 8 + 8
-_BYTES_PER_EDGE_OVERHEAD = 8192
-_INITIAL_SLOTS = 64
 
 _COUNTERS = (
     "offered",
@@ -75,17 +78,6 @@ _COUNTERS = (
 def _is_int(value: object) -> bool:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
-
-def _rotation_angles(R_stack: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Geodesic angles between each of (n, 3, 3) and (3, 3), accurate near 0 and pi."""
-    Rel = np.swapaxes(R_stack, -1, -2) @ R
-    c = 0.5 * (np.trace(Rel, axis1=-2, axis2=-1) - 1.0)
-    w = np.stack(
-        [Rel[:, 2, 1] - Rel[:, 1, 2], Rel[:, 0, 2] - Rel[:, 2, 0], Rel[:, 1, 0] - Rel[:, 0, 1]],
-        axis=-1,
-    )
-    s = 0.5 * np.linalg.norm(w, axis=-1)
-    return np.arctan2(s, c)
 
 
 def _pose_change(A0: np.ndarray, A1: np.ndarray) -> tuple[float, float]:
@@ -104,175 +96,6 @@ def _pose_change(A0: np.ndarray, A1: np.ndarray) -> tuple[float, float]:
                       + (b[2][3] - a[2][3]) ** 2)
     return math.atan2(s, c), shift
 
-
-def _corners(value, points=None, most: int = 0) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """``(corners, points)``: four finite tag corners (4, 2) and None; or, with board points,
-    ``4 <= K <= most`` finite corners (K, 2) and their points (K, 3); ``(None, None)`` when
-    absent or not that."""
-    if value is None:
-        return None, None
-    try:
-        c = np.asarray(value, dtype=float)
-        p = None if points is None else np.asarray(points, dtype=float)
-    except (TypeError, ValueError):
-        return None, None
-    if p is None:
-        ok = c.shape == (4, 2) and np.isfinite(c).all()
-        return (c, None) if ok else (None, None)
-    ok = (c.ndim == 2 and c.shape[1] == 2 and 4 <= c.shape[0] <= most
-          and p.shape == (c.shape[0], 3) and np.isfinite(c).all() and np.isfinite(p).all())
-    return (c, p) if ok else (None, None)
-
-
-class _EdgeStore:
-    """Growing preallocated arrays of one edge plus nearest-neighbour bookkeeping."""
-
-    _FIELDS = ("stamps", "A", "B", "sigma", "kappa", "corners", "points", "nn_dist", "nn_idx")
-    _FILL = {"nn_dist": np.inf, "corners": np.nan, "points": np.nan}  # of new slots (else 0)
-    _SHARED = ("stamps", "A", "B", "sigma", "kappa")  # the arrays :meth:`copy` may share
-
-    def __init__(self, x: str, y: str, max_pairs: int) -> None:
-        self.x, self.y = x, y
-        self.n = 0
-        self.last_A: np.ndarray | None = None
-        self.max_stamp = -1  # the newest stamp stored (or replaced)
-        #: Identifies the stamp-sorted sequence of kept pairs while it only grows at its end; a
-        #: new object whenever a kept pair changes, goes or is inserted before the newest.
-        self.lineage = object()
-        #: Read-only views of the pair arrays were handed out (:meth:`copy`): the next change of
-        #: a stored pair first moves the arrays (:meth:`detach`), so the views never change.
-        self.shared = False
-        self.in_order = True  # the slots hold the pairs in stamp order
-        self._views: list[np.ndarray] | None = None  # read-only views of the _SHARED arrays
-        self._snapshot: KeptPairs | None = None  # the last copy(), while nothing changed
-        slots = min(_INITIAL_SLOTS, max_pairs)
-        self.stamps = np.zeros(slots, dtype=np.int64)
-        self.A = np.zeros((slots, 4, 4))
-        self.B = np.zeros((slots, 4, 4))
-        self.sigma = np.zeros(slots)
-        self.kappa = np.zeros(slots)
-        self.corners = np.full((slots, 4, 2), np.nan)  # detected corners [px]; NaN: none
-        self.points = np.full((slots, 0, 3), np.nan)  # their board-frame points (boards only)
-        self.nn_dist = np.full(slots, np.inf)  # distance of each pair to its nearest neighbour
-        self.nn_idx = np.full(slots, -1, dtype=np.int64)  # index of that neighbour
-
-    def __getstate__(self) -> dict:
-        """For copies and pickles: the arrays without the views handed out (a copy's views are
-        made from its own arrays)."""
-        state = self.__dict__.copy()
-        state.update(_views=None, _snapshot=None, shared=False)
-        return state
-
-    def grow(self, slots: int) -> None:
-        """Reallocate every array to ``slots`` entries, keeping the first ``n``."""
-        for name in self._FIELDS:
-            old = getattr(self, name)
-            new = np.full((slots,) + old.shape[1:], self._FILL.get(name, 0), dtype=old.dtype)
-            new[: self.n] = old[: self.n]
-            setattr(self, name, new)
-        self.shared = False  # handed-out views keep the old arrays
-        self._views = None
-
-    def detach(self) -> None:
-        """Before a stored pair is changed in place: give the pair arrays new memory when
-        views of them were handed out (so those views keep their values), and start a new
-        lineage (the sorted sequence no longer just grows)."""
-        if self.shared:
-            for name in self._SHARED:
-                setattr(self, name, getattr(self, name).copy())
-            self.shared = False
-            self._views = None
-        self.lineage = object()
-        self._snapshot = None
-
-    @property
-    def slots(self) -> int:
-        return int(self.stamps.shape[0])
-
-    def nbytes(self) -> int:
-        return sum(getattr(self, name).nbytes for name in self._FIELDS)
-
-    def distances(self, A: np.ndarray, rot_scale: float, trans_scale: float) -> np.ndarray:
-        """Keyframe distance of ``A`` to each stored ``A``, shape (n,)."""
-        stored = self.A[: self.n]
-        rot = _rotation_angles(stored[:, :3, :3], A[:3, :3]) / rot_scale
-        trans = np.linalg.norm(stored[:, :3, 3] - A[:3, 3], axis=-1) / trans_scale
-        return np.maximum(rot, trans)
-
-    def widen(self, width: int) -> None:
-        """Make room for ``width`` board corners per slot with their board-frame points; tag
-        corners stored before (an edge keeps one kind) are dropped."""
-        self.corners = np.full((self.slots, width, 2), np.nan)
-        self.points = np.full((self.slots, width, 3), np.nan)
-
-    def copy(self) -> KeptPairs:
-        """The kept pairs sorted by stamp (no re-validation). Pairs stored in stamp order (the
-        usual case: they arrive in time order) are handed out as read-only views of the first
-        ``n`` slots, which never change afterwards (appends write later slots; a change of a
-        stored pair first moves the arrays, :meth:`detach`); otherwise sorted copies. The same
-        object again while no pair was stored since."""
-        if self._snapshot is not None:
-            return self._snapshot
-        n = self.n
-        if self.in_order:
-            if self._views is None:
-                self._views = [getattr(self, name).view() for name in self._SHARED]
-                for v in self._views:
-                    v.flags.writeable = False  # and so every slice of it
-            self.shared = True
-            arrays = [v[:n] for v in self._views]
-        else:
-            order = np.argsort(self.stamps[:n], kind="stable")
-            arrays = [getattr(self, name)[:n][order] for name in self._SHARED]
-            for a in arrays:
-                a.flags.writeable = False
-        self._snapshot = KeptPairs._of(self.x, self.y, *arrays, self.lineage)
-        return self._snapshot
-
-    def write(self, i: int, stamp: int, A, B, sigma: float, kappa: float,
-              corners=None, points=None) -> None:
-        """Store a pair in slot ``i``: a new one (``i == n``, then ``n`` is raised by the
-        caller) or a replacement (``i < n``, :meth:`detach` first). A new pair older than the
-        newest stored goes inside the sorted sequence: a new lineage."""
-        if i < self.n:
-            self.detach()
-            self.in_order = False
-        elif stamp < self.max_stamp:
-            self.lineage = object()
-            self.in_order = False
-        self._snapshot = None
-        self.max_stamp = max(self.max_stamp, int(stamp))
-        self.stamps[i] = stamp
-        self.corners[i] = np.nan
-        self.points[i] = np.nan
-        if corners is not None:
-            self.corners[i, : len(corners)] = corners
-        if points is not None:
-            self.points[i, : len(points)] = points
-        self.A[i] = A
-        self.B[i] = B
-        self.sigma[i] = sigma
-        self.kappa[i] = kappa
-
-    def data(self, rotation_tol: float) -> DatasetEdge:
-        """The kept pairs sorted by stamp (copies), validated with ``rotation_tol``."""
-        order = np.argsort(self.stamps[: self.n], kind="stable")
-        corners, points = self.corners[: self.n][order], None
-        if self.points.shape[1]:  # board corners: as wide as the most any pair has
-            width = max(4, int(np.isfinite(corners[..., 0]).sum(axis=1).max()))
-            corners, points = corners[:, :width].copy(), self.points[: self.n][order][:, :width]
-        return DatasetEdge(
-            x=self.x,
-            y=self.y,
-            stamps_ns=self.stamps[: self.n][order].copy(),
-            A=self.A[: self.n][order].copy(),
-            B=self.B[: self.n][order].copy(),
-            sigma=self.sigma[: self.n][order].copy(),
-            kappa=self.kappa[: self.n][order].copy(),
-            rotation_tol=rotation_tol,
-            corners_px=corners.copy(),
-            corner_points_m=None if points is None else points.copy(),
-        )
 
 
 class PairAccumulator:
@@ -637,93 +460,3 @@ class PairAccumulator:
         """
         return problem_from_edges(self.edges(), x_names, y_names, unknown_scale, min_pairs,
                                   self.rotation_tol)
-
-
-@dataclass(frozen=True)
-class KeptPairs:
-    """One edge's kept pairs, sorted by stamp (:meth:`PairAccumulator.kept_pairs`): ``stamps_ns``
-    (N,), ``A``, ``B`` (N, 4, 4), ``sigma``, ``kappa`` (N,), read-only arrays that never change
-    (views of the stored arrays, or copies).
-
-    ``lineage``: an object naming the edge's sequence of kept pairs while it only grows at its
-    end. Two snapshots of an edge with the same lineage (compared by identity) hold the same
-    first pairs, bit for bit, up to the smaller count; a pair replaced (full edge), a pair
-    arriving older than the newest, changed precisions (:meth:`PairAccumulator.set_precisions`)
-    or a cleared accumulator give a new lineage. ``None``: unknown (no such promise)."""
-
-    x: str
-    y: str
-    stamps_ns: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
-    sigma: np.ndarray
-    kappa: np.ndarray
-    lineage: object = None
-
-    @property
-    def n(self) -> int:
-        return int(self.stamps_ns.shape[0])
-
-    @classmethod
-    def _of(cls, x: str, y: str, stamps_ns: np.ndarray, A: np.ndarray, B: np.ndarray,
-            sigma: np.ndarray, kappa: np.ndarray, lineage: object) -> KeptPairs:
-        """``KeptPairs(x, y, stamps_ns, A, B, sigma, kappa, lineage)``, its fields set at once
-        (the frozen dataclass's ``__init__`` sets them one by one through
-        ``object.__setattr__``, twice the time: a snapshot under the session's lock makes one
-        per edge)."""
-        obj = object.__new__(cls)
-        obj.__dict__.update(x=x, y=y, stamps_ns=stamps_ns, A=A, B=B, sigma=sigma, kappa=kappa,
-                            lineage=lineage)
-        return obj
-
-
-def problem_from_edges(
-    data: dict[tuple[str, str], DatasetEdge | KeptPairs],
-    x_names: Sequence[str] | None = None,
-    y_names: Sequence[str] | None = None,
-    unknown_scale: bool = False,
-    min_pairs: int = 3,
-    rotation_tol: float = DEFAULT_ROTATION_TOL,
-    *,
-    validate: bool = True,
-) -> tuple[Problem, dict[tuple[str, str], str]]:
-    """:meth:`PairAccumulator.to_problem` of ``data`` (its :meth:`~PairAccumulator.edges` or
-    :meth:`~PairAccumulator.kept_pairs`, e.g. copied under a lock and built outside it); same
-    parameters, returns and errors. ``validate=False`` skips re-checking the transforms and
-    precisions of :meth:`~PairAccumulator.kept_pairs` (checked when offered)."""
-    if not _is_int(min_pairs) or min_pairs < 1:
-        raise ValueError(f"min_pairs: expected an integer >= 1, got {min_pairs!r}")
-    xs = sorted({x for x, _ in data}) if x_names is None else [str(n) for n in x_names]
-    ys = sorted({y for _, y in data}) if y_names is None else [str(n) for n in y_names]
-    x_index = {n: i for i, n in enumerate(xs)}
-    y_index = {n: i for i, n in enumerate(ys)}
-    excluded: dict[tuple[str, str], str] = {}
-    kept: list[DatasetEdge] = []
-    for (x, y), e in data.items():
-        if x not in x_index:
-            excluded[(x, y)] = f"X frame {x!r} not in x_names"
-        elif y not in y_index:
-            excluded[(x, y)] = f"Y frame {y!r} not in y_names"
-        elif e.n < min_pairs:
-            excluded[(x, y)] = f"{e.n} pairs < min_pairs={min_pairs}"
-        else:
-            kept.append(e)
-    if not kept:
-        raise ValueError(
-            f"to_problem: no edge has at least min_pairs={min_pairs} pairs among the "
-            f"requested frames; excluded: {excluded}"
-        )
-    kept.sort(key=lambda e: (x_index[e.x], y_index[e.y]))
-    if validate:
-        edges = [Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa,
-                            rotation_tol=rotation_tol) for e in kept]
-    else:
-        edges = [Edge._of(e.x, e.y, e.A, e.B, e.sigma, e.kappa) for e in kept]
-    touched = {e.x for e in kept} | {e.y for e in kept}
-    problem = Problem(
-        [n for n in xs if n in touched],
-        [n for n in ys if n in touched],
-        edges,
-        unknown_scale=unknown_scale,
-    )
-    return problem, excluded

@@ -8,8 +8,14 @@ Behaviour on the live path (never raises on bad data, every event is counted):
 
 * out-of-order samples are inserted in stamp order (``"out_of_order"``);
 * a sample whose stamp is already present is dropped, the first one wins (``"duplicate"``);
-* a sample more than ``backwards_jump_ns`` older than the newest one (a bag played in a loop, a
-  simulator reset) clears the buffer before it is inserted (``"reset_backwards_jump"``);
+* a sample more than ``backwards_jump_ns`` older than the newest one is *stale*. One stale sample
+  (a late message, a stray stamp) is dropped and counted (``"dropped_stale"``), the buffer kept.
+  Only a *persistent* backwards jump resets the buffer: ``backwards_jump_samples`` consecutive
+  valid samples all stale (nothing newer in between), i.e. the stream now lives on an earlier
+  time line (a bag played in a loop, a simulator reset). Then the buffer is cleared and that run
+  of samples becomes its content (``"reset_backwards_jump"``). Until the run is that long its
+  samples are held aside (not looked up); a sample that is not stale ends the run and the run's
+  samples are dropped (``"dropped_stale"``, counted then);
 * when full, the oldest sample is evicted (``"evicted"``); a sample older than everything in a
   full buffer is dropped (``"dropped_too_old"``);
 * a transform that is not a finite rigid transform is rejected by reason (``"rejected_*"``);
@@ -39,7 +45,12 @@ import numpy as np
 from ..core.problem import DEFAULT_ROTATION_TOL
 from .interpolation import interpolate_se3
 
-__all__ = ["LookupStatus", "PoseBuffer"]
+__all__ = ["LookupStatus", "PoseBuffer", "BACKWARDS_JUMP_SAMPLES"]
+
+#: Consecutive stale samples that make a persistent backwards jump (module docstring): at the
+#: usual pose rates (100-1000 Hz) 5-50 ms of a new time line, and no plausible run of late
+#: messages (they arrive between samples of the current time line, which end the run).
+BACKWARDS_JUMP_SAMPLES = 5
 
 
 class LookupStatus(str, Enum):
@@ -73,6 +84,7 @@ _ADD_COUNTERS = (
     "evicted",
     "dropped_too_old",
     "reset_backwards_jump",
+    "dropped_stale",
     "rejected_bad_stamp",
     "rejected_shape",
     "rejected_non_finite",
@@ -111,7 +123,10 @@ class PoseBuffer:
     extrapolation_tol_ns : int
         A stamp this close [ns] to a sample it cannot be interpolated around gets that sample.
     backwards_jump_ns : int
-        A sample older than the newest one by more than this [ns] clears the buffer first.
+        A sample older than the newest one by more than this [ns] is stale (module docstring).
+    backwards_jump_samples : int
+        This many consecutive stale samples (>= 1) are a persistent backwards jump: the buffer is
+        reset to them. 1 resets on any stale sample (the behaviour before issue 39).
     rotation_tol : float
         Tolerance on ``max|R^T R - I|``, ``|det R - 1|`` and the last row ``[0, 0, 0, 1]``.
     """
@@ -123,17 +138,21 @@ class PoseBuffer:
         extrapolation_tol_ns: int = 5_000_000,
         *,
         backwards_jump_ns: int = 1_000_000_000,
+        backwards_jump_samples: int = BACKWARDS_JUMP_SAMPLES,
         rotation_tol: float = DEFAULT_ROTATION_TOL,
     ) -> None:
         self.capacity = _check_int("capacity", capacity, 2)
         self.max_gap_ns = _check_int("max_gap_ns", max_gap_ns, 1)
         self.extrapolation_tol_ns = _check_int("extrapolation_tol_ns", extrapolation_tol_ns, 0)
         self.backwards_jump_ns = _check_int("backwards_jump_ns", backwards_jump_ns, 1)
+        self.backwards_jump_samples = _check_int("backwards_jump_samples",
+                                                 backwards_jump_samples, 1)
         if not (np.isfinite(rotation_tol) and rotation_tol > 0):
             raise ValueError(f"rotation_tol: must be finite and > 0, got {rotation_tol!r}")
         self.rotation_tol = float(rotation_tol)
         self._stamps: list[int] = []
         self._poses: list[np.ndarray] = []
+        self._stale: list[tuple[int, np.ndarray]] = []  # the current run of stale samples
         self._counters = dict.fromkeys(_ADD_COUNTERS + _LOOKUP_COUNTERS, 0)
 
     # --- state ---------------------------------------------------------------------------------
@@ -158,6 +177,12 @@ class PoseBuffer:
         """Drop every sample (counters are kept)."""
         self._stamps.clear()
         self._poses.clear()
+        self._stale.clear()
+
+    @property
+    def resets(self) -> int:
+        """Resets by a persistent backwards jump so far (``"reset_backwards_jump"``)."""
+        return self._counters["reset_backwards_jump"]
 
     def counters(self) -> dict[str, int]:
         """A copy of the event counters (fixed keys, all present from the start)."""
@@ -201,7 +226,8 @@ class PoseBuffer:
             The pose at ``stamp_ns`` (copied).
         strict : bool
             Raise ``ValueError`` for an invalid stamp or transform instead of counting it.
-            Duplicates, out-of-order samples and resets are stream behaviour and never raise.
+            Duplicates, out-of-order and stale samples and resets are stream behaviour and
+            never raise. A stale sample held aside returns False.
         """
         problem = self._validate(stamp_ns, T)
         if problem is not None:
@@ -212,8 +238,29 @@ class PoseBuffer:
         stamp = int(stamp_ns)
         pose = np.array(T, dtype=float)
         if self._stamps and stamp < self._stamps[-1] - self.backwards_jump_ns:
-            self.clear()
-            self._counters["reset_backwards_jump"] += 1
+            return self._add_stale(stamp, pose)
+        if self._stale:  # a sample of the current time line: the stale run was not a jump
+            self._counters["dropped_stale"] += len(self._stale)
+            self._stale.clear()
+        return self._insert(stamp, pose)
+
+    def _add_stale(self, stamp: int, pose: np.ndarray) -> bool:
+        """A stale sample (module docstring): held aside; the run of ``backwards_jump_samples``
+        consecutive ones resets the buffer to that run."""
+        self._stale.append((stamp, pose))
+        if len(self._stale) < self.backwards_jump_samples:
+            return False
+        run = self._stale
+        self._stale = []
+        self._stamps.clear()
+        self._poses.clear()
+        self._counters["reset_backwards_jump"] += 1
+        for s, T in run:
+            self._insert(s, T)
+        return True
+
+    def _insert(self, stamp: int, pose: np.ndarray) -> bool:
+        """Insert a valid sample in stamp order (duplicates, capacity); True when held."""
         i = bisect.bisect_left(self._stamps, stamp)
         if i < len(self._stamps) and self._stamps[i] == stamp:
             self._counters["duplicate"] += 1

@@ -1,8 +1,9 @@
 """What the calibrator sees: a camera image with every detected tag and board drawn on it.
 
 :func:`annotate_detections` draws, on a BGR copy of the grayscale image, each marker found
-(:attr:`TargetDetectionResult.markers <rwhec_ros.vision.targets.TargetDetectionResult>`)
-outlined, and one label per target with its name and marker id(s):
+(:attr:`TargetDetectionResult.markers <rwhec_ros.vision.targets.TargetDetectionResult>`; a
+chessboard or circle grid: the outline of its grid points) outlined, and one label per target with
+its name and marker id(s) (``grid`` for a chessboard or circle grid):
 
 * **green** (:data:`KEPT`): the target's pose became a pair of the calibration; the corners used
   by the pose are marked with small circles;
@@ -121,8 +122,9 @@ def annotate_detections(
                 cv2.circle(canvas, (int(p[0]), int(p[1])), thickness + 1, colour, thickness)
         if name == "" or not markers:
             continue
-        ids = sorted(m for m, _ in markers)
-        id_text = f"id {ids[0]}" if len(ids) == 1 else f"{len(ids)} markers"
+        ids = sorted(m for m, _ in markers if m >= 0)
+        id_text = ("grid" if not ids else f"id {ids[0]}" if len(ids) == 1
+                   else f"{len(ids)} markers")
         text = f"{name} ({id_text})" + ("" if ok else f": {reason}")
         labels.append((text, np.concatenate([np.reshape(q, (-1, 2)) for _, q in markers]),
                        colour))

@@ -1,6 +1,7 @@
-"""Pose of a board (AprilGrid or ChArUco) from the markers detected in one image.
+"""Pose of a board from its points in one image: AprilGrid and ChArUco from their markers.
 
-Per board (:func:`estimate_board`):
+Per board (:func:`estimate_board`; steps 2-4 are :func:`board_observation`, which the marker-free
+boards of :mod:`rwhec_ros.vision.grid_detection` share):
 
 1. **points** -- AprilGrid: the four corners of every detected grid tag (shortest side at least
    ``min_side_px``), refined by edge-line fitting (:mod:`rwhec_ros.vision.edges`) when the
@@ -18,17 +19,12 @@ Per board (:func:`estimate_board`):
    worse than ``max(0.5 px, 3 x 1.4826 x`` the median residual), it is dropped and the pose
    solved again, keeping at least ``min_corners`` and three quarters of the points
    (:attr:`TargetObservation.outlier_corners`); then the flip check of
-   :mod:`rwhec_ros.vision.planar_pose` (``ambiguous_pose``) and the detector's reprojection and
-   obliquity gates.
-4. **precision** (:func:`points_precision`) -- first-order covariance of the pose from the
-   reprojection Jacobian of all points, with the per-coordinate pixel noise estimated from the
-   residual: ``sigma_px = max(pixel_noise_floor_px, rms sqrt(N / (2N - 6)))`` (``rms`` over
-   the N points of the 2D residual norm: ``E[N rms^2] = (2N - 6) sigma_px^2``, 6 pose
-   parameters; ``sqrt(2) rms`` for one tag, as in :mod:`rwhec_ros.vision.detection`).
-   ``sigma`` is the square root of the largest eigenvalue of the translation block (origin of
-   the board, camera axes), ``sigma_rot`` that of the rotation block (rotation about the board
-   origin), ``kappa = 1 / (2 sigma_rot^2)``; floors as for single tags.
-   A partly seen board gets a larger ``sigma`` when its origin lies away from the corners seen.
+   :mod:`rwhec_ros.vision.planar_pose` (``ambiguous_pose``) and the detector's reprojection gate
+   (:meth:`DetectorConfig.reprojection_limit
+   <rwhec_ros.vision.detector_config.DetectorConfig.reprojection_limit>`: a floor, scaled to the
+   camera's corner noise when the caller keeps a history) and obliquity gate.
+4. **precision** (:func:`~rwhec_ros.vision.precision.points_precision`, re-exported here) --
+   first-order covariance of the pose from the reprojection Jacobian of all points.
 """
 
 from __future__ import annotations
@@ -39,73 +35,14 @@ import cv2
 import numpy as np
 
 from .boards import AprilGridSpec, CharucoSpec
-from .detection import DetectorConfig, RejectReason
+from .detector_config import DetectorConfig, RejectReason, corner_noise_px
 from .edges import refine_corners_edges
 from .intrinsics import CameraIntrinsics
 from .planar_pose import PoseStatus, solve_planar_pose
+from .precision import points_precision
 from .targets import TargetObservation, TargetRejection, TargetSpec
 
-__all__ = ["estimate_board", "points_precision", "charuco_detector"]
-
-
-def points_precision(
-    object_points: np.ndarray,
-    T_cam_target: np.ndarray,
-    intrinsics: CameraIntrinsics,
-    rms_px: float,
-    *,
-    pixel_noise_floor_px: float = 0.1,
-    sigma_floor_m: float = 1e-3,
-    rotation_std_floor_deg: float = 0.05,
-) -> tuple[float, float]:
-    """``(sigma, kappa)`` of a target pose from the reprojection Jacobian (module docstring).
-
-    Parameters
-    ----------
-    object_points : ndarray, shape (N, 3)
-        Points in the target frame, ``N >= 4``.
-    T_cam_target : ndarray, shape (4, 4)
-    intrinsics : CameraIntrinsics
-        Only ``K`` is used (the Jacobian of the pinhole projection).
-    rms_px : float
-        RMS reprojection error of the points (pixels).
-    pixel_noise_floor_px, sigma_floor_m, rotation_std_floor_deg : float
-        Floors of the pixel noise, of ``sigma`` and of the rotation standard deviation.
-
-    Returns
-    -------
-    sigma : float
-        Translation standard deviation [m], the largest over directions.
-    kappa : float
-        Langevin concentration ``1 / (2 sigma_rot^2)``.
-    """
-    X = np.asarray(object_points, dtype=float).reshape(-1, 3)
-    T = np.asarray(T_cam_target, dtype=float)
-    n = len(X)
-    if n < 4:
-        raise ValueError(f"object_points must hold at least 4 points, got {n}")
-    dof = 2 * n - 6
-    sigma_px = max(float(pixel_noise_floor_px), float(rms_px) * np.sqrt(n / dof))
-    K = np.asarray(intrinsics.K)
-    RX = X @ T[:3, :3].T  # target points about the origin, camera axes
-    p = RX + T[:3, 3]
-    x, y, z = p[:, 0], p[:, 1], p[:, 2]
-    # d(pixel)/d(camera point): rows (u, v).
-    du = np.stack([K[0, 0] / z, K[0, 1] / z, -(K[0, 0] * x + K[0, 1] * y) / z**2], axis=1)
-    dv = np.stack([np.zeros_like(z), K[1, 1] / z, -K[1, 1] * y / z**2], axis=1)
-    # Camera point under exp(dtheta) R X + t + dt: d/d(dtheta) = -[R X]_x, d/d(dt) = I.
-    skew = np.zeros((n, 3, 3))
-    skew[:, 0, 1], skew[:, 0, 2] = -RX[:, 2], RX[:, 1]
-    skew[:, 1, 0], skew[:, 1, 2] = RX[:, 2], -RX[:, 0]
-    skew[:, 2, 0], skew[:, 2, 1] = -RX[:, 1], RX[:, 0]
-    dp = np.concatenate([-skew, np.broadcast_to(np.eye(3), (n, 3, 3))], axis=2)  # (n, 3, 6)
-    J = np.concatenate([np.einsum("nk,nkj->nj", du, dp), np.einsum("nk,nkj->nj", dv, dp)])
-    cov = sigma_px**2 * np.linalg.pinv(J.T @ J)
-    sigma_rot = float(np.sqrt(max(np.linalg.eigvalsh(cov[:3, :3])[-1], 0.0)))
-    sigma_t = float(np.sqrt(max(np.linalg.eigvalsh(cov[3:, 3:])[-1], 0.0)))
-    sigma = max(float(sigma_floor_m), sigma_t)
-    sigma_rot = max(np.deg2rad(float(rotation_std_floor_deg)), sigma_rot)
-    return sigma, float(1.0 / (2.0 * sigma_rot**2))
+__all__ = ["estimate_board", "board_observation", "points_precision", "charuco_detector"]
 
 
 def charuco_detector(spec: CharucoSpec, config: DetectorConfig) -> cv2.aruco.CharucoDetector:
@@ -209,8 +146,10 @@ def estimate_board(
     *,
     predicted: np.ndarray | None = None,
     charuco: cv2.aruco.CharucoDetector | None = None,
+    noise_history: Sequence[float] | None = None,
+    noise: dict[str, float] | None = None,
 ) -> tuple[TargetObservation | None, list[TargetRejection]]:
-    """Pose of one board from its detected markers (module docstring).
+    """Pose of one marker board from its detected markers (module docstring).
 
     Parameters
     ----------
@@ -228,6 +167,8 @@ def estimate_board(
         Predicted ``T_cam_board`` (resolves pose flips).
     charuco : cv2.aruco.CharucoDetector, optional
         Reused detector of a ChArUco target (made here when None).
+    noise_history, noise
+        As in :func:`board_observation`.
 
     Returns
     -------
@@ -236,8 +177,8 @@ def estimate_board(
         Dropped markers and, without an observation, why the board was rejected.
     """
     board = target.board
-    if board is None:
-        raise ValueError(f"target {target.name!r} is not a board")
+    if not isinstance(board, (AprilGridSpec, CharucoSpec)):
+        raise ValueError(f"target {target.name!r} is not a marker board")
     name = target.name
     rejections: list[TargetRejection] = []
     counts: dict[int, int] = {}
@@ -253,10 +194,6 @@ def estimate_board(
         if counts[int(marker_id)] == 1:
             unique.append((int(marker_id), np.asarray(quad, dtype=float).reshape(4, 2)))
 
-    def reject(reason: RejectReason, detail: str):
-        rejections.append(TargetRejection(name, reason.value, detail))
-        return None, rejections
-
     note = ""
     if isinstance(board, AprilGridSpec):
         obj, img, ideal, used = _aprilgrid_points(gray, board, unique, intrinsics, config, name,
@@ -264,11 +201,67 @@ def estimate_board(
     else:
         detector = charuco if charuco is not None else charuco_detector(board, config)
         obj, img, ideal, used, note = _charuco_points(gray, board, unique, intrinsics, detector)
+    if note and len(obj) >= target.min_corners:
+        rejections.append(TargetRejection(name, RejectReason.TOO_FEW_CORNERS.value, note))
+        return None, rejections
+    obs = board_observation(target, obj, img, ideal, intrinsics, config, rejections,
+                            marker_ids=used, per_marker=isinstance(board, AprilGridSpec),
+                            predicted=predicted, noise_history=noise_history, noise=noise)
+    return obs, rejections
+
+
+def board_observation(
+    target: TargetSpec,
+    obj: np.ndarray,
+    img: np.ndarray,
+    ideal: np.ndarray,
+    intrinsics: CameraIntrinsics,
+    config: DetectorConfig,
+    rejections: list[TargetRejection],
+    *,
+    marker_ids: tuple[int, ...] = (),
+    per_marker: bool = False,
+    predicted: np.ndarray | None = None,
+    noise_history: Sequence[float] | None = None,
+    noise: dict[str, float] | None = None,
+) -> TargetObservation | None:
+    """Steps 2-4 of the module docstring on a board's points (any board kind): enough points,
+    pose with outliers dropped, flip check, reprojection and obliquity gates, precision.
+
+    Parameters
+    ----------
+    target : TargetSpec
+    obj, img, ideal : ndarray, shapes (N, 3), (N, 2), (N, 2)
+        Board-frame points, their detected images (distorted pixels) and the same undistorted.
+    intrinsics : CameraIntrinsics
+    config : DetectorConfig
+    rejections : list of TargetRejection
+        Appended to: why the board was rejected.
+    marker_ids : tuple of int
+        Markers behind the points (AprilGrid: 4 points per marker, in order).
+    per_marker : bool
+        Drop outliers a marker (4 points) at a time.
+    predicted : ndarray (4, 4), optional
+        Predicted ``T_cam_board`` (resolves pose flips).
+    noise_history : sequence of float, optional
+        Corner noise of the camera's earlier poses (:meth:`DetectorConfig.reprojection_limit`).
+    noise : dict of str to float, optional
+        Receives, under the target's name, the corner noise this pose measures
+        (:func:`corner_noise_px`), when solved.
+
+    Returns
+    -------
+    TargetObservation or None
+    """
+    name = target.name
+
+    def reject(reason: RejectReason, detail: str) -> None:
+        rejections.append(TargetRejection(name, reason.value, detail))
+
     if len(obj) < target.min_corners:
         return reject(RejectReason.TOO_FEW_CORNERS,
                       f"{len(obj)} corners < min_corners {target.min_corners}")
-    if note:
-        return reject(RejectReason.TOO_FEW_CORNERS, note)
+
     def solve(obj, img, ideal):
         return solve_planar_pose(
             obj, img, ideal, intrinsics, square=False, refine=config.refine_pose,
@@ -276,7 +269,7 @@ def estimate_board(
             prediction_margin=config.flip_prediction_margin, predicted=predicted)
 
     n_total = len(obj)
-    per_marker = isinstance(board, AprilGridSpec)
+    used = tuple(marker_ids)
     try:
         pose = solve(obj, img, ideal)
         # Drop the worst marker / point while it stands out, at most a quarter of the points.
@@ -298,10 +291,13 @@ def estimate_board(
     if pose.status == PoseStatus.AMBIGUOUS:
         return reject(RejectReason.AMBIGUOUS_POSE, pose.detail)
     T, rms = pose.T, pose.rms_px
-    if not np.isfinite(rms) or rms > config.max_reprojection_rms_px:
+    if noise is not None and np.isfinite(rms):
+        noise[name] = corner_noise_px(rms, len(obj))
+    limit = config.reprojection_limit(rms, len(obj), noise_history)
+    if not np.isfinite(rms) or rms > limit:
         return reject(RejectReason.REPROJECTION_ERROR,
-                      f"RMS {rms:.3f} px > max_reprojection_rms_px "
-                      f"{config.max_reprojection_rms_px:g}")
+                      f"RMS {rms:.3f} px > {limit:.3g} px (max_reprojection_rms_px "
+                      f"{config.max_reprojection_rms_px:g}, scaled to the camera's corner noise)")
     t = T[:3, 3]
     cos_obl = float(np.clip(T[:3, 2] @ (-t / np.linalg.norm(t)), -1.0, 1.0))
     obliquity = float(np.degrees(np.arccos(cos_obl)))
@@ -320,4 +316,4 @@ def estimate_board(
         obliquity_deg=obliquity, marker_ids=used, image_points=img, object_points=obj,
         sigma=sigma, kappa=kappa, pose_status=pose.status.value, flip_ratio=pose.ratio,
         outlier_corners=n_total - len(obj),
-    ), rejections
+    )

@@ -15,7 +15,8 @@ Pipeline per image (:meth:`TagDetector.detect`):
 3. gates (tag id in the configuration, apparent size, obliquity, reprojection error) turn a
    detection into a :class:`TagObservation` or a :class:`TagRejection` with its reason;
 4. optionally a translation standard deviation ``sigma`` and a Langevin rotation concentration
-   ``kappa`` are attached (the paper's per-pair precisions of eq. (32)-(33); model below).
+   ``kappa`` are attached (the paper's per-pair precisions of eq. (32)-(33);
+   :mod:`rwhec_ros.vision.precision`).
 
 Tag frame (identical in :mod:`rwhec_ros.vision.render`): origin at the centre of the black
 square, ``x`` right and ``y`` up on the printed tag, ``z`` out of the tag face toward the viewer
@@ -25,40 +26,30 @@ top-left, top-right, bottom-right, bottom-left of the upright tag. Note: the Apr
 reports a different tag frame (``y`` down, ``z`` into the tag), i.e. this frame rotated by 180
 degrees about ``x``.
 
-Precision model (``DetectorConfig.estimate_precision``)
--------------------------------------------------------
-With ``r`` the RMS corner reprojection error (pixels, 2D norm over the 4 corners), the per-
-coordinate corner noise is estimated as ``sigma_px = max(pixel_noise_floor_px, sqrt(2) r)``
-(8 residual coordinates, 6 pose parameters: ``E[4 r^2] = 2 sigma_px^2``). With ``z`` the tag
-distance, ``s`` its size and ``f`` the focal length (pixels), first-order perspective gives the
-depth standard deviation ``z^2 sigma_px / (f s)`` (the largest translation component for
-``z > s/2``) and the out-of-plane tilt standard deviation ``2 z^2 sigma_px / (f s^2)`` (from the
-difference of the apparent lengths of opposite edges), so
-
-* ``sigma = max(sigma_floor_m, z^2 sigma_px / (f s))`` (metres; nominal units if
-  ``unknown_scale``), isotropic as in the paper's eq. (20);
-* ``sigma_rot = max(rotation_std_floor_deg, 2 z^2 sigma_px / (f s^2))`` (radians, per axis) and
-  ``kappa = 1 / (2 sigma_rot^2)``, because ``Lang(I, kappa)`` has density proportional to
-  ``exp(kappa tr R) ~ exp(-kappa |phi|^2)`` for small rotation vectors ``phi``.
-
-This is a face-on, first-order model; it ignores the (beneficial) effect of obliquity on the tilt
-and is meant for relative weighting, not as a calibrated covariance.
+The precision model (``sigma``, ``kappa``) is that of :mod:`rwhec_ros.vision.precision`; the
+options and rejection reasons live in :mod:`rwhec_ros.vision.detector_config` (re-exported here).
 """
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
-from enum import Enum
 
 import cv2
 import numpy as np
 
-from .candidates import CandidateSearch, check_decimate, decimation_factor
+from .candidates import CandidateSearch
+from .detector_config import (
+    CORNER_REFINEMENT_MODES,
+    DetectorConfig,
+    RejectReason,
+    corner_noise_px,
+)
 from .edges import refine_corners_edges
-from .families import _family_key, marker_cells
+from .families import marker_cells
 from .intrinsics import CameraIntrinsics
-from .planar_pose import PoseStatus, check_flip_options, solve_planar_pose
+from .planar_pose import PoseStatus, solve_planar_pose
+from .precision import pose_precision
 
 __all__ = [
     "TAG_CORNERS_UNIT",
@@ -80,225 +71,10 @@ TAG_CORNERS_UNIT = np.array(
 )
 TAG_CORNERS_UNIT.setflags(write=False)
 
-#: Corner refinement name -> ``cv2.aruco`` constant.
-CORNER_REFINEMENT_MODES: dict[str, int] = {
-    "none": cv2.aruco.CORNER_REFINE_NONE,
-    "subpix": cv2.aruco.CORNER_REFINE_SUBPIX,
-    "contour": cv2.aruco.CORNER_REFINE_CONTOUR,
-    "apriltag": cv2.aruco.CORNER_REFINE_APRILTAG,
-    # Not an aruco mode: aruco's SUBPIX corners seed the edge-line fit of vision.edges (and are
-    # kept when that fit is not possible, e.g. for tiny tags).
-    "edge": cv2.aruco.CORNER_REFINE_SUBPIX,
-}
-
-
-class RejectReason(str, Enum):
-    """Why a detected tag did not become an observation (compares equal to its string value)."""
-
-    NOT_IN_CONFIGURATION = "not_in_configuration"
-    DUPLICATE_ID = "duplicate_id"
-    TOO_SMALL = "too_small"
-    POSE_FAILED = "pose_failed"
-    REPROJECTION_ERROR = "reprojection_error"
-    TOO_OBLIQUE = "too_oblique"
-    DETECTOR_ERROR = "detector_error"
-    AMBIGUOUS_POSE = "ambiguous_pose"
-    TOO_FEW_CORNERS = "too_few_corners"
-
 
 def tag_object_points(size: float) -> np.ndarray:
     """Corners (4, 3) of a tag of black-square edge ``size`` in the tag frame (IPPE order)."""
     return np.array(TAG_CORNERS_UNIT) * float(size)
-
-
-def pose_precision(
-    rms_px: float,
-    distance_m: float,
-    focal_px: float,
-    size_m: float,
-    *,
-    pixel_noise_floor_px: float = 0.1,
-    sigma_floor_m: float = 1e-3,
-    rotation_std_floor_deg: float = 0.05,
-) -> tuple[float, float]:
-    """``(sigma, kappa)`` of one tag pose from its reprojection error (module docstring model).
-
-    Parameters
-    ----------
-    rms_px : float
-        RMS corner reprojection error (pixels).
-    distance_m : float
-        Distance camera-tag centre ``|t|`` (metres).
-    focal_px : float
-        Focal length (pixels).
-    size_m : float
-        Tag size (metres).
-    pixel_noise_floor_px, sigma_floor_m, rotation_std_floor_deg : float
-        Floors of the corner noise, of ``sigma`` and of the rotation standard deviation.
-
-    Returns
-    -------
-    sigma : float
-        Isotropic translation standard deviation (metres).
-    kappa : float
-        Langevin concentration of the rotation, ``1 / (2 sigma_rot^2)``.
-    """
-    sigma_px = max(float(pixel_noise_floor_px), np.sqrt(2.0) * float(rms_px))
-    z2 = float(distance_m) ** 2
-    sigma = max(float(sigma_floor_m), z2 * sigma_px / (focal_px * size_m))
-    sigma_rot = max(
-        np.deg2rad(float(rotation_std_floor_deg)), 2.0 * z2 * sigma_px / (focal_px * size_m**2)
-    )
-    return float(sigma), float(1.0 / (2.0 * sigma_rot**2))
-
-
-@dataclass
-class DetectorConfig:
-    """Options of :class:`TagDetector` (validated on construction).
-
-    Attributes
-    ----------
-    family : str
-        AprilTag family: ``tag16h5``, ``tag25h9``, ``tag36h10`` or ``tag36h11`` (default).
-    tag_sizes : dict[int, float]
-        Black-square edge length (metres) per tag id.
-    default_tag_size : float or None
-        Size of tags not in ``tag_sizes``; None (default) rejects them as
-        ``not_in_configuration``.
-    unknown_scale : bool
-        The sizes are nominal (one common unknown factor, the paper's alpha of Section 4.3):
-        poses and ``sigma`` are then in nominal units; build the problem with
-        ``Problem(..., unknown_scale=True)``.
-    corner_refinement : str
-        ``"edge"`` (default): edge-line fitting of :mod:`rwhec_ros.vision.edges` seeded by
-        aruco's SUBPIX corners; or one of ``cv2.aruco``'s own refinements ``"subpix"``,
-        ``"apriltag"``, ``"contour"``, ``"none"``. The default was chosen by measured corner and
-        pose accuracy on rendered images (``benchmarks/perception.md``).
-    refine_pose : bool
-        Polish the IPPE pose with ``cv2.solvePnPRefineLM`` (default True: IPPE alone is not the
-        reprojection-error minimum for near face-on tags; LM cut the worst rotation error
-        several-fold in ``benchmarks/perception.md``).
-    max_reprojection_rms_px : float
-        Reject a tag whose RMS corner reprojection error exceeds this (default 1.0 px; rendered
-        tags give below 0.05 px with the edge refinement, so 1 px flags a wrong quad, not noise).
-    min_side_px : float
-        Reject a tag whose shortest quad side is below this (default 20 px: 2.5 px per cell of a
-        tag36h11, about the least for reliable decoding and for the edge refinement, whose
-        profiles must stay within one cell of the edge).
-    max_obliquity_deg : float
-        Reject a tag whose normal makes more than this angle with the ray to the camera
-        (default 70 degrees; 0 = face-on; see the obliquity table of
-        ``benchmarks/perception.md``).
-    estimate_precision : bool
-        Attach ``sigma`` / ``kappa`` to each observation (default True); None otherwise.
-    pixel_noise_floor_px, sigma_floor_m, rotation_std_floor_deg : float
-        Floors of the precision model (defaults 0.1 px, 1 mm, 0.05 degrees).
-    detector_parameters : dict[str, float]
-        Overrides of ``cv2.aruco.DetectorParameters`` attributes (e.g.
-        ``{"adaptiveThreshWinSizeStep": 20}``); names are checked. They apply to the searched
-        (possibly decimated) image.
-    decimate : int or "auto"
-        Candidate search on the image shrunk by this integer factor, corners refined at full
-        resolution (:mod:`rwhec_ros.vision.candidates`); 1 searches the full image. ``"auto"``
-        (default) picks ``max(W, H) // 600`` (1280x1024 -> 2, 640x480 -> 1). Only the
-        ``"edge"`` and ``"subpix"`` refinements have a full-resolution step; the other modes
-        always search the full image. A factor ``d`` raises the smallest detectable tag about
-        ``d``-fold (``benchmarks/perception.md``).
-    flip_min_ratio : float
-        Pose-flip check (:mod:`rwhec_ros.vision.planar_pose`): a tag whose two IPPE poses
-        reproject within this ratio of each other (``e_alt / e_best``) is ambiguous (default 3;
-        1 disables the check).
-    flip_min_separation_deg : float
-        Two IPPE poses closer than this in rotation count as one (default 2 degrees).
-    flip_prediction_margin : float
-        An ambiguous tag is resolved by a predicted pose when the nearer solution is at most
-        this fraction of the other's angle from it (default 0.75).
-    """
-
-    family: str = "tag36h11"
-    tag_sizes: dict[int, float] = field(default_factory=dict)
-    default_tag_size: float | None = None
-    unknown_scale: bool = False
-    corner_refinement: str = "edge"
-    refine_pose: bool = True
-    max_reprojection_rms_px: float = 1.0
-    min_side_px: float = 20.0
-    max_obliquity_deg: float = 70.0
-    estimate_precision: bool = True
-    pixel_noise_floor_px: float = 0.1
-    sigma_floor_m: float = 1e-3
-    rotation_std_floor_deg: float = 0.05
-    detector_parameters: dict[str, float] = field(default_factory=dict)
-    decimate: int | str = "auto"
-    flip_min_ratio: float = 3.0
-    flip_min_separation_deg: float = 2.0
-    flip_prediction_margin: float = 0.75
-
-    def __post_init__(self) -> None:
-        self.family = _family_key(self.family)
-        sizes: dict[int, float] = {}
-        for key, value in dict(self.tag_sizes).items():
-            if isinstance(key, bool) or int(key) != key or int(key) < 0:
-                raise ValueError(f"tag_sizes key must be a non-negative integer id, got {key!r}")
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"tag_sizes[{key}] must be positive, got {value!r}")
-            sizes[int(key)] = float(value)
-        self.tag_sizes = sizes
-        if self.default_tag_size is not None and not (
-            np.isfinite(self.default_tag_size) and self.default_tag_size > 0
-        ):
-            raise ValueError(
-                f"default_tag_size must be positive or None, got {self.default_tag_size!r}"
-            )
-        if self.corner_refinement not in CORNER_REFINEMENT_MODES:
-            raise ValueError(
-                f"corner_refinement must be one of {sorted(CORNER_REFINEMENT_MODES)}, got "
-                f"{self.corner_refinement!r}"
-            )
-        for name in (
-            "max_reprojection_rms_px",
-            "pixel_noise_floor_px",
-            "sigma_floor_m",
-            "rotation_std_floor_deg",
-        ):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be positive, got {value!r}")
-        if not (np.isfinite(self.min_side_px) and self.min_side_px >= 0):
-            raise ValueError(f"min_side_px must be >= 0, got {self.min_side_px!r}")
-        if not (0 < self.max_obliquity_deg <= 90):
-            raise ValueError(
-                f"max_obliquity_deg must be in (0, 90], got {self.max_obliquity_deg!r}"
-            )
-        params = cv2.aruco.DetectorParameters()
-        for name in dict(self.detector_parameters):
-            if name.startswith("_") or not hasattr(params, name) or callable(getattr(params, name)):
-                raise ValueError(f"detector_parameters has an unknown name {name!r}")
-        self.detector_parameters = dict(self.detector_parameters)
-        self.decimate = check_decimate(self.decimate)
-        check_flip_options(self.flip_min_ratio, self.flip_min_separation_deg,
-                           self.flip_prediction_margin, prefix="flip_")
-
-    def decimation_for(self, width: int, height: int) -> int:
-        """The decimation factor used for images of ``width x height`` (1 for refinements
-        without a full-resolution step)."""
-        if self.corner_refinement not in ("edge", "subpix"):
-            return 1
-        return decimation_factor(self.decimate, width, height)
-
-    def size_of(self, tag_id: int) -> float | None:
-        """Configured size of ``tag_id`` (metres), or None when the tag is not configured."""
-        return self.tag_sizes.get(int(tag_id), self.default_tag_size)
-
-    def aruco_parameters(self) -> cv2.aruco.DetectorParameters:
-        """``cv2.aruco.DetectorParameters`` for this configuration."""
-        params = cv2.aruco.DetectorParameters()
-        params.cornerRefinementMethod = CORNER_REFINEMENT_MODES[self.corner_refinement]
-        # Let the gates (min_side_px) decide about small tags, with a reason, instead of aruco.
-        params.minMarkerPerimeterRate = 0.01
-        for name, value in self.detector_parameters.items():
-            setattr(params, name, type(getattr(params, name))(value))
-        return params
 
 
 @dataclass(eq=False)
@@ -358,12 +134,16 @@ class DetectionResult:
     """Output of :meth:`TagDetector.detect` (every list empty when nothing is seen).
 
     ``skipped`` holds the configured ids that the candidate search found but that were left
-    unexamined because the caller asked only for other ids (``detect(..., only_ids=...)``).
+    unexamined because the caller asked only for other ids (``detect(..., only_ids=...)``);
+    ``corner_noise_px`` the corner noise (:func:`~rwhec_ros.vision.detector_config.
+    corner_noise_px`) of every pose solved, by tag id, accepted or not (the caller's noise
+    history).
     """
 
     observations: list[TagObservation] = field(default_factory=list)
     rejections: list[TagRejection] = field(default_factory=list)
     skipped: list[int] = field(default_factory=list)
+    corner_noise_px: dict[int, float] = field(default_factory=dict)
 
     def by_id(self) -> dict[int, TagObservation]:
         """Accepted observations keyed by tag id."""
@@ -400,6 +180,7 @@ class TagDetector:
         predicted: Mapping[int, np.ndarray] | None = None,
         *,
         only_ids: Collection[int] | None = None,
+        noise_history: Sequence[float] | None = None,
     ) -> DetectionResult:
         """Detect tags in an 8-bit grayscale image and estimate their poses.
 
@@ -418,6 +199,10 @@ class TagDetector:
             gates and is listed in ``DetectionResult.skipped`` (the live session passes the tags
             whose pair the keyframe test could keep). Each tag is examined on its own, so the
             observations of the ids examined are those of a full ``detect``.
+        noise_history : sequence of float, optional
+            Corner noise [px] of the camera's earlier poses: scales the reprojection gate
+            (:meth:`DetectorConfig.reprojection_limit`); None: the fixed floor only. The noise
+            of each pose solved here is in :attr:`DetectionResult.corner_noise_px`.
 
         Returns
         -------
@@ -449,7 +234,7 @@ class TagDetector:
             )
             return result
         return self.estimate_markers(img, ids, corners, intrinsics, predicted, result,
-                                     only_ids=only_ids)
+                                     only_ids=only_ids, noise_history=noise_history)
 
     def estimate_markers(
         self,
@@ -461,10 +246,12 @@ class TagDetector:
         result: DetectionResult | None = None,
         *,
         only_ids: Collection[int] | None = None,
+        noise_history: Sequence[float] | None = None,
     ) -> DetectionResult:
         """The stages after :meth:`detect_markers` (duplicates, refinement, pose, gates) on given
         markers (ids and corners (4, 2) in distorted pixels) of a validated image; appends to
-        ``result`` (a new one by default); ``only_ids`` as in :meth:`detect`."""
+        ``result`` (a new one by default); ``only_ids`` and ``noise_history`` as in
+        :meth:`detect`."""
         result = DetectionResult() if result is None else result
         img = gray
         if not ids:
@@ -489,8 +276,8 @@ class TagDetector:
                 )
                 continue
             outcome = self._estimate(
-                img, tag_id, quad, intrinsics, None if predicted is None else predicted.get(tag_id)
-            )
+                img, tag_id, quad, intrinsics, None if predicted is None else predicted.get(tag_id),
+                noise_history, result.corner_noise_px)
             if isinstance(outcome, TagObservation):
                 result.observations.append(outcome)
             else:
@@ -522,6 +309,8 @@ class TagDetector:
         quad: np.ndarray,
         intrinsics: CameraIntrinsics,
         predicted: np.ndarray | None = None,
+        noise_history: Sequence[float] | None = None,
+        noise: dict[int, float] | None = None,
     ) -> TagObservation | TagRejection:
         cfg = self.config
         size = cfg.size_of(tag_id)
@@ -560,12 +349,15 @@ class TagDetector:
         distance = float(np.linalg.norm(t))
         cos_obl = float(np.clip(T[:3, 2] @ (-t / distance), -1.0, 1.0))
         obliquity = float(np.degrees(np.arccos(cos_obl)))
-        if not np.isfinite(rms) or rms > cfg.max_reprojection_rms_px:
-            return TagRejection(
-                tag_id,
-                RejectReason.REPROJECTION_ERROR.value,
-                f"RMS {rms:.3f} px > max_reprojection_rms_px {cfg.max_reprojection_rms_px:g}",
-            )
+        if noise is not None and np.isfinite(rms):
+            noise[tag_id] = corner_noise_px(rms, 4)
+        limit = cfg.reprojection_limit(rms, 4, noise_history)
+        if not np.isfinite(rms) or rms > limit:
+            detail = f"RMS {rms:.3f} px > max_reprojection_rms_px {cfg.max_reprojection_rms_px:g}"
+            if noise_history is not None:
+                detail = (f"RMS {rms:.3f} px > {limit:.3g} px (max_reprojection_rms_px "
+                          f"{cfg.max_reprojection_rms_px:g}, scaled to the camera's corner noise)")
+            return TagRejection(tag_id, RejectReason.REPROJECTION_ERROR.value, detail)
         if obliquity > cfg.max_obliquity_deg:
             return TagRejection(
                 tag_id,

@@ -10,7 +10,8 @@ for any planar point set) returns both local minima. :func:`solve_planar_pose` p
 
 * **unique** when only one solution lies in front of the camera, when the two poses are within
   ``min_separation_deg`` of each other (the refinement joined them: nothing to choose), or when
-  ``ratio = e_alt / e_best >= min_ratio``;
+  ``ratio = e_alt / e_best`` reaches ``min_ratio`` scaled to the number of points ``N``
+  (:func:`ratio_for_points`);
 * otherwise, with a ``predicted`` pose (``T_cam_target`` from the current estimate,
   ``B = Y_k^-1 A_i X_j``), **resolved by prediction** when the solution nearer to the prediction
   in rotation is nearer by a clear margin (its angle to the prediction at most
@@ -18,7 +19,13 @@ for any planar point set) returns both local minima. :func:`solve_planar_pose` p
 * otherwise **ambiguous**: the caller rejects the detection (``tag_rejected:ambiguous_pose``).
 
 The test is the one of the ArUco library's ``MarkerPoseTracker`` (error ratio of the two IPPE
-solutions); its defaults here come from ``benchmarks/perception.md`` (flip table).
+solutions); its defaults here come from ``benchmarks/perception.md`` (flip table), for a tag's
+four corners. For ``N`` points the same test in units of the corner noise that the best fit
+measures, ``sigma^2 = N e_best^2 / (2N - 6)`` (6 pose parameters): the mirror pose's excess
+misfit ``N (e_alt^2 - e_best^2) / sigma^2 = (2N - 6)(ratio^2 - 1)`` must reach what
+``min_ratio`` asks of four points, ``2 (min_ratio^2 - 1)`` (16 noise variances for the default 3),
+so ``ratio^2 >= 1 + 2 (min_ratio^2 - 1) / (2N - 6)``: 3 for a tag, 1.61 for 8 points, 1.17 for
+24. A board's many points separate the two poses at a much smaller ratio than a tag's four.
 """
 
 from __future__ import annotations
@@ -32,7 +39,8 @@ import numpy as np
 from ..core.lie import rotation_distance
 from .intrinsics import CameraIntrinsics
 
-__all__ = ["PoseStatus", "PlanarPose", "solve_planar_pose", "pose_from_rvec", "check_flip_options"]
+__all__ = ["PoseStatus", "PlanarPose", "solve_planar_pose", "pose_from_rvec", "check_flip_options",
+           "ratio_for_points"]
 
 
 class PoseStatus(str, Enum):
@@ -99,6 +107,16 @@ def check_flip_options(
         raise ValueError(f"{prefix}prediction_margin must be in (0, 1], got {prediction_margin!r}")
 
 
+def ratio_for_points(min_ratio: float, n_points: int) -> float:
+    """The reprojection ratio ``e_alt / e_best`` that separates the two poses of ``n_points``
+    points as ``min_ratio`` separates those of 4 (module docstring): ``sqrt(1 + 2 (min_ratio^2
+    - 1) / (2N - 6))``; ``min_ratio`` itself for ``N <= 4``."""
+    n = int(n_points)
+    if n <= 4:
+        return float(min_ratio)
+    return float(np.sqrt(1.0 + 2.0 * (float(min_ratio) ** 2 - 1.0) / (2.0 * n - 6.0)))
+
+
 def _rms(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
 
@@ -133,8 +151,9 @@ def solve_planar_pose(
     refine : bool
         Polish both solutions with ``cv2.solvePnPRefineLM``.
     min_ratio : float
-        ``e_alt / e_best`` below which the two are not clearly separated (>= 1; 1 accepts
-        every best-reprojecting pose, i.e. no flip check).
+        ``e_alt / e_best`` below which the two poses of four points are not clearly separated
+        (>= 1; 1 accepts every best-reprojecting pose, i.e. no flip check); scaled to ``N``
+        points by :func:`ratio_for_points`.
     min_separation_deg : float
         Solutions closer than this in rotation count as one (>= 0).
     prediction_margin : float
@@ -189,8 +208,9 @@ def solve_planar_pose(
     if sep < min_separation_deg:
         out.detail = f"solutions {sep:.2f} deg apart (< min_separation_deg)"
         return out
-    if ratio >= min_ratio:
-        out.detail = f"ratio {ratio:.2f} >= {min_ratio:g}"
+    needed = ratio_for_points(min_ratio, len(obj))
+    if ratio >= needed:
+        out.detail = f"ratio {ratio:.2f} >= {needed:.3g}"
         return out
     if predicted is not None:
         R_pred = np.asarray(predicted, dtype=float)[:3, :3]
@@ -202,14 +222,14 @@ def solve_planar_pose(
                 out.T, out.rms_px, out.alternative, out.alternative_rms_px = T_alt, e_alt, \
                     T_best, e_best
             out.status = PoseStatus.RESOLVED_BY_PREDICTION
-            out.detail = (f"ratio {ratio:.2f} < {min_ratio:g}; prediction {near[0]:.1f} deg "
+            out.detail = (f"ratio {ratio:.2f} < {needed:.3g}; prediction {near[0]:.1f} deg "
                           f"from the kept pose, {far[0]:.1f} deg from the other")
             return out
         out.status = PoseStatus.AMBIGUOUS
-        out.detail = (f"ratio {ratio:.2f} < {min_ratio:g} and the prediction does not decide "
+        out.detail = (f"ratio {ratio:.2f} < {needed:.3g} and the prediction does not decide "
                       f"({d_best:.1f} vs {d_alt:.1f} deg)")
         return out
     out.status = PoseStatus.AMBIGUOUS
-    out.detail = (f"reprojection ratio {ratio:.2f} < {min_ratio:g}, solutions {sep:.1f} deg "
+    out.detail = (f"reprojection ratio {ratio:.2f} < {needed:.3g}, solutions {sep:.1f} deg "
                   f"apart")
     return out

@@ -8,12 +8,14 @@ spans ``[-size/2, size/2]^2`` in ``(x, y)``; the white quiet zone surrounds it.
 Rendering is an exact inverse lookup: every (sub-)sample of the output image is undistorted to
 its ray, intersected with the tag plane and given the colour of the cell it hits (point sampling
 of the ideal piecewise-constant scene); ``supersample**2`` samples per pixel on a rank-1 lattice
-(:func:`sample_offsets`) are averaged (box filter), which anti-aliases the edges. The lookup is
-restricted to the bounding box of the tag's projected outline.
+(:func:`sample_offsets`; optionally shifted differently in every pixel, :func:`pixel_shifts`) are
+averaged (box filter), which anti-aliases the edges. The lookup is restricted to the bounding box
+of the tag's projected outline.
 
-Boards (:class:`RenderedBoard`: an AprilGrid or a ChArUco board of :mod:`rwhec_ros.vision.boards`)
-are drawn the same way in their board frame (centre of the pattern, ``x`` right, ``y`` up, ``z`` out
-of the face), with the board's own :meth:`texture` and a white margin around the pattern.
+Boards (:class:`RenderedBoard`: an AprilGrid or a ChArUco board of :mod:`rwhec_ros.vision.boards`,
+a chessboard or a circle grid of :mod:`rwhec_ros.vision.grids`) are drawn the same way in their
+board frame (centre of the pattern, ``x`` right, ``y`` up, ``z`` out of the face), with the
+board's own :meth:`texture` and a white margin around the pattern.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import numpy as np
 
 from .boards import AprilGridSpec, CharucoSpec
 from .families import marker_bitmap, marker_cells
+from .grids import ChessboardSpec, CircleGridSpec
 from .intrinsics import CameraIntrinsics
 
 __all__ = [
@@ -35,6 +38,7 @@ __all__ = [
     "look_at",
     "tag_outline",
     "sample_offsets",
+    "pixel_shifts",
 ]
 
 
@@ -68,28 +72,32 @@ class RenderedTag:
         object.__setattr__(self, "T_cam_tag", T)
 
 
+_BOARDS = (AprilGridSpec, CharucoSpec, ChessboardSpec, CircleGridSpec)
+
+
 @dataclass(frozen=True, eq=False)
 class RenderedBoard:
     """A board to render.
 
     Attributes
     ----------
-    board : AprilGridSpec or CharucoSpec
-        Layout (:mod:`rwhec_ros.vision.boards`).
+    board : AprilGridSpec, CharucoSpec, ChessboardSpec or CircleGridSpec
+        Layout (:mod:`rwhec_ros.vision.boards`, :mod:`rwhec_ros.vision.grids`).
     T_cam_board : ndarray, shape (4, 4)
         Pose of the board frame in the camera frame.
     margin : float or None
         White margin around the pattern [m] (beyond Kalibr's corner squares for a grid); None:
-        one gap of the grid (at least one tag cell), half a square of a ChArUco board.
+        one gap of the grid (at least one tag cell), half a square of a ChArUco board, the
+        ``quiet_zone()`` of a chessboard or circle grid.
     """
 
-    board: AprilGridSpec | CharucoSpec
+    board: AprilGridSpec | CharucoSpec | ChessboardSpec | CircleGridSpec
     T_cam_board: np.ndarray
     margin: float | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.board, (AprilGridSpec, CharucoSpec)):
-            raise ValueError(f"board must be an AprilGridSpec or a CharucoSpec, got "
+        if not isinstance(self.board, _BOARDS):
+            raise ValueError(f"board must be one of {[b.__name__ for b in _BOARDS]}, got "
                              f"{type(self.board).__name__}")
         T = np.array(self.T_cam_board, dtype=float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
@@ -104,8 +112,12 @@ class RenderedBoard:
         margin = self.margin
         if margin is None:
             b = self.board
-            margin = (max(b.gap, b.tag_size / b.cells) if isinstance(b, AprilGridSpec)
-                      else 0.5 * b.square_size)
+            if isinstance(b, AprilGridSpec):
+                margin = max(b.gap, b.tag_size / b.cells)
+            elif isinstance(b, CharucoSpec):
+                margin = 0.5 * b.square_size
+            else:
+                margin = b.quiet_zone()
         return self.board.outline(float(margin))
 
 
@@ -196,7 +208,8 @@ def sample_offsets(supersample: int) -> np.ndarray:
     A rank-1 lattice: sample ``k`` sits at ``x = (k + 1/2)/n``, ``y = ((k (s + 1)) mod n + 1/2)/n``
     (minus 1/2). Every sample has its own ``x`` and its own ``y``, so the coverage of a nearly
     axis-aligned edge is resolved in steps of ``1/n`` pixel instead of ``1/s`` for a regular
-    ``s x s`` grid.
+    ``s x s`` grid. Edges parallel to the lattice's short vectors are resolved coarsely
+    (:func:`pixel_shifts`).
     """
     s = int(supersample)
     n = s * s
@@ -204,13 +217,41 @@ def sample_offsets(supersample: int) -> np.ndarray:
     return np.stack([(k + 0.5) / n - 0.5, ((k * (s + 1)) % n + 0.5) / n - 0.5], axis=1)
 
 
+def pixel_shifts(uu: np.ndarray, vv: np.ndarray) -> np.ndarray:
+    """Per-pixel shifts (..., 2) in ``[0, 1)^2`` of the sample pattern (a Cranley-Patterson
+    rotation, ``render_tags(..., shift_pattern=True)``): a fixed hash (splitmix64) of the integer
+    pixel coordinates, so rendering stays deterministic. Any fixed lattice puts its samples on a
+    few lines parallel to its short vectors, so an edge parallel to them is resolved in a few
+    coverage levels, the same all along the edge: a systematic shift of the edge (``s = 2`` at 45
+    degrees, ``s = 3`` at slope 1/2, ``s = 4`` at slope 1/3: demo tags turned that way got
+    corners 0.2-0.7 px off, poses 1.5-3 degrees off). Shifted differently in every pixel, the
+    quantisation becomes noise (about ``1 / (n sqrt(12))`` of the contrast per edge pixel) that
+    averages out along an edge, whatever its direction."""
+    x = (np.asarray(uu).astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) ^ (
+        np.asarray(vv).astype(np.uint64) * np.uint64(0xC2B2AE3D27D4EB4F))
+    out = []
+    for salt in (np.uint64(0x632BE59BD9B4E019), np.uint64(0x85EBCA77C2B2AE63)):
+        z = x + salt
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+        out.append((z >> np.uint64(11)).astype(np.float64) / float(1 << 53))
+    return np.stack(out, axis=-1)
+
+
 def _rays(
-    intrinsics: CameraIntrinsics, box: tuple[int, int, int, int], offsets: np.ndarray
+    intrinsics: CameraIntrinsics, box: tuple[int, int, int, int], offsets: np.ndarray,
+    shift: bool = False,
 ) -> np.ndarray:
-    """Normalized rays (h, w, n, 2) of the sub-samples of the pixels in ``box``."""
+    """Normalized rays (h, w, n, 2) of the sub-samples of the pixels in ``box`` (the pattern
+    ``offsets`` shifted in each pixel by :func:`pixel_shifts`, modulo the pixel, with
+    ``shift``)."""
     u0, v0, u1, v1 = box
     vv, uu = np.mgrid[v0:v1, u0:u1]
-    pix = np.stack([uu, vv], axis=-1).astype(float)[:, :, None, :] + offsets[None, None, :, :]
+    off = np.broadcast_to(offsets[None, None, :, :], (v1 - v0, u1 - u0) + offsets.shape)
+    if shift:
+        off = np.mod(off + 0.5 + pixel_shifts(uu, vv)[:, :, None, :], 1.0) - 0.5
+    pix = np.stack([uu, vv], axis=-1).astype(float)[:, :, None, :] + off
     xy = intrinsics.normalize_points(pix.reshape(-1, 2))
     return xy.reshape(pix.shape)
 
@@ -228,6 +269,7 @@ def render_tags(
     black_level: float = 30.0,
     white_level: float = 225.0,
     quiet_zone_cells: int = 1,
+    shift_pattern: bool = False,
 ) -> np.ndarray:
     """Render AprilTags and boards into a grayscale image of the camera ``intrinsics``.
 
@@ -259,6 +301,10 @@ def render_tags(
         Grey levels of the black and white tag cells (and board areas).
     quiet_zone_cells : int
         Width of the white border around the black square of a single tag, in cells.
+    shift_pattern : bool
+        Shift the sample pattern differently in every pixel (:func:`pixel_shifts`): no edge
+        direction is resolved coarsely, at the price of a little noise along every edge (the
+        demo's images; default False, the fixed lattice of the benchmarks).
 
     Returns
     -------
@@ -297,7 +343,7 @@ def render_tags(
         else:
             outline = tag_outline(item.size, extent, cells)
             lookup = _tag_lookup(item, family, quiet_zone_cells, black_level, white_level)
-        _draw_plane(canvas, intrinsics, T, outline, offsets, lookup)
+        _draw_plane(canvas, intrinsics, T, outline, offsets, lookup, shift_pattern)
 
     if blur_sigma > 0:
         canvas = cv2.GaussianBlur(canvas, (0, 0), sigmaX=float(blur_sigma))
@@ -359,13 +405,13 @@ def _board_lookup(item: RenderedBoard, black: float, white: float):
 
 
 def _draw_plane(canvas: np.ndarray, intrinsics: CameraIntrinsics, T: np.ndarray,
-                outline: np.ndarray, offsets: np.ndarray, lookup) -> None:
+                outline: np.ndarray, offsets: np.ndarray, lookup, shift: bool = False) -> None:
     """Paint a planar item (pose ``T`` = T_cam_item, texture ``lookup``) into ``canvas``."""
     box = _bounding_box(intrinsics, T, outline)
     if box is None:
         return
     u0, v0, u1, v1 = box
-    xy = _rays(intrinsics, box, offsets)
+    xy = _rays(intrinsics, box, offsets, shift)
     # Ray (x, y, 1) meets the plane {R [a, b, 0] + t}: [a, b, 1] ~ H^-1 [x, y, 1],
     # H = [r1 r2 t]; the third component is positive in front of the camera.
     Hinv = np.linalg.inv(np.c_[T[:3, 0], T[:3, 1], T[:3, 3]])

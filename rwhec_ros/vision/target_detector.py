@@ -8,7 +8,11 @@ two-bit borders, a ChArUco board's ArUco dictionary), then hands each target its
   refinement, IPPE_SQUARE, flip check, gates, precision model of that module); a marker kind
   used by single tags only is searched by that detector's candidate search (decimated on large
   images, ``DetectorConfig.decimate``), kinds with boards at full resolution;
-* boards to :func:`rwhec_ros.vision.board_detection.estimate_board`.
+* boards to :func:`rwhec_ros.vision.board_detection.estimate_board`;
+* chessboards and circle grids (no markers) are searched each by its own
+  :class:`~rwhec_ros.vision.grid_detection.GridFinder` (OpenCV's grid detectors, labels fixed by
+  the board's pattern or a predicted pose), then posed by
+  :func:`~rwhec_ros.vision.board_detection.board_observation` like the marker boards.
 
 Markers of no target are reported as ``not_in_configuration`` (by the kind they were found in);
 markers of a board printed with another border width, found by the wrong pass, are ignored.
@@ -20,7 +24,9 @@ Raising aruco's ``adaptiveThreshConstant`` to about a quarter of the black-white
 those contacts; since the contrast is not known beforehand, the marker kinds of such grids are
 searched with several constants (``grid_threshold_constants``) and the results merged (a marker
 found by several passes at the same place counts once).
-Predicted poses (``T_cam_target`` by target name, from the current estimate) resolve pose flips.
+Predicted poses (``T_cam_target`` by target name, from the current estimate) resolve pose flips
+and place partial views of chessboards. A noise history (the corner noise of the camera's earlier
+poses, :meth:`DetectorConfig.reprojection_limit`) scales the reprojection gate.
 """
 
 from __future__ import annotations
@@ -31,9 +37,10 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
-from .board_detection import charuco_detector, estimate_board
+from .board_detection import board_observation, charuco_detector, estimate_board
 from .boards import CharucoSpec, get_dictionary
 from .detection import DetectorConfig, RejectReason, TagDetector, tag_object_points
+from .grid_detection import GridFinder
 from .intrinsics import CameraIntrinsics
 from .targets import (
     TargetDetectionResult,
@@ -90,6 +97,8 @@ class TargetDetector:
         # Marker kinds in use: (dictionary, border bits) -> marker id -> target.
         self._groups: dict[tuple[str, int], dict[int, TargetSpec]] = {}
         for t in self.targets:
+            if not t.has_markers:
+                continue
             group = self._groups.setdefault((t.dictionary(self.config.family), t.border_bits()),
                                             {})
             for marker in t.marker_ids():
@@ -115,6 +124,8 @@ class TargetDetector:
                 self._detectors[(dictionary, bits)] = passes
         self._charuco = {t.name: charuco_detector(t.board, self.config)
                          for t in self.targets if isinstance(t.board, CharucoSpec)}
+        self._grids = {t.name: GridFinder(t, self.config)
+                       for t in self.targets if not t.has_markers}
 
     def detect(
         self,
@@ -123,6 +134,7 @@ class TargetDetector:
         predicted: Mapping[str, np.ndarray] | None = None,
         *,
         only: Collection[str] | None = None,
+        noise_history: Sequence[float] | None = None,
     ) -> TargetDetectionResult:
         """Detect all targets in an 8-bit grayscale image.
 
@@ -138,7 +150,12 @@ class TargetDetector:
             but a target outside ``only`` gets no refinement, pose or gates and is listed in
             ``TargetDetectionResult.skipped`` (the live session's motion gate). Each target is
             examined on its own, so the observations of the targets examined are those of a
-            full ``detect``.
+            full ``detect``. A chessboard or circle grid is always searched (its search is its
+            marker search) and skipped after it.
+        noise_history : sequence of float, optional
+            Corner noise of the camera's earlier poses: scales the reprojection gate
+            (:meth:`DetectorConfig.reprojection_limit`); None: the fixed floor. The noise of
+            each pose solved here is in :attr:`TargetDetectionResult.corner_noise_px`.
 
         Returns
         -------
@@ -192,7 +209,11 @@ class TargetDetector:
         only_ids = None if only is None else [i for i, n in self._single_names.items()
                                               if n in only]
         singles = self._tags.estimate_markers(img, single_ids, single_quads, intrinsics,
-                                              tag_predictions, only_ids=only_ids)
+                                              tag_predictions, only_ids=only_ids,
+                                              noise_history=noise_history)
+        result.corner_noise_px.update({self._single_names[i]: v
+                                       for i, v in singles.corner_noise_px.items()
+                                       if i in self._single_names})
         result.skipped.extend(self._single_names[i] for i in singles.skipped)
         by_id = {o.tag_id: o for o in singles.observations}
         for r in singles.rejections:
@@ -210,6 +231,9 @@ class TargetDetector:
                         sigma=o.sigma, kappa=o.kappa, pose_status=o.pose_status,
                         flip_ratio=o.flip_ratio))
                 continue
+            if not t.has_markers:
+                self._grid(img, t, intrinsics, predicted.get(t.name), only, noise_history, result)
+                continue
             if not found[t.name]:
                 continue
             if only is not None and t.name not in only:
@@ -217,11 +241,41 @@ class TargetDetector:
                 continue
             obs, rejections = estimate_board(
                 img, t, found[t.name], intrinsics, self.config,
-                predicted=predicted.get(t.name), charuco=self._charuco.get(t.name))
+                predicted=predicted.get(t.name), charuco=self._charuco.get(t.name),
+                noise_history=noise_history, noise=result.corner_noise_px)
             result.rejections.extend(rejections)
             if obs is not None:
                 result.observations.append(obs)
         return result
+
+
+    def _grid(self, img: np.ndarray, target: TargetSpec, intrinsics: CameraIntrinsics,
+              predicted: np.ndarray | None, only: Collection[str] | None,
+              noise_history: Sequence[float] | None, result: TargetDetectionResult) -> None:
+        """Search, label and pose one chessboard or circle grid into ``result``."""
+        try:
+            points, rejections, outline = self._grids[target.name].find(img, intrinsics,
+                                                                        predicted)
+        except cv2.error as exc:  # an OpenCV failure on a valid image: report, do not raise
+            result.rejections.append(TargetRejection(
+                target.name, RejectReason.DETECTOR_ERROR.value, str(exc).strip()[:200]))
+            return
+        if outline is None:
+            return
+        result.markers[target.name] = [(-1, outline)]
+        if only is not None and target.name not in only:
+            result.skipped.append(target.name)
+            return
+        result.rejections.extend(rejections)
+        if points is None:
+            return
+        obs = board_observation(target, points.object_points, points.image_points, points.ideal,
+                                intrinsics, self.config, result.rejections, predicted=predicted,
+                                noise_history=noise_history, noise=result.corner_noise_px)
+        if obs is not None:
+            if points.how == "prediction":
+                obs.pose_status = "resolved_by_prediction"
+            result.observations.append(obs)
 
 
 def _merged_markers(passes: Sequence[cv2.aruco.ArucoDetector],

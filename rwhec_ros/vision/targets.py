@@ -2,9 +2,11 @@
 
 A :class:`TargetSpec` names one rigid target with its own frame ``X_j``: either one tag of the
 detector's family (``tag_id``, ``tag_size``; frame of :mod:`rwhec_ros.vision.detection`) or a board
-(:class:`~rwhec_ros.vision.boards.AprilGridSpec` or :class:`~rwhec_ros.vision.boards.CharucoSpec`;
-frame of :mod:`rwhec_ros.vision.boards`). :func:`validate_targets` checks a whole set (unique
-names, no marker id claimed twice within one dictionary). The configuration layer builds the
+(:class:`~rwhec_ros.vision.boards.AprilGridSpec`, :class:`~rwhec_ros.vision.boards.CharucoSpec`:
+frame of :mod:`rwhec_ros.vision.boards`; :class:`~rwhec_ros.vision.grids.ChessboardSpec`,
+:class:`~rwhec_ros.vision.grids.CircleGridSpec`: frame of :mod:`rwhec_ros.vision.grids`).
+:func:`validate_targets` checks a whole set (unique names, no marker id claimed twice within
+one dictionary). The configuration layer builds the
 specs; :class:`~rwhec_ros.vision.target_detector.TargetDetector` detects them and returns
 :class:`TargetObservation` (``B = T_cam_target`` with its quality figures) and
 :class:`TargetRejection` records.
@@ -18,8 +20,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .boards import AprilGridSpec, CharucoSpec, dictionary_key, dictionary_size
+from .grids import ChessboardSpec, CircleGridSpec
+
+#: Board layouts a target may hold.
+BOARD_TYPES = (AprilGridSpec, CharucoSpec, ChessboardSpec, CircleGridSpec)
 
 __all__ = [
+    "BOARD_TYPES",
     "TargetSpec",
     "validate_targets",
     "TargetObservation",
@@ -40,18 +47,19 @@ class TargetSpec:
         Id of a single tag in the detector's family.
     tag_size : float or None
         Its black-square edge [m] (nominal if the scale is unknown).
-    board : AprilGridSpec or CharucoSpec or None
+    board : AprilGridSpec, CharucoSpec, ChessboardSpec, CircleGridSpec or None
         Layout of a board.
     min_corners : int
         Boards only: fewest detected corners for a pose (>= 4; default 8, i.e. two tags of an
-        AprilGrid or eight ChArUco corners). A partly occluded board gives a pose from the
-        corners seen.
+        AprilGrid or eight ChArUco corners). A partly occluded marker board gives a pose from
+        the corners seen (a chessboard or circle grid only where its labels are resolved,
+        :mod:`rwhec_ros.vision.grid_detection`).
     """
 
     name: str
     tag_id: int | None = None
     tag_size: float | None = None
-    board: AprilGridSpec | CharucoSpec | None = None
+    board: AprilGridSpec | CharucoSpec | ChessboardSpec | CircleGridSpec | None = None
     min_corners: int = 8
 
     def __post_init__(self) -> None:
@@ -73,9 +81,10 @@ class TargetSpec:
         else:
             if self.tag_id is not None or self.tag_size is not None:
                 raise ValueError(f"{who}: a board target takes no tag_id / tag_size")
-            if not isinstance(self.board, (AprilGridSpec, CharucoSpec)):
-                raise ValueError(f"{who}: board must be an AprilGridSpec or a CharucoSpec, "
-                                 f"got {type(self.board).__name__}")
+            if not isinstance(self.board, BOARD_TYPES):
+                raise ValueError(f"{who}: board must be one of "
+                                 f"{[b.__name__ for b in BOARD_TYPES]}, got "
+                                 f"{type(self.board).__name__}")
         mc = self.min_corners
         if isinstance(mc, bool) or not isinstance(mc, (int, np.integer)) or mc < 4:
             raise ValueError(f"{who}: min_corners must be an integer >= 4, got {mc!r}")
@@ -86,11 +95,18 @@ class TargetSpec:
 
     @property
     def kind(self) -> str:
-        """``"tag"``, ``"aprilgrid"`` or ``"charuco"``."""
+        """``"tag"``, ``"aprilgrid"``, ``"charuco"``, ``"chessboard"``, ``"circles"`` or
+        ``"asymmetric_circles"``."""
         return "tag" if self.board is None else self.board.kind
 
+    @property
+    def has_markers(self) -> bool:
+        """False for a chessboard or circle grid (found as a whole, no coded markers)."""
+        return not isinstance(self.board, (ChessboardSpec, CircleGridSpec))
+
     def marker_ids(self) -> tuple[int, ...]:
-        """Marker ids of the target (its dictionary: :meth:`dictionary`)."""
+        """Marker ids of the target (its dictionary: :meth:`dictionary`); empty for a
+        chessboard or circle grid."""
         return (self.tag_id,) if self.board is None else self.board.marker_ids
 
     def dictionary(self, tag_family: str) -> str:
@@ -149,7 +165,7 @@ class TargetObservation:
     name : str
         Target (frame) name.
     kind : str
-        ``"tag"``, ``"aprilgrid"`` or ``"charuco"``.
+        :attr:`TargetSpec.kind`.
     T_cam_target : ndarray, shape (4, 4)
         Pose of the target frame in the camera frame.
     reprojection_rms_px : float
@@ -157,9 +173,12 @@ class TargetObservation:
     obliquity_deg : float
         Angle between the target normal (``+z``) and the ray from its origin to the camera.
     marker_ids : tuple of int
-        Markers that contributed (a tag's id; the grid tags; the ChArUco markers found).
+        Markers that contributed (a tag's id; the grid tags; the ChArUco markers found; none
+        for a chessboard or circle grid).
     image_points : ndarray, shape (N, 2)
-        Points used for the pose (distorted pixels): tag corners, or ChArUco corners.
+        Points used for the pose (distorted pixels): tag corners, board corners or circle
+        centres (the latter with the projection bias of :func:`~rwhec_ros.vision.
+        grid_detection.centre_bias` removed).
     object_points : ndarray, shape (N, 3)
         The same points in the target frame.
     sigma, kappa : float or None
@@ -220,13 +239,18 @@ class TargetDetectionResult:
     markers : dict of str to list of (int, ndarray (4, 2))
         Every marker found, by target name (``""``: markers of no target), as cv2.aruco
         reported it (distorted pixels): where to draw each target
-        (:mod:`rwhec_ros.vision.annotate`), also when it was rejected.
+        (:mod:`rwhec_ros.vision.annotate`), also when it was rejected. A chessboard or circle
+        grid found has one entry, id -1, the outline of its grid points.
+    corner_noise_px : dict of str to float
+        Corner noise (:func:`~rwhec_ros.vision.detector_config.corner_noise_px`) of each
+        target whose pose was solved, accepted or not (the caller's noise history).
     """
 
     observations: list[TargetObservation] = field(default_factory=list)
     rejections: list[TargetRejection] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     markers: dict[str, list[tuple[int, np.ndarray]]] = field(default_factory=dict)
+    corner_noise_px: dict[str, float] = field(default_factory=dict)
 
     def by_name(self) -> dict[str, TargetObservation]:
         """Accepted observations keyed by target name."""

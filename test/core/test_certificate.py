@@ -29,8 +29,8 @@ from rwhec_ros.core.certify.relaxation import so3_constraint_matrices
 from rwhec_ros.core.local.dense import refine_rotations
 from rwhec_ros.core.model.cost import StateLayout, build_cost_matrices
 from rwhec_ros.core.model.reduction import reduce_cost
-from rwhec_ros.core.result import Status
 from rwhec_ros.core.numerics.verified import gamma
+from rwhec_ros.core.result import Status
 from rwhec_ros.simulation.synthetic import random_instance, random_rotations
 
 N_ROT = 2  # two rotations: Z is 19 x 19 and |y|^2 = 3 n + 1 = 7

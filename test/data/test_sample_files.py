@@ -209,6 +209,37 @@ def test_industrial_calibration_layout(tmp_path):
     assert "without distortion" in s.notes[0]
 
 
+def test_industrial_calibration_circle_grid_becomes_a_circles_target(tmp_path):
+    """ModifiedCircleGridTargetFinder: rows x cols dots, spacing between centres, the origin dot
+    larger: the configuration's circles target with circle_spacing and origin_circle."""
+    from rwhec_ros.cli.samples import samples_parameters
+    from rwhec_ros.config import CalibratorConfig
+    from rwhec_ros.vision.grids import CircleGridSpec
+
+    (tmp_path / "poses").mkdir()
+    (tmp_path / "poses" / "0.yaml").write_text("x: 0.1\ny: 0.2\nz: 0.3\nqx: 0\nqy: 0\nqz: 0\n"
+                                               "qw: 1\n")
+    finder = {"type": "ModifiedCircleGridTargetFinder", "rows": 5, "cols": 7, "spacing": 0.03}
+    cal = {"data": [{"image": "images/0.png", "pose": "poses/0.yaml"}],
+           "intrinsics": {"fx": 550.0, "fy": 551.0, "cx": 320.0, "cy": 240.0},
+           "target_finder": finder, "static_camera": False}
+    (tmp_path / "cal_data.yaml").write_text(yaml.safe_dump(cal))
+    s = read_samples(tmp_path)
+    assert s.mount == "eye_in_hand"
+    p = "targets.board."
+    assert {k: v for k, v in s.target_parameters.items() if k.startswith(p)} == {
+        p + "type": "circles", p + "rows": 5, p + "cols": 7, p + "circle_spacing": 0.03,
+        p + "origin_circle": True}
+    flat, _, _ = samples_parameters(s)  # what `samples` configures
+    (spec,) = CalibratorConfig.from_parameters(flat).target_specs()
+    assert spec.board == CircleGridSpec(7, 5, 0.03, origin_circle=True)
+    del finder["spacing"]
+    (tmp_path / "cal_data.yaml").write_text(yaml.safe_dump(cal))
+    with pytest.raises(ValueError, match="cal_data.yaml: target_finder of type "
+                                         "ModifiedCircleGridTargetFinder: 'spacing'"):
+        read_samples(tmp_path)
+
+
 def test_calibration_toolkit_layout(tmp_path):
     for n in (0, 4):
         (tmp_path / f"{n}.json").write_text(json.dumps({"end2base": T.tolist()}))

@@ -79,6 +79,21 @@ def running(context, tmp_path):
         yield started
 
 
+def feed_demo(node: CalibratorNode, seconds: float) -> None:
+    """The demo simulation's poses and images straight into the node's session (no topics)."""
+    from rwhec_ros.simulation import simulated_stream
+
+    rig = demo_rig()
+    for cam in rig.cameras:
+        node.session.set_camera_info(cam, rig.intrinsics[cam])
+    parent = node.config.pose_source.parent
+    for stamp, cam, data in simulated_stream(rig, np.random.default_rng(0), seconds=seconds):
+        if cam is None:
+            node.session.add_pose(stamp, data, source=parent)
+        else:
+            node.session.add_image(cam, stamp, data)
+
+
 def call(helper: Node, name: str, timeout: float = 60.0):
     client = helper.create_client(Trigger, name)
     assert client.wait_for_service(timeout_sec=10.0), name
@@ -157,7 +172,13 @@ def test_parameter_callback_refuses_restart_only_and_applies_live(context, tmp_p
         assert node.get_parameter("solver.min_pairs").value == 1000
         assert node.config.solver.min_pairs == 1000
         assert node.session.config.solver.min_pairs == 1000  # used by the next calibrate
-        assert "solver.min_pairs=1000" in node.session.calibrate().message
+        # with pairs (an empty session says "no measurement pairs", whatever min_pairs is), the
+        # next calibrate refuses and names the value in use; the wording may change, the
+        # parameter=value it names may not
+        feed_demo(node, seconds=2.0)
+        assert sum(e["pairs"] for e in node.session.diagnostics()) >= 3
+        outcome = node.session.calibrate()
+        assert not outcome.success and "solver.min_pairs=1000" in outcome.message
 
         [res] = node.set_parameters([Parameter("output.directory", value="rig1")])
         assert res.successful, res.reason
@@ -243,6 +264,7 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                     and all(p.get_subscription_count() > 0 for p in image_pubs.values()))
 
     t0 = 1000 * NS
+    started = time.monotonic()
     for t in np.arange(0.0, 24.0, 0.2):  # one yaw turn: images at 5 Hz, poses at 100 Hz
         for k in range(20):
             tp = t + 0.01 * (k - 10)
@@ -258,9 +280,10 @@ def test_feed_topics_and_calibrate(running, tmp_path):
                 gray, stamp, f"{cam}_optical")))
         time.sleep(0.03)  # let the detection worker keep up with the bounded queue
     assert wait_for(lambda: node.session.counters().get("pairs_kept", 0) > 60, timeout=30.0)
-    # about 25 s of images at 2 Hz at most; some searched images were annotated and published
+    # at 2 Hz at most over the time the images came in (about 25 s; longer on a busy machine);
+    # some searched images were annotated and published
     assert wait_for(lambda: received["detections"], timeout=10.0)
-    assert len(received["detections"]) <= 2.0 * 30 + 1
+    assert len(received["detections"]) <= 2.0 * (time.monotonic() - started) + 1
     det = received["detections"][-1]
     assert (det.encoding, det.height, det.width, det.step) == ("bgr8", 480, 640, 3 * 640)
     assert det.header.frame_id in {f"{c}_optical" for c in rig.cameras}

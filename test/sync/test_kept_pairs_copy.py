@@ -5,7 +5,7 @@ it replaced, and never changed by the store afterwards."""
 import numpy as np
 import pytest
 
-from rwhec_ros.sync.accumulator import _EdgeStore
+from rwhec_ros.sync.edge_store import _EdgeStore
 
 
 def _reference(store):

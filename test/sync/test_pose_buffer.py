@@ -112,16 +112,54 @@ def test_out_of_order_inserted_in_order_and_counted():
         np.testing.assert_array_equal(shuffled.lookup(q), sorted_buf.lookup(q))
 
 
-def test_backwards_jump_clears_buffer():
+def test_one_stale_sample_is_dropped_and_counted_not_a_reset():
+    """Issue 39: 11 stale poses gave 11 resets of the whole buffer. A stale sample between samples
+    of the current time line is dropped and counted; the buffer is untouched."""
     rng = np.random.default_rng(6)
     buf, stamps, _ = filled(rng, n=150, period_ms=10)  # spans 1.49 s
     assert buf.add(stamps[-1] - 900 * MS + 1, np.eye(4))  # 0.9 s back: only out of order
     assert buf.counters()["reset_backwards_jump"] == 0 and len(buf) == 151
-    loop_start = stamps[0] - 10 * MS  # bag restarted: 1.5 s back
-    assert buf.add(loop_start, np.eye(4))
-    assert buf.counters()["reset_backwards_jump"] == 1
-    assert len(buf) == 1 and buf.oldest_ns == buf.newest_ns == loop_start
-    assert buf.lookup(stamps[50]) is None
+    before = buf.lookup(stamps[100] + 3 * MS)
+    t = stamps[-1]
+    for k in range(11):  # 11 stale samples, each followed by a fresh one
+        assert not buf.add(stamps[0] - 10 * MS - k * MS, np.eye(4))
+        t += 10 * MS
+        assert buf.add(t, np.eye(4))
+    c = buf.counters()
+    assert c["reset_backwards_jump"] == 0 and c["dropped_stale"] == 11
+    assert len(buf) == 151 + 11 and buf.oldest_ns == stamps[0]
+    np.testing.assert_array_equal(buf.lookup(stamps[100] + 3 * MS), before)
+
+
+def test_a_short_run_of_stale_samples_is_dropped_when_the_time_line_goes_on():
+    rng = np.random.default_rng(7)
+    buf, stamps, _ = filled(rng, n=150, period_ms=10, backwards_jump_samples=5)
+    for k in range(4):  # one short of a persistent jump
+        assert not buf.add(stamps[0] - 2000 * MS + k * 10 * MS, np.eye(4))
+    assert buf.counters()["dropped_stale"] == 0  # held aside, not decided yet
+    assert buf.lookup(stamps[0] - 2000 * MS, count=False) is None  # not looked up meanwhile
+    assert buf.add(stamps[-1] + 10 * MS, np.eye(4))  # the current time line goes on
+    c = buf.counters()
+    assert c["dropped_stale"] == 4 and c["reset_backwards_jump"] == 0 and len(buf) == 151
+
+
+@pytest.mark.parametrize("run", [1, 5])
+def test_a_persistent_backwards_jump_resets_to_the_new_time_line(run):
+    """A bag played in a loop: every sample after the jump is stale; after ``run`` of them the
+    buffer holds that run (nothing of the new time line is lost) and the old one is gone."""
+    rng = np.random.default_rng(8)
+    buf, stamps, _ = filled(rng, n=150, period_ms=10, backwards_jump_samples=run)
+    loop = [stamps[0] - 10 * MS + k * 10 * MS for k in range(8)]  # 1.5 s back, then onwards
+    poses = random_transforms(rng, len(loop), translation_scale=0.5)
+    held = [buf.add(s, T) for s, T in zip(loop, poses)]
+    assert held == [False] * (run - 1) + [True] * (len(loop) - run + 1)
+    c = buf.counters()
+    assert c["reset_backwards_jump"] == 1 and c["dropped_stale"] == 0
+    assert len(buf) == len(loop) and buf.oldest_ns == loop[0] and buf.newest_ns == loop[-1]
+    assert buf.lookup(stamps[100]) is None  # the old time line is gone
+    np.testing.assert_array_equal(buf.lookup(loop[0]), poses[0])  # the run's first sample kept
+    u = interpolate_se3(poses[1], poses[2], 0.5)
+    np.testing.assert_allclose(buf.lookup(loop[1] + 5 * MS), u, atol=1e-12)
 
 
 def test_capacity_evicts_oldest_and_drops_older():
@@ -183,6 +221,7 @@ def test_numpy_integer_stamps_and_copies():
         ({"max_gap_ns": 0}, "max_gap_ns"),
         ({"extrapolation_tol_ns": -1}, "extrapolation_tol_ns"),
         ({"backwards_jump_ns": 0}, "backwards_jump_ns"),
+        ({"backwards_jump_samples": 0}, "backwards_jump_samples"),
         ({"rotation_tol": 0.0}, "rotation_tol"),
     ],
 )

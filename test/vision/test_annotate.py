@@ -82,3 +82,23 @@ def test_kept_board_and_bad_input(scene):
         assert near(out, corner, KEPT, radius=4)
     with pytest.raises(ValueError, match="gray: expected a"):
         annotate_detections(img.astype(float), detection)
+
+
+def test_a_chessboard_is_drawn_by_its_outline_and_its_corners():
+    """A chessboard has no markers: its grid's outline (id -1, labelled ``grid``) in the status
+    colour, its corners circled when kept; a partial view refused is outlined in orange."""
+    from rwhec_ros.vision.grids import ChessboardSpec
+
+    spec = ChessboardSpec(7, 4, 0.05)
+    T = invert_transform(look_at([0.05, 0.02, 0.9], [0.0, 0.0, 0.0], up=[0, 1, 0]))
+    img = render_tags(CAM, [RenderedBoard(spec, T)], noise_std=1.0, blur_sigma=0.6,
+                      rng=np.random.default_rng(1))
+    detection = TargetDetector([TargetSpec("cb", board=spec)]).detect(img, CAM)
+    [(marker_id, outline)] = detection.markers["cb"]
+    assert marker_id == -1
+    out = annotate_detections(img, detection, kept={"cb"})
+    for corner in outline:
+        assert near(out, corner, KEPT)
+    for corner in detection.by_name()["cb"].image_points:
+        assert near(out, corner, KEPT, radius=4)
+    assert target_statuses(detection, ())["cb"] == (False, "no_new_pair")

@@ -50,6 +50,7 @@ __all__ = [
     "ConstraintSet",
     "DualSolution",
     "SdpOptions",
+    "SDP_BACKENDS",
     "solve_dual_sdp",
     "solve_dual_sdp_arrow",
     "evaluate_Z",
@@ -59,6 +60,8 @@ _CYCLIC = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
 
 #: Accepted values of :attr:`SdpOptions.form`.
 SDP_FORMS = ("auto", "reduced", "full", "arrow")
+#: Accepted values of :attr:`SdpOptions.backend`.
+SDP_BACKENDS = ("auto", "structured", "cvxpy")
 
 
 @dataclass(frozen=True)
@@ -208,11 +211,23 @@ class SdpOptions:
         sparse, for Clarabel's chordal decomposition), ``"arrow"`` (``Q'`` with one small cone
         per target, :func:`solve_dual_sdp_arrow`) or ``"auto"`` (the cheapest by the cost
         model of :func:`rwhec_ros.core.certify.sparsity.estimate_form_costs`). Same optimum and
-        multipliers.
+        multipliers. Used by the ``cvxpy`` backend; the structured one always solves the
+        reduced form.
+    backend : str
+        ``"structured"`` (the interior-point method of
+        :mod:`rwhec_ros.core.certify.sdp_ipm` on the frame blocks of the reduced form),
+        ``"cvxpy"`` (cvxpy + Clarabel on ``form``) or ``"auto"`` (default: the structured method
+        unless Clarabel's chordal decomposition is estimated cheaper,
+        :func:`rwhec_ros.core.certify.sdp_ipm.structured_is_cheaper`).
+    ipm : dict
+        Options of the structured method (:class:`rwhec_ros.core.certify.sdp_ipm.IpmOptions`
+        keywords).
     verbose : bool
     """
 
     form: str = "auto"
+    backend: str = "auto"
+    ipm: dict = field(default_factory=dict)
     clarabel: dict = field(
         default_factory=lambda: {
             "tol_gap_abs": 1e-8,
@@ -227,6 +242,8 @@ class SdpOptions:
     def __post_init__(self) -> None:
         if self.form not in SDP_FORMS:
             raise ValueError(f"form: expected one of {SDP_FORMS}, got {self.form!r}")
+        if self.backend not in SDP_BACKENDS:
+            raise ValueError(f"backend: expected one of {SDP_BACKENDS}, got {self.backend!r}")
 
 
 @dataclass

@@ -33,6 +33,7 @@ from ..certify.relaxation import (
     solve_dual_sdp,
     solve_dual_sdp_arrow,
 )
+from ..certify.sdp_ipm import IpmOptions, solve_dual_sdp_structured, structured_is_cheaper
 from ..certify.sparsity import ArrowSplit, arrow_split, estimate_form_costs
 from ..initial.closed_form import (
     closed_form_estimate,
@@ -223,13 +224,35 @@ def _form_costs(prep: _Prepared) -> tuple[str, dict[str, float], ArrowSplit | No
     return min(costs, key=costs.get), costs, split
 
 
+#: The solver of each SDP backend, in notes and messages.
+_SOLVER_NAMES = {"structured": "structured IPM", "cvxpy": "Clarabel"}
+
+
+def _sdp_backend(prep: _Prepared, options: SolveOptions) -> tuple[str, str, ArrowSplit | None]:
+    """``(backend, form, split)``: the ``auto`` backend is the structured method unless a form
+    is asked for (a cvxpy setting) or Clarabel's cheapest form is estimated cheaper
+    (:func:`~rwhec_ros.core.certify.sdp_ipm.structured_is_cheaper`)."""
+    backend, form, split = options.sdp.backend, options.sdp.form, None
+    if backend == "auto":
+        if form != "auto":
+            return "cvxpy", form, None
+        if prep.problem.n_frames <= 3:
+            return "structured", "reduced", None
+        form, costs, split = _form_costs(prep)
+        backend = ("structured" if structured_is_cheaper(prep.problem.n_frames, costs[form])
+                   else "cvxpy")
+    if backend == "structured":
+        return backend, "reduced", None
+    if form == "auto":
+        form, _, split = _form_costs(prep)
+    return backend, form, split
+
+
 def solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> CalibrationResult:
     n = prep.problem.n_frames
     t0 = time.perf_counter()
     cons = prep.cons()
-    form, split = options.sdp.form, None
-    if form == "auto":
-        form, _, split = _form_costs(prep)
+    backend, form, split = _sdp_backend(prep, options)
     if form == "arrow" and split is None:
         split = arrow_split(prep.Qs, n)
         if split is None:
@@ -239,7 +262,9 @@ def solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Calib
         cons_f = so3_constraint_matrices(offsets, df, df - 1)
     prep.timing["constraints"] = time.perf_counter() - t0
     try:
-        if form == "full":
+        if backend == "structured":
+            sol = solve_dual_sdp_structured(prep.Qs, n, IpmOptions(**options.sdp.ipm))
+        elif form == "full":
             sol = solve_dual_sdp(Qf, cons_f, options.sdp)
         elif form == "arrow":
             sol = solve_dual_sdp_arrow(prep.Qs, cons, split, options.sdp)
@@ -247,15 +272,20 @@ def solve_sdp(prep: _Prepared, options: SolveOptions, notes: list[str]) -> Calib
             sol = solve_dual_sdp(prep.Qs, cons, options.sdp)
     except Exception as exc:  # noqa: BLE001 - cvxpy/Clarabel raise SolverError and others
         notes.append(f"SDP form: {form}")
-        notes.append(f"the SDP solver failed ({type(exc).__name__}: {exc}); returning the "
+        # the error's first sentence only: the rest is cvxpy's advice for its own users
+        brief = f"{type(exc).__name__}: {str(exc).split('. ')[0].rstrip('.')}"
+        notes.append(f"the SDP solver stopped with an error ({brief}); returning the "
                      "closed-form estimate")
         est, p = _estimate(prep, prep.init_R)
-        cert = failed_certificate(
-            options, p, f"the SDP solver (Clarabel) failed: {exc}. Try mode 'fast', or check the "
-            "data for degenerate edges and outliers")
+        solver = _SOLVER_NAMES[backend]
+        what = (f"the fast solver's certificate was inconclusive and its SDP fallback ({solver})"
+                if options.mode != "sdp" else f"the SDP solver ({solver})")
+        cert = failed_certificate(options, p, f"{what} stopped with an error ({brief})")
         return calibration_result(prep, est, cert, "sdp", "failed", 0.0, notes)
     notes.append(f"SDP form: {form}")
-    notes.append(f"Clarabel: {sol.iterations} iterations, status '{sol.status}'")
+    notes.append(f"SDP backend: {backend}")
+    notes.append(f"{_SOLVER_NAMES[backend]}: {sol.iterations} iterations, status "
+                 f"'{sol.status}'")
     notes.extend(sol.warnings)
     prep.timing["compile"] = sol.compile_s
     prep.timing["solve"] = sol.solve_s

@@ -37,9 +37,8 @@ def all_determined(b: Builder, problem: Problem) -> bool:
 _CERTIFICATE_REASONS = {
     Status.SOLVER_FAILED: (
         "unusable", "certificate_failed",
-        "the solver failed ({message}): the estimate is not trustworthy; solve again with --mode "
-        "sdp (solver.mode), look for outliers with --robust (solver.reject_outliers) and make "
-        "sure the motion rotates about two axes", "the solver failed"),
+        "the solver failed ({message}): the estimate is not trustworthy; {left}",
+        "the solver failed"),
     Status.ILL_CONDITIONED: (
         "unusable", "certificate_failed",
         "no bound can be proven ({message}): some translations are barely determined; record "
@@ -73,8 +72,24 @@ def certificate_reasons(b: Builder, result: CalibrationResult) -> None:
         return
     if c.status in _CERTIFICATE_REASONS:
         level, code, text, why = _CERTIFICATE_REASONS[c.status]
-        b.add(level, code, text.format(message=c.message,
+        b.add(level, code, text.format(message=c.message, left=_left_to_try(result),
                                        rho=f"rho_hat={c.suboptimality_bound:.2g}"), why=why)
+
+
+def _left_to_try(result: CalibrationResult) -> str:
+    """After a solver failure: what is left to try, never what already ran (the SDP, as the
+    mode or the fast mode's fallback; the outlier rejection)."""
+    sdp_ran = result.mode == "sdp" or any(n.startswith("SDP form:") for n in result.notes)
+    robust = any(n.startswith("outlier rejection:") for n in result.notes)
+    if result.mode == "sdp":
+        tries = ["solve with --mode fast (solver.mode; the local solver and its certificate)"]
+    else:
+        tries = [] if sdp_ran else ["solve again with --mode sdp (solver.mode)"]
+    if not robust:
+        tries.append("look for outliers with --robust (solver.reject_outliers)")
+    tries.append("make sure the motion rotates about two axes (identical or nearly identical "
+                 "pairs determine nothing)")
+    return "left to try: " + "; ".join(tries)
 
 
 def identifiability_reasons(b: Builder, result: CalibrationResult, problem: Problem, ident,

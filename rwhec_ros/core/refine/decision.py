@@ -1,0 +1,138 @@
+"""Which estimate is published: the certified pose-level optimum or its corner-level refinement.
+
+The refinement (:mod:`.estimate`) is published when
+
+1. its noise estimates converged;
+2. it lowers the corner residual: the robust corner cost of the kept fit, with the pose errors
+   re-fitted at each estimate and the same noise, is lower at the refined frames than at the
+   certified ones (:attr:`~.estimate.Refinement.cost_start`, :attr:`~.estimate.Refinement.cost`);
+3. it stays consistent with the certified estimate within the uncertainties: for every frame the
+   difference ``d = [t_ref - t_cert, log(R_ref R_cert^T)]`` has a Mahalanobis distance
+   ``d^T (C_ref + C_cert)^-1 d`` at most the chi-square quantile ``consistency_quantile`` with
+   6 degrees of freedom (1 for the scale), where ``C_ref`` is the refinement's covariance and
+   ``C_cert`` the certified estimate's (a-posteriori, when given). Both estimates come from the
+   same data, so their difference varies less than ``C_ref + C_cert`` says: a frame beyond it
+   means the two models disagree about the data, and the certified estimate is kept.
+
+Otherwise the certified estimate is published, and :attr:`Decision.reason` says why.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+
+from ..lie import so3_log
+from .estimate import Refinement
+
+__all__ = ["DecisionOptions", "Decision", "decide", "frame_difference"]
+
+
+@dataclass(frozen=True)
+class DecisionOptions:
+    """``consistency_quantile``: the chi-square quantile of condition 3 (module docstring)."""
+
+    consistency_quantile: float = 0.999
+
+    def __post_init__(self) -> None:
+        q = self.consistency_quantile
+        if not (np.isfinite(q) and 0 < q < 1):
+            raise ValueError(f"consistency_quantile: must be in (0, 1), got {q!r}")
+
+
+@dataclass
+class Decision:
+    """What is published and why.
+
+    Attributes
+    ----------
+    published : str
+        ``"refined"`` or ``"certified"``.
+    reason : str
+        One sentence.
+    distances : dict of str to float
+        Per frame (and ``"scale"``) the Mahalanobis distance of condition 3 (module docstring).
+    limit : float
+        Its bound for a frame (6 degrees of freedom).
+    """
+
+    published: str
+    reason: str
+    distances: dict[str, float] = field(default_factory=dict)
+    limit: float = float("nan")
+
+    @property
+    def refined(self) -> bool:
+        return self.published == "refined"
+
+
+def frame_difference(T_ref: np.ndarray, T_cert: np.ndarray) -> np.ndarray:
+    """``[t_ref - t_cert, log(R_ref R_cert^T)]`` (6,) in the convention of the covariances."""
+    return np.concatenate([T_ref[:3, 3] - T_cert[:3, 3],
+                           so3_log(T_ref[:3, :3] @ T_cert[:3, :3].T)])
+
+
+def _mahalanobis(d: np.ndarray, C: np.ndarray) -> float:
+    if not np.all(np.isfinite(C)):
+        return float("inf")
+    try:
+        return float(d @ np.linalg.solve(C, d))
+    except np.linalg.LinAlgError:
+        return float("inf")
+
+
+def decide(refinement: Refinement, result, certified_covariances: Mapping | None = None,
+           certified_scale_std: float | None = None, options: DecisionOptions | None = None
+           ) -> Decision:
+    """The published estimate (module docstring).
+
+    Parameters
+    ----------
+    refinement : Refinement
+    result : CalibrationResult
+        The certified estimate the refinement started from.
+    certified_covariances : mapping of str to ndarray (6, 6), optional
+        Per frame the certified estimate's covariance (a posteriori); None: only the
+        refinement's.
+    certified_scale_std : float, optional
+    options : DecisionOptions, optional
+    """
+    opts = options or DecisionOptions()
+    q = opts.consistency_quantile
+    limit = float(chi2.ppf(q, 6))
+    if not refinement.converged:
+        return Decision("certified", f"the refinement's {refinement.message}", limit=limit)
+    if not refinement.cost < refinement.cost_start:
+        return Decision("certified", f"the refinement does not lower the corner residual "
+                        f"(robust cost {refinement.cost_start:.6g} -> {refinement.cost:.6g})",
+                        limit=limit)
+    dist = {}
+    for name in refinement.names:
+        C = np.array(refinement.frame_covariance(name), float)
+        if certified_covariances is not None and name in certified_covariances:
+            C = C + np.asarray(certified_covariances[name], float)
+        dist[name] = _mahalanobis(frame_difference(refinement.transform(name),
+                                                   result.transform(name)), C)
+    bad = {n: v for n, v in dist.items() if not v <= limit}
+    if refinement.scale_std is not None:
+        var = refinement.scale_std ** 2 + (certified_scale_std or 0.0) ** 2
+        ds = (refinement.scale - float(result.scale)) ** 2 / var if var > 0 else float("inf")
+        dist["scale"] = float(ds)
+        if not ds <= float(chi2.ppf(q, 1)):
+            bad["scale"] = ds
+    if bad:
+        worst = max(bad, key=bad.get)
+        return Decision("certified", f"the refinement moves {worst} beyond the uncertainties "
+                        f"of both estimates (Mahalanobis distance squared {bad[worst]:.3g} > "
+                        f"{limit if worst != 'scale' else chi2.ppf(q, 1):.3g}, the "
+                        f"{100 * q:g} % chi-square quantile): the corner-level and the "
+                        "pose-level model disagree about these data", dist, limit)
+    worst = max(dist, key=dist.get)
+    return Decision("refined", f"the refinement lowers the corner residual (robust cost "
+                    f"{refinement.cost_start:.6g} -> {refinement.cost:.6g}) and every frame "
+                    f"stays within the uncertainties of the certified estimate (largest "
+                    f"Mahalanobis distance squared {dist[worst]:.3g} on {worst}, bound "
+                    f"{limit:.3g})", dist, limit)
