@@ -60,7 +60,8 @@ class Inputs:
 def make_inputs(root: Path) -> Inputs:
     """A short simulated recording (sqlite3 and MCAP), its two truncated copies, a synthetic
     problem as CSV files and as data sets (a second one, a large one with its ``.npz``, 20
-    identical pairs) and a configuration with the wrong tag family."""
+    identical pairs), its true frames as the reference of ``check`` and a configuration with
+    the wrong tag family."""
     import numpy as np
     import yaml
 
@@ -74,7 +75,7 @@ def make_inputs(root: Path) -> Inputs:
     done = root / ".done"
     inputs = Inputs(root)
     shutil.copy(REPO / "config" / "demo.yaml", root / "demo.yaml")
-    if done.exists():
+    if done.exists() and (root / "reference.yaml").exists():
         return inputs
     for storage, name in (("sqlite3", "bag"), ("mcap", "bag_mcap")):
         if not (root / name).exists():
@@ -87,10 +88,14 @@ def make_inputs(root: Path) -> Inputs:
             if f.suffix in (".db3", ".mcap"):
                 with open(f, "r+b") as fh:
                     fh.truncate(f.stat().st_size // 2)
-    problem, _ = random_instance(np.random.default_rng(7), 3, 3, n_per_edge=20, sigma=0.005,
-                                 kappa=400.0)
+    problem, gt = random_instance(np.random.default_rng(7), 3, 3, n_per_edge=20, sigma=0.005,
+                                  kappa=400.0)
     write_paper_csv(problem, root / "csv")
     Dataset.from_problem(problem).save(root / "data.yaml")
+    truth = [(n, T) for names, Ts in ((problem.x_names, gt.X), (problem.y_names, gt.Y))
+             for n, T in zip(names, Ts, strict=True)]  # check's reference: the true frames
+    (root / "reference.yaml").write_text(yaml.safe_dump(
+        {"frames": [{"name": n, "matrix": np.asarray(T).tolist()} for n, T in truth]}))
     other, _ = random_instance(np.random.default_rng(8), 3, 3, n_per_edge=20, sigma=0.005,
                                kappa=400.0)
     Dataset.from_problem(other).save(root / "other.yaml")
@@ -284,6 +289,11 @@ def _csv(i: Inputs, d: Path) -> list:
     return ["csv", i.csv, "-o", d / "out", "-q"]
 
 
+def _check(i: Inputs, d: Path) -> list:
+    return ["check", i.root / "data.yaml", "--reference", i.root / "reference.yaml", "-o",
+            d / "out", "-q"]
+
+
 def _dataset(i: Inputs, d: Path) -> list:
     return ["dataset", i.root / "data.yaml", "-o", d / "out", "-q"]
 
@@ -366,7 +376,7 @@ def _has(words: str) -> Callable[[str, str], str]:
 def faults() -> list[Fault]:
     """Every row of the table."""
     rows = []
-    for cmd, argv in (("bag", _bag), ("csv", _csv), ("dataset", _dataset)):
+    for cmd, argv in (("bag", _bag), ("csv", _csv), ("dataset", _dataset), ("check", _check)):
         for sig in ("SIGINT", "SIGTERM"):
             for phase in PHASES:
                 rows.append(Fault(
@@ -419,6 +429,11 @@ def faults() -> list[Fault]:
         Fault("dataset: 20 identical pairs (solver failure)", lambda i, d: [
             "dataset", i.root / "identical.yaml", "-o", d / "out", "-q"], 4, gathered=True,
             check=lambda o, e: _no("--mode sdp", "out")(o, e) or _no("Try another")(o, e)),
+        Fault("check: --reference among the files -o replaces", lambda i, d: [
+            "check", i.root / "data.yaml", "--reference", d / "out" / "result.yaml", "-o",
+            d / "out", "--force", "-q"], 2, setup=_run_first(lambda i, d: [
+                "dataset", i.root / "data.yaml", "-o", d / "out", "-q"]),
+            check=_has("whose outputs the check replaces")),
         Fault("dataset: its .npz missing", lambda i, d: [
             "dataset", i.root / "big_without_npz" / "dataset.yaml", "-o", d / "out", "-q"], 2,
             check=_no("[Errno")),

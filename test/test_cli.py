@@ -339,6 +339,50 @@ def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tm
     assert "cameras.cam0.image_transport: compressed" in stderr
 
 
+def test_check_reads_a_bag_through_the_run_and_resumes_from_the_kept_pairs(recorded, tmp_path,
+                                                                            monkeypatch):
+    """``check BAG``: the bag's pairs are kept in -o as soon as reading ends; an interrupt while
+    solving says so in one line with the ``check`` command that resumes it (exit 130), and that
+    command finds the camera moved in the reference (exit 5)."""
+    import shlex
+
+    import rwhec_ros.session.bringup as bringup
+    from rwhec_ros.cli.common import EXIT_MOVED
+    from rwhec_ros.core.lie import make_transform
+
+    rig, root = recorded
+    frames = [{"name": c, "parent": "rig", "matrix": rig.T_rig_cam[c].tolist()}
+              for c in rig.cameras]
+    frames += [{"name": f"tag_{i}", "parent": "world", "matrix": T.tolist()}
+               for i, T in rig.T_world_tag.items()]
+    T = rig.T_rig_cam["cam1"]
+    frames[1]["matrix"] = make_transform(T[:3, :3], T[:3, 3] + [0.03, 0.0, 0.0]).tolist()
+    reference = tmp_path / "reference.yaml"
+    reference.write_text(yaml.safe_dump({"frames": frames}))
+    out = tmp_path / "out"
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(bringup, "run_check", interrupted)
+        code, stdout, stderr = run(["check", "--reference", reference, root / "poses_sqlite",
+                                    "--config", root / "topic.yaml", "-o", out, "-q",
+                                    "--tolerance-mm", "10"])
+    assert code == EXIT_INTERRUPTED and len(stderr.splitlines()) == 1, stderr
+    assert "interrupted (SIGINT) while solving; the " in stderr
+    resume = stderr.split("resume with: ")[1].strip()
+    assert resume.startswith(f"rwhec-calibrate check {out / 'dataset.yaml'} -o {out} --force "
+                             f"--reference {reference} --tolerance-mm 10.0")
+    assert sorted(p.name for p in out.iterdir()) == ["dataset.yaml"]
+    code, stdout, stderr = run(shlex.split(resume)[1:] + ["-q"])
+    assert code == EXIT_MOVED, stdout + stderr
+    assert stdout.startswith("CHECK MOVED: cam1: MOVED by "), stdout
+    assert sorted(p.name for p in out.iterdir()) == [
+        "calibration.urdf.xacro", "check.yaml", "dataset.yaml", "frames.yaml",
+        "static_transforms.launch.py"]
+
+
 def test_bag_errors_are_bad_input(recorded, tmp_path):
     rig, root = recorded
     code, _, stderr = run(["bag", root / "tf_mcap", "--config", root / "topic.yaml"])

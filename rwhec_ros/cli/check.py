@@ -9,9 +9,18 @@ verdict, one line per camera) and writes ``check.yaml`` and the reference frames
 ones re-estimated (launch file, URDF snippet, frames.yaml) plus the data set into ``-o DIR``
 (default: a new ``check_<UTC stamp>`` directory under the output root).
 
+A check is a :class:`~rwhec_ros.cli.run.Run` like any solving subcommand: the phases reading
+(the bag, views or data set, and the reference), solving (the test's solve), analysing (the
+change tests, the re-estimate of what moved, the verdict) and writing (the files staged whole,
+``check.yaml`` last); the data set of the pairs gathered is kept in the output directory as soon
+as reading ends; ``--force`` removes the earlier run's files (a calibration's or a check's) with
+that first write; Ctrl-C and SIGTERM end it in one line with the kept data set and the ``check
+DATASET --reference ...`` command that resumes it (exit 130, 143). A ``--reference`` that is one
+of the files the check replaces in ``-o DIR`` is refused before any work.
+
 Exit codes: 0 every camera consistent (and the verdict usable), :data:`EXIT_MOVED` (5) a camera
 moved, :data:`EXIT_UNDECIDED` (6) not enough data yet to decide, 4 consistent but the verdict is
-unusable, and the CLI's others (2 bad input, 3 no solution).
+unusable, and the CLI's others (2 bad input, 3 no solution, 130/143 interrupted).
 """
 
 from __future__ import annotations
@@ -22,19 +31,21 @@ from pathlib import Path
 from ..errors import describe_os_error
 from .common import (
     EXIT_MOVED,
-    EXIT_NO_SOLUTION,
     EXIT_OK,
     EXIT_UNDECIDED,
     EXIT_UNUSABLE,
     BadInput,
+    NoSolution,
     Printer,
     config_from_parameters,
     output_dir,
+    output_paths,
     read_config,
     solver_overrides,
 )
+from .solving import _kept, _kept_files
 
-__all__ = ["cmd_check", "check_exit_code", "input_kind", "add_check_parser"]
+__all__ = ["cmd_check", "check_exit_code", "input_kind", "add_check_parser", "resume_options"]
 
 
 def check_exit_code(report) -> int:
@@ -98,9 +109,10 @@ def add_check_parser(sub, add_output, add_config) -> argparse.ArgumentParser:
                    help="noise of the test: from the residuals per camera, or as stated "
                         "(default: the configuration's check.noise, else data)")
     add_output(p, "directory that receives check.yaml, static_transforms.launch.py, "
-                  "calibration.urdf.xacro, frames.yaml and dataset.yaml; existing files are "
-                  "refused unless --force (default: a new check_<UTC stamp> directory under "
-                  "the configuration's output.directory, else rwhec_output/)")
+                  "calibration.urdf.xacro, frames.yaml and dataset.yaml; existing files (a "
+                  "calibration's or a check's) are refused before any work, --force removes "
+                  "them (default: a new check_<UTC stamp> directory under the configuration's "
+                  "output.directory, else rwhec_output/)")
     add_config(p, "the node's parameter file: required for a bag; for views and data sets "
                   "as samples and dataset take it (default: none)")
     p.add_argument("--mode", choices=("fast", "sdp", "local"), default=None,
@@ -161,15 +173,39 @@ def _reference(args: argparse.Namespace, config, naming):
         raise BadInput(f"--reference: {exc}") from None
 
 
-def run_and_write(args: argparse.Namespace, say: Printer, problem, naming, config,
-                  save_dataset, source: dict, inputs=()) -> int:
-    """Check ``problem`` against ``--reference``, print the answer and write the outputs
-    (``save_dataset(path)`` writes the data set and returns its path)."""
-    from ..data.results import new_output_dir
+def resume_options(args: argparse.Namespace) -> list[str]:
+    """The options of this check that ``check DATASET`` needs to check the kept data set the
+    same way: the reference and the options given (the data set holds the configuration; a
+    data set's own ``--config`` is passed on)."""
+    out = ["--reference", str(args.reference)]
+    for flag, value in (("--tolerance-mm", args.tolerance_mm),
+                        ("--tolerance-deg", args.tolerance_deg),
+                        ("--false-alarm-rate", args.false_alarm_rate), ("--hold", args.hold),
+                        ("--noise", args.noise), ("--mode", args.mode),
+                        ("--min-pairs", args.min_pairs)):
+        if value is not None:
+            out += [flag, str(value)]
+    if getattr(args, "check_kind", "") == "dataset" and args.config is not None:
+        out += ["--config", str(args.config)]
+        if args.node_name is not None:
+            out += ["--node-name", args.node_name]
+    return out
+
+
+def _run_as(args: argparse.Namespace) -> dict:
+    """The :class:`~rwhec_ros.cli.run.Run` keywords of a check: a ``check_<UTC stamp>``
+    directory without ``-o``, and ``check`` as the resume command."""
+    return {"kind": "check", "resume_subcommand": "check", "resume_options": resume_options(args)}
+
+
+def run_and_write(args: argparse.Namespace, say: Printer, problem, dataset, naming, config,
+                  run, source: dict, inputs=()) -> int:
+    """Check ``problem`` against ``--reference`` in the phases of ``run`` (a
+    :class:`~rwhec_ros.cli.run.Run`, which kept ``dataset`` already), print the answer and
+    write the outputs into the run's directory."""
     from ..session.bringup import run_check
-    from ..session.bringup_outputs import CHECK_FILES, check_message, write_check_outputs
-    from ..session.paths import plain_output_root
-    from ..session.solving import verdict_options
+    from ..session.bringup_outputs import check_message, write_check_outputs
+    from ..session.solving import solver_alternatives, verdict_options
 
     options = _options(args, config)
     reference = _reference(args, config, naming)
@@ -180,30 +216,33 @@ def run_and_write(args: argparse.Namespace, say: Printer, problem, naming, confi
         want = naming.frames.get(name, ("", ""))[0]
         if parent and want and parent != want:
             raise BadInput(f"--reference: {name} is in {parent} there but in {want} here "
-                           "(the carriers of the reference and of the data differ)")
+                           "(the carriers of the reference and of the data differ)"
+                           + _kept(run))
+    run.enter("solving")
     say.progress(f"checking {problem.n_measurements} pairs on {len(problem.edges)} edges "
                  f"against {reference.source}")
     try:
         report = run_check(problem, reference, options, expected_cameras=cams,
                            thresholds=verdict_options(None if config is None else
-                                                      config.verdict), carriers=carriers)
+                                                      config.verdict), carriers=carriers,
+                           on_phase=run.enter)
     except ValueError as exc:
-        raise BadInput(str(exc)) from None
-    out = getattr(args, "check_output", None)
-    if out is None:
-        root = plain_output_root(config.output.directory if config is not None else "")
-        out = new_output_dir(root, "check")
-    else:
-        existing = [str(Path(out) / n) for n in CHECK_FILES if (Path(out) / n).exists()]
-        if existing and not args.force:
-            raise BadInput(f"refusing to overwrite existing file(s) {existing} (use --force "
-                           "to overwrite)")
+        raise BadInput(f"{exc}{_kept(run)}") from None
+    except Exception as exc:  # noqa: BLE001 - reported, exit code 3
+        raise NoSolution(
+            f"the check's solve stopped with an error in mode {options.mode} "
+            f"({type(exc).__name__}: {str(exc).split('. ')[0]}); "
+            + solver_alternatives(options.mode, True) + _kept(run)) from None
+    run.enter("writing")
     try:
-        files = write_check_outputs(Path(out), report, naming, force=args.force, source=source,
+        out = run.output_paths().result.parent
+        files = write_check_outputs(out, report, naming, force=True, source=source,
                                     config=None if config is None else config.to_parameters())
-        files["dataset"] = str(save_dataset(Path(out) / "dataset.yaml"))
     except OSError as exc:
-        raise BadInput(f"cannot write the outputs: {describe_os_error(exc)}") from None
+        where = "" if run.paths is None else f" into {run.paths.result.parent}"
+        raise BadInput(f"cannot write the outputs{where}: {describe_os_error(exc)}"
+                       + _kept(run)) from None
+    files.update(_kept_files(run, dataset))
     say.summary(check_message(report))
     for line in inputs:
         say(line)
@@ -213,20 +252,38 @@ def run_and_write(args: argparse.Namespace, say: Printer, problem, naming, confi
 
 def _finish_session(say: Printer, session, run, *, report: bool, inputs=(),
                     args: argparse.Namespace) -> tuple[int, None]:
-    """In place of ``calibrate_session`` for ``bag`` and ``samples``: the check of the
-    session's pairs (written with the check's outputs; ``run``, the reading's
-    :class:`~rwhec_ros.cli.run.Run`, keeps them only when the reading is interrupted)."""
+    """In place of ``calibrate_session`` for ``bag`` and ``samples``: the pairs kept into the
+    run's directory, then the check of them."""
     from ..data.results import FrameNaming
     from ..session.bringup import session_problem
 
+    dataset = session.dataset()
+    run.keep(dataset)
     problem, _, why = session_problem(session)
     if problem is None:
-        say(f"no solution: {why}")
-        return EXIT_NO_SOLUTION, None
+        for line in inputs:  # what was read (stdout), the reason on stderr
+            say(line)
+        raise NoSolution(why + _kept(run))
     config = session.config
-    return run_and_write(args, say, problem, FrameNaming.from_config(config), config,
-                         session.save_dataset, {"type": args.check_kind, "path": str(args.input)},
-                         inputs), None
+    return run_and_write(args, say, problem, dataset, FrameNaming.from_config(config), config,
+                         run, {"type": args.check_kind, "path": str(args.input)}, inputs), None
+
+
+def _refuse_reference_in_output(args: argparse.Namespace) -> None:
+    """``--reference`` must exist, and not be a file the check replaces in ``-o DIR`` (with
+    ``--force`` it would be removed before it is read)."""
+    from ..data.results import session_output_paths
+    from .run import run_files
+
+    if not args.reference.is_file():
+        raise BadInput(f"--reference {str(args.reference)!r}: no such file")
+    out = output_dir(args)
+    if out is None:
+        return
+    ref = args.reference.resolve()
+    if ref in {p.resolve() for p in run_files(session_output_paths(out))}:
+        raise BadInput(f"--reference {str(args.reference)!r} is in -o {str(out)!r}, whose "
+                       "outputs the check replaces; give another -o DIR")
 
 
 def cmd_check(args: argparse.Namespace, say: Printer) -> int:
@@ -235,15 +292,15 @@ def cmd_check(args: argparse.Namespace, say: Printer) -> int:
 
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
-    args.check_output = output_dir(args)
-    args.output = None  # the reading command writes nothing; the check writes into check_output
     kind = input_kind(args.input)
     args.check_kind = kind
+    _refuse_reference_in_output(args)
 
     def finish(say_, session, run, *, report, inputs=()):
         return _finish_session(say_, session, run, report=report, inputs=inputs, args=args)
 
     args.finish = finish
+    args.run_as = _run_as(args)
     if kind == "bag":
         if args.config is None:
             raise BadInput("a bag needs --config FILE (the node's parameter file)")
@@ -258,6 +315,8 @@ def cmd_check(args: argparse.Namespace, say: Printer) -> int:
 def _check_dataset(args: argparse.Namespace, say: Printer) -> int:
     from ..data.dataset import Dataset
     from ..data.results import FrameNaming
+    from ..session.paths import plain_output_root
+    from .run import Run
 
     path = args.input / "dataset.yaml" if args.input.is_dir() else args.input
     config = read_config(args, solver_overrides(args))
@@ -266,6 +325,8 @@ def _check_dataset(args: argparse.Namespace, say: Printer) -> int:
         flat = dict(data.metadata["config"])
         flat.update(solver_overrides(args))
         config = config_from_parameters(flat, f"{path}: metadata.config")
+    root = plain_output_root(config.output.directory if config is not None else "")
+    paths = output_paths(args, report=False, root=root)  # refuse early, before any work
     if config is not None:
         naming = FrameNaming.from_config(config)
         min_pairs = config.solver.min_pairs
@@ -273,10 +334,15 @@ def _check_dataset(args: argparse.Namespace, say: Printer) -> int:
         naming = FrameNaming.from_carriers(data.x_names, data.y_names, camera_carrier="rig",
                                            tag_carrier="world", carriers=data.carriers)
         min_pairs = args.min_pairs or 3
+    run = Run("check", say, paths, root, force=args.force, **_run_as(args))
     try:
-        problem = data.to_problem(min_pairs=min_pairs)
-    except ValueError as exc:
-        say(f"no solution: not enough data: {exc}")
-        return EXIT_NO_SOLUTION
-    return run_and_write(args, say, problem, naming, config, data.save,
-                         {"type": "dataset", "path": str(path)})
+        run.enter("reading")  # read already: the pause is for the tests of every phase
+        run.keep(data)
+        try:
+            problem = data.to_problem(min_pairs=min_pairs)
+        except ValueError as exc:
+            raise NoSolution(f"not enough data: {exc}{_kept(run)}") from None
+        return run_and_write(args, say, problem, data, naming, config, run,
+                             {"type": "dataset", "path": str(path)})
+    except KeyboardInterrupt as exc:
+        raise run.interrupted(exc) from None

@@ -414,7 +414,8 @@ def output_paths(args: argparse.Namespace, *, report: bool, root: str | Path | N
     # the report files too, with or without --report: a new result must not sit beside an older
     # report (with --force they are removed with every other file of the earlier run)
     targets = [paths.result, paths.launch, paths.dataset, paths.dataset.with_suffix(".npz"),
-               paths.report_png, paths.report_html, paths.urdf, paths.frames]
+               paths.report_png, paths.report_html, paths.urdf, paths.frames,
+               paths.result.parent / "check.yaml"]  # a check's answer (run.run_files)
     refuse_existing(targets, args.force)
     check_output_room(d, report, "-o/--output")
     return paths

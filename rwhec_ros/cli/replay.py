@@ -86,7 +86,8 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     handlers = MessageHandlers(session)
     settings = SolveSettings.from_parameters(config.to_parameters())
     run = Run("bag", say, paths, root, force=args.force,
-              resume_options=settings.resume_options(args.report))
+              **{"resume_options": settings.resume_options(args.report),
+                 **getattr(args, "run_as", {})})  # check: its directory and resume command
     try:
         run.enter("reading", pause=False)  # the pause: half-way through the messages
         try:

@@ -31,7 +31,7 @@ from ..errors import describe_os_error
 from .common import PROG, BadInput, Interrupted, Printer, Terminated, expected_output_bytes
 
 __all__ = ["PHASES", "PAUSE_PHASE_ENV", "PAUSE_FILE_ENV", "Run", "pause_for_test",
-           "expected_output_bytes"]
+           "expected_output_bytes", "run_files", "CHECK_ANSWER"]
 
 PHASES = ("reading", "solving", "analysing", "writing")
 PAUSE_PHASE_ENV = "RWHEC_TEST_PAUSE_PHASE"
@@ -54,32 +54,55 @@ def pause_for_test(phase: str) -> None:
         time.sleep(0.05)
 
 
+#: A check's answer (``rwhec-calibrate check``), which shares the directory layout of a run.
+CHECK_ANSWER = "check.yaml"
+
+
+def run_files(paths) -> list[Path]:
+    """Every output name of a run in the directory of ``paths`` (an ``OutputPaths``): the
+    calibration's files, ``dataset.npz`` and a check's ``check.yaml``; what ``--force``
+    removes and what is refused without it."""
+    return [*paths.all(), paths.dataset.with_suffix(".npz"),
+            paths.result.parent / CHECK_ANSWER]
+
+
 class Run:
     """The state of one run (module docstring).
 
     Parameters
     ----------
     command : str
-        The subcommand (``csv``, ``bag``, ``dataset``, ``demo``, ``samples``, ``poses``).
+        The subcommand (``csv``, ``bag``, ``dataset``, ``demo``, ``samples``, ``poses``,
+        ``check``).
     say : Printer
     paths : OutputPaths or None
-        The files of ``-o DIR`` (checked); None: a new ``calibration_<UTC stamp>`` directory
-        under ``output_root``, made at the first write.
+        The files of ``-o DIR`` (checked); None: a new ``<kind>_<UTC stamp>`` directory under
+        ``output_root``, made at the first write.
     output_root : str or Path
     force : bool
         ``--force``: the first write removes the earlier run's files from the directory.
     resume_options : sequence of str
-        The options of this run that ``dataset`` needs to solve the kept data set the same way
-        (mode, min pairs, robust, priors, folds, guidance, report, carriers).
+        The options of this run that ``resume_subcommand`` needs to solve the kept data set the
+        same way (mode, min pairs, robust, priors, folds, guidance, report, carriers; for
+        ``check``: the reference and the test's options).
+    kind : str
+        The new directory's prefix: ``calibration``, or ``check`` (``rwhec-calibrate check``,
+        which reads through ``bag`` and ``samples`` with this set).
+    resume_subcommand : str
+        The subcommand of :meth:`resume_command`: ``dataset``, or ``check`` (which takes the
+        kept ``dataset.yaml`` as its input).
     """
 
     def __init__(self, command: str, say: Printer, paths, output_root, *, force: bool,
-                 resume_options: Sequence[str] = ()) -> None:
+                 resume_options: Sequence[str] = (), kind: str = "calibration",
+                 resume_subcommand: str = "dataset") -> None:
         self.command, self.say = command, say
         self.paths = paths
         self.output_root = output_root
         self.force = force
         self.resume_options = list(resume_options)
+        self.kind = kind
+        self.resume_subcommand = resume_subcommand
         self.phase = "starting"
         self.kept: Path | None = None
         self.kept_pairs = 0
@@ -96,22 +119,23 @@ class Run:
     # --- outputs -----------------------------------------------------------------------------
     def output_paths(self):
         """The files of the output directory, which exists after this call: ``-o DIR``
-        (created), else a new ``calibration_<UTC stamp>`` directory under the output root."""
+        (created), else a new ``<kind>_<UTC stamp>`` directory under the output root."""
         from ..data.results import new_output_dir, session_output_paths
 
         if self.paths is None:
-            self.paths = session_output_paths(new_output_dir(self.output_root))
+            self.paths = session_output_paths(new_output_dir(self.output_root, self.kind))
         else:
             self.paths.result.parent.mkdir(parents=True, exist_ok=True)
         return self.paths
 
     def _clear_earlier_run(self, paths) -> None:
-        """``--force``: the earlier run's files, removed before the first new one is written."""
+        """``--force``: the earlier run's files (a calibration's or a check's,
+        :func:`run_files`), removed before the first new one is written."""
         from ..data.atomic import remove_files
 
         if not self.force:
             return
-        names = [*paths.all(), paths.dataset.with_suffix(".npz")]
+        names = run_files(paths)
         removed = remove_files(p for p in names if p != paths.dataset)
         if removed:
             self.say.progress(f"--force: removed {len(removed)} file(s) of an earlier run from "
@@ -160,12 +184,12 @@ class Run:
                        + "; ".join(errors) + "; free some space or give a writable -o DIR")
 
     def resume_command(self) -> str:
-        """The ``rwhec-calibrate dataset ...`` command that solves the kept data set into the
-        directory it is in, as this run would have."""
+        """The ``rwhec-calibrate dataset ...`` (``check ...``) command that solves (checks) the
+        kept data set into the directory it is in, as this run would have."""
         if self.kept is None:
             return ""
-        argv = [PROG, "dataset", str(self.kept), "-o", str(self.kept.parent), "--force",
-                *self.resume_options]
+        argv = [PROG, self.resume_subcommand, str(self.kept), "-o", str(self.kept.parent),
+                "--force", *self.resume_options]
         return shlex.join(argv)
 
     def kept_words(self) -> str:

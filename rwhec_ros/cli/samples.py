@@ -270,7 +270,8 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
                  f"{config.camera_carrier.frame}")
     settings = SolveSettings.from_parameters(config.to_parameters())
     run = Run("samples", say, paths, root, force=args.force,
-              resume_options=settings.resume_options(args.report))
+              **{"resume_options": settings.resume_options(args.report),
+                 **getattr(args, "run_as", {})})  # check: its directory and resume command
     try:
         run.enter("reading")
         for view, stamp in zip(samples.views, stamps, strict=True):

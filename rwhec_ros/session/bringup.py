@@ -36,7 +36,7 @@ verdict of that solve (GOOD / CAUTION / UNUSABLE, :func:`~rwhec_ros.core.verdict
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -235,12 +235,14 @@ def run_check(
     thresholds: VerdictOptions | None = None,
     carriers: tuple[str, str] = ("the camera carrier", "the tag carrier"),
     verdict: bool = True,
+    on_phase: Callable[[str], None] | None = None,
 ) -> CheckReport:
     """Check ``problem``'s pairs against ``reference`` (module docstring).
 
     ``look`` is the number of this look (sequential options); ``expected_cameras`` the cameras
     the configuration names (default: the data's); ``thresholds`` the verdict's; ``verdict``
-    False skips the verdict (benchmarks). ``ValueError`` when no camera of the data is in the
+    False skips the verdict (benchmarks); ``on_phase("analysing")`` is called when the test's
+    solve is done (the CLI's run phases). ``ValueError`` when no camera of the data is in the
     reference. Exceptions of the solver propagate.
     """
     opts = options or CheckOptions()
@@ -258,6 +260,8 @@ def run_check(
             problem, held_test, opts)
     else:
         test_res, solved, solved_problem, words = _solve_held(problem, held_test, opts)
+    if on_phase is not None:
+        on_phase("analysing")
     free = [n for n in problem.frame_names if n not in held_test]
     a = look_level(opts.false_alarm_rate, look, sequential=opts.sequential)
     tags = [n for n in problem.x_names if n in ref and n not in held_test]

@@ -251,7 +251,11 @@ def write_check_outputs(out: Path, report: CheckReport, naming: FrameNaming, *,
     """Write ``check.yaml`` and the reference frames with the moved ones replaced as a launch
     file, a URDF/xacro snippet and a frames YAML into ``out`` (:data:`CHECK_FILES` but the data
     set, which the caller saves). Existing files are refused (``FileExistsError``) unless
-    ``force``; returns what -> path."""
+    ``force``. The set is staged whole (:class:`~rwhec_ros.data.atomic.StagedFiles`),
+    ``check.yaml`` renamed last: an error or an interrupt leaves the earlier files as they were.
+    Returns what -> path."""
+    from ..data.atomic import StagedFiles
+
     out = Path(out)
     transforms, left_out = check_transforms(report, naming)
     head = check_message(report).splitlines()
@@ -272,8 +276,10 @@ def write_check_outputs(out: Path, report: CheckReport, naming: FrameNaming, *,
                               "to overwrite)")
     out.mkdir(parents=True, exist_ok=True)
     files = {}
-    for key, (name, text) in texts.items():
-        with open(out / name, "w" if force else "x", encoding="utf-8") as fh:
-            fh.write(text)
-        files[key] = str(out / name)
-    return files
+    with StagedFiles() as staged:
+        for key in ("launch", "urdf", "frames", "check"):  # check.yaml (complete) last
+            name, text = texts[key]
+            staged.stage(out / name, text)
+            files[key] = str(out / name)
+        staged.commit()
+    return {k: files[k] for k in texts}
