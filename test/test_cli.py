@@ -1070,3 +1070,23 @@ def test_bag_with_a_chessboard_and_a_circle_grid(tmp_path):
     for e in board_edges:
         assert e.corner_points_m is not None and e.corner_points_m.shape[:2] == \
             e.corners_px.shape[:2]
+
+
+def test_the_resume_command_keeps_every_solver_setting():
+    """The resume command of an interrupted run (``SolveSettings.resume_options``) gives
+    ``dataset`` the settings of the run, the SDP backend and the switches included; parsed
+    back, they are the same settings."""
+    from rwhec_ros.cli.common import SolveSettings
+    from rwhec_ros.cli.parser import build_parser
+
+    s = SolveSettings(mode="sdp", min_pairs=4, robust=True, output_root="out",
+                      sdp_backend="cvxpy", refine=False, noise_estimate=False, guidance=False,
+                      folds=3)
+    opts = s.resume_options(report=True)
+    assert opts[:6] == ["--mode", "sdp", "--min-pairs", "4", "--sdp-backend", "cvxpy"]
+    args = build_parser().parse_args(["dataset", "d.yaml", *opts])
+    again = SolveSettings.resolve(args, {})
+    assert (again.mode, again.min_pairs, again.robust, again.sdp_backend, again.refine,
+            again.noise_estimate, again.guidance, again.folds) == \
+        ("sdp", 4, True, "cvxpy", False, False, False, 3)
+    assert "--sdp-backend" not in SolveSettings("fast", 3, False, "out").resume_options(False)

@@ -309,6 +309,8 @@ class SolveSettings:
         """The command-line options that give ``dataset`` these settings (for the resume
         command of :class:`~rwhec_ros.cli.run.Run`)."""
         out = ["--mode", self.mode, "--min-pairs", str(self.min_pairs)]
+        if self.sdp_backend != "auto":
+            out += ["--sdp-backend", self.sdp_backend]
         if self.robust:
             out.append("--robust")
         for f, a, x in self.priors:
