@@ -117,7 +117,8 @@ def wait_for(predicate, timeout: float = 10.0) -> bool:
 def test_parameters_declared_with_typed_defaults(context, tmp_path):
     node = CalibratorNode(context=context, parameter_overrides=overrides(tmp_path))
     try:
-        assert node.get_parameter("noise.kappa").value == 400.0  # from the file
+        assert node.get_parameter("noise.groups").value == "camera"  # from the file
+        assert node.get_parameter("noise.kappa").value == 0.0  # schema default: not stated
         assert node.get_parameter("sync.pose_buffer_size").value == 4000  # schema default
         assert node.get_parameter("cameras.cam1.image_topic").value == "/demo/cam1/image_raw"
         assert node.get_parameter("cameras.cam1.calibrated_frame").value == ""
