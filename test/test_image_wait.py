@@ -242,6 +242,8 @@ def test_an_image_waits_in_pose_time_with_a_known_time_offset(tmp_path):
     raw = 100 * NS + 60 * MS
     assert session.pose_time("cam0", raw) == 100 * NS + 110 * MS
     assert session.pose_time("cam0", "x") is None
+    # back on the camera's clock (the stamp ~/detections carries): the image's own stamp
+    assert session.image_time("cam0", session.pose_time("cam0", raw)) == raw
     clock.t = raw + 30 * MS
     assert session.pose_ready(raw, clock.t)  # bracketed in image time ...
     assert not session.pose_ready(session.pose_time("cam0", raw), clock.t)  # ... not in pose time

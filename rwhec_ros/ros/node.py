@@ -377,7 +377,8 @@ class CalibratorNode(Node):
         try:
             bgr = annotate_detections(outcome.image, outcome.detection, outcome.kept,
                                       title=camera)
-            fields = bgr_to_image_fields(bgr, outcome.stamp_ns, self.config.camera(camera).frame)
+            stamp = self.session.image_time(camera, outcome.stamp_ns)  # the image's own stamp
+            fields = bgr_to_image_fields(bgr, stamp, self.config.camera(camera).frame)
             pub.publish(fill_message(Image(), fields))
         except Exception as exc:  # noqa: BLE001 - a drawing problem never stops detection
             self._warn_throttled("detections_image", f"~/detections not published: "

@@ -217,6 +217,12 @@ class ImageInput(ImageWait):
             return None
         return stamp + int(round(self.config.sync.time_offset_s(str(camera)) * 1e9))
 
+    def image_time(self, camera: str, pose_ns: int) -> int:
+        """The inverse of :meth:`pose_time`: a time of ``camera``'s images on the pose stream's
+        clock (an :class:`~.outcomes.ImageOutcome`'s ``stamp_ns``) back on the camera's own
+        clock (what its image header said), e.g. for the annotated image ``~/detections``."""
+        return int(pose_ns) - int(round(self.config.sync.time_offset_s(str(camera)) * 1e9))
+
     def gate_would_skip(self, camera: str, stamp_ns: int) -> bool:
         """True when the motion gate would skip an image of ``camera`` stamped ``stamp_ns``
         if it were examined now (its pose is in the buffer; nothing is counted or changed).

@@ -20,6 +20,8 @@ class ImageOutcome:
     ----------
     camera : str
     stamp_ns : int
+        The image's time on the pose stream's clock (its stamp plus
+        ``sync.time_offset.<camera>``; the camera's own: ``ImageInput.image_time``).
     status : str
         ``"used"`` (at least one pair kept), ``"no_new_pairs"`` (tags seen, pose found, but no
         pair passed the keyframe test), ``"no_tags"``, ``"skipped"`` (motion gate: no edge of

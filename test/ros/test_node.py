@@ -288,6 +288,9 @@ def test_feed_topics_and_calibrate(running, tmp_path):
     det = received["detections"][-1]
     assert (det.encoding, det.height, det.width, det.step) == ("bgr8", 480, 640, 3 * 640)
     assert det.header.frame_id in {f"{c}_optical" for c in rig.cameras}
+    # the image's own stamp (session.image_time: the camera's clock, not the pose stream's)
+    det_ns = det.header.stamp.sec * NS + det.header.stamp.nanosec
+    assert any(det_ns == t0 + int(round(t * NS)) for t in np.arange(0.0, 24.0, 0.2))
     pixels = np.frombuffer(bytes(det.data), np.uint8).reshape(480, 640, 3)
     assert np.any(np.all(pixels == (0, 255, 0), axis=-1)) or np.any(
         np.all(pixels == (0, 165, 255), axis=-1))  # outlines in the kept/rejected colours
