@@ -55,7 +55,7 @@ def solve_and_write(
     from ..session.accuracy import AccuracyOptions
     from ..session.outputs import description_texts, launch_header, publishable
     from ..session.solving import solve_and_assess, solver_alternatives, verdict_options
-    from ..session.time_offsets import add_offset_reasons, correct_time_offsets, with_time_offsets
+    from ..session.time_offsets import add_offset_reasons, correct_time_offsets
 
     frames = list(dataset.y_names) + list(dataset.x_names)
     for f, a, x in settings.priors:
@@ -98,7 +98,7 @@ def solve_and_write(
                           source=source, verdict=verdict, accuracy=solved.accuracy,
                           rejected_pairs=solved.rejected_pairs,
                           fingerprint=dataset_fingerprint(dataset))
-    doc = with_time_offsets(doc, offsets)
+    doc = offsets.into(doc)
     names = list(result.y_names) + list(result.x_names)
     transforms, left_out = publishable(naming.transforms(result), names, verdict,
                                        publish_unusable=publish_unusable)

@@ -45,7 +45,7 @@ from .outputs import publishable, session_dataset, summary, write_session_output
 from .paths import plain_output_root
 from .rejections import RejectionLog
 from .solving import make_tracker, noise_options, report_dict, solve_and_assess, verdict_options
-from .time_offsets import add_offset_reasons, correct_time_offsets, with_time_offsets
+from .time_offsets import add_offset_reasons, correct_time_offsets
 
 __all__ = ["CalibrationSession"]
 
@@ -444,7 +444,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         doc = self.result_document(
             result, excl, ident, verdict, solved.accuracy, solved.rejected_pairs,
             fingerprint=None if dataset is None else dataset_fingerprint(dataset))
-        doc = with_time_offsets(doc, offsets)
+        doc = offsets.into(doc)
         text = dump_document(doc)
         if on_phase is not None:
             on_phase("writing")

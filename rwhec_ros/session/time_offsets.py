@@ -56,8 +56,7 @@ from .time_offset_report import (
 __all__ = ["TimeOffsetOptions", "CameraOffset", "TimeOffsetReport", "estimate_offsets",
            "one_step_offsets", "add_offset_reasons", "shift_dataset",
            "MOVING_SPEED_M_S", "MOVING_RATE_RAD_S", "MIN_MOVING_PAIRS", "SIGNIFICANT_SIGMAS",
-           "CAUTION_S", "MAX_ITERATIONS", "correct_time_offsets", "with_time_offsets",
-           "live_offsets"]
+           "CAUTION_S", "MAX_ITERATIONS", "correct_time_offsets", "live_offsets"]
 
 _NS = 1_000_000_000
 #: A pair counts as moving when the stream moved faster than this [m/s] ...
@@ -463,12 +462,6 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
     except Exception as exc:  # noqa: BLE001 - an extra of the calibration, never its failure
         why = f"the estimate failed: {type(exc).__name__}: {exc}"
         return problem, dataset, _not(problem, options, "not_estimated", why)
-
-
-def with_time_offsets(doc: dict, report) -> dict:
-    """The result mapping ``doc`` with ``report``'s ``time_offsets`` section in its place
-    (:meth:`TimeOffsetReport.into <rwhec_ros.session.time_offset_report.TimeOffsetReport.into>`)."""
-    return report.into(doc)
 
 
 def live_offsets(problem, result, snap, config, cache: dict):

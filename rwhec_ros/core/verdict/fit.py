@@ -326,17 +326,13 @@ def _compare_edges(fit: FitStatistics, et: np.ndarray, er: np.ndarray,
         far[i] = any(p < alpha and ratio >= opts.edge_ratio and own >= opts.edge_min_noise_ratio
                      for ratio, p, own in ((e.ratio_translation, p_t, e.noise_ratio_translation),
                                            (e.ratio_rotation, p_r, e.noise_ratio_rotation)))
+        if noise_estimated and not np.isfinite(to_stated[0]):  # none stated: its camera's
+            to_stated = (1.0, 1.0)
+            tag_rule.add(i)
         noisy[i] = [p < alpha and ratio >= opts.edge_noisy_ratio
                     and own * k >= opts.fit_caution_ratio for ratio, p, own, k in (
                         (e.ratio_translation, p_t, e.noise_ratio_translation, to_stated[0]),
                         (e.ratio_rotation, p_r, e.noise_ratio_rotation, to_stated[1]))]
-        if noise_estimated and not np.isfinite(to_stated[0]):  # none stated: its camera's
-            noisy[i] = [p < alpha and ratio >= opts.edge_noisy_ratio
-                        and own >= opts.fit_caution_ratio
-                        for ratio, p, own in (
-                            (e.ratio_translation, p_t, e.noise_ratio_translation),
-                            (e.ratio_rotation, p_r, e.noise_ratio_rotation))]
-            tag_rule.add(i)
     # with the noise estimated and none stated, edges clearly beyond their camera's noise name a
     # tag (every one of its two or more edges), never a lone edge: real edges differ 2-3x by
     # distance and angle (the paper's data), a tag all of whose cameras disagree with it is a
