@@ -307,3 +307,49 @@ def test_the_section_sits_before_the_excluded_edges_and_a_cut_inside_it_shows():
     assert incomplete_result({**base, "time_offsets": report.to_dict()}) == ""
     cut = {k: v for k, v in report.to_dict().items() if k != "notes"}
     assert "time_offsets" in incomplete_result({**base, "time_offsets": cut})
+
+
+def test_offsets_a_misfit_faked_are_estimated_again_without_it():
+    """offsets_then_assess: when the exclusion leaves a target out, the offsets are estimated
+    again without it, applied to all the pairs and the problem assessed again; offsets that
+    stand without it keep the first solve."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from rwhec_ros.session.time_offsets import offsets_then_assess
+
+    rng = np.random.default_rng(5)
+    data, problem, _ = scene(rng, moving, [0.0, -0.04], image_times=np.arange(0.5, 39.5, 0.05))
+
+    def estimate_faked(p, d):  # x0's misfit fakes an offset of y0 (as a wrong size does)
+        out, shifted, report = correct_time_offsets(p, d, None)
+        if any(e.x == "x0" for e in p.edges):
+            report.cameras["y0"] = dataclasses.replace(
+                report.cameras["y0"], status="estimated", estimate_s=0.03, std_s=0.001,
+                applied=True)
+        return out, shifted, report
+
+    assessed = []
+
+    def assess(p, d):  # the verdict excludes x0
+        assessed.append((p, d))
+        return SimpleNamespace(exclusion=SimpleNamespace(excluded=[SimpleNamespace(
+            name="x0", edges=("(x0, y0)", "(x0, y1)"))]))
+
+    p, d, report, _ = offsets_then_assess(problem, data, estimate_faked, assess)
+    assert len(assessed) == 2 and assessed[1][0] is p
+    # without x0: y0 has no offset, y1's is the planted one, applied to every pair (x0's too)
+    assert set(report.applied) == {"y1"} and abs(report.applied["y1"] + 0.04) <= 0.002
+    assert "without x0" in report.notes[-1] and "y0 +30.0 ms" in report.notes[-1]
+    assert set(d.time_offsets_s) == {"y1"}
+    for e, f in zip(problem.edges, p.edges, strict=True):
+        if e.y == "y0":
+            np.testing.assert_array_equal(f.A, e.A)
+        else:
+            assert not np.allclose(f.A, e.A)
+    # the offsets stand without x0: the first solve is kept
+    assessed.clear()
+    p2, _, report2, _ = offsets_then_assess(
+        problem, data, lambda p, d: correct_time_offsets(p, d, None), assess)
+    assert len(assessed) == 1 and set(report2.applied) == {"y1"} and not any(
+        "without x0" in n for n in report2.notes)

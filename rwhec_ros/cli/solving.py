@@ -55,7 +55,7 @@ def solve_and_write(
     from ..session.accuracy import AccuracyOptions
     from ..session.outputs import description_texts, launch_header, publishable
     from ..session.solving import solve_and_assess, solver_alternatives, verdict_options
-    from ..session.time_offsets import add_offset_reasons, correct_time_offsets
+    from ..session.time_offsets import add_offset_reasons, correct_time_offsets, offsets_then_assess
 
     frames = list(dataset.y_names) + list(dataset.x_names)
     for f, a, x in settings.priors:
@@ -67,12 +67,15 @@ def solve_and_write(
                  f"{settings.mode}" + (", outlier rejection" if settings.robust else ""))
     cam_carrier = next((naming.frames[n][0] for n in naming.y_names if n in naming.frames), "")
     tag_carrier = next((naming.frames[n][0] for n in naming.x_names if n in naming.frames), "")
-    try:
-        problem, dataset, offsets = correct_time_offsets(
-            problem, dataset, config, mode=settings.mode, priors=settings.priors,
+
+    def estimate(p, d):
+        return correct_time_offsets(
+            p, d, config, mode=settings.mode, priors=settings.priors,
             unobservable_std_m=settings.unobservable_std_m, min_scale=settings.min_scale,
             reject_outliers=settings.robust, noise=settings.noise_options(noise_given))
-        solved = solve_and_assess(
+
+    def assess(problem, dataset):
+        return solve_and_assess(
             problem, mode=settings.mode, reject_outliers=settings.robust,
             priors=settings.priors, unobservable_std_m=settings.unobservable_std_m,
             min_scale=settings.min_scale, sdp_backend=settings.sdp_backend,
@@ -83,6 +86,10 @@ def solve_and_write(
                                      moving=_moving(config)),
             corners=corner_data(dataset), noise=settings.noise_options(noise_given),
             on_phase=run.enter, refine=settings.refine)
+
+    try:
+        problem, dataset, offsets, solved = offsets_then_assess(problem, dataset, estimate,
+                                                                assess)
     except Exception as exc:  # noqa: BLE001 - reported, exit code 3
         raise NoSolution(
             f"the solver stopped with an error in mode {settings.mode} ({type(exc).__name__}: "

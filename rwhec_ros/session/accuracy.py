@@ -78,6 +78,14 @@ class AccuracyOptions:
         if self.moving not in ("x", "y"):
             raise ValueError(f"moving: expected 'x' or 'y', got {self.moving!r}")
 
+    @classmethod
+    def from_config(cls, c) -> AccuracyOptions:
+        """``accuracy.*`` of a :class:`~rwhec_ros.config.CalibratorConfig`; the guidance moves
+        the carrier that moves (the camera carrier unless only the tag carrier does)."""
+        moving = "x" if c.tag_carrier.moving and not c.camera_carrier.moving else "y"
+        return cls(folds=c.accuracy.cross_validation_folds, guidance=c.accuracy.guidance,
+                   moving=moving)
+
 
 def std_words(t_m: float, r_deg: float) -> str:
     """``+-1.2 mm, +-0.05 deg`` (``not determined`` for an infinite std)."""

@@ -45,7 +45,7 @@ from .outputs import publishable, session_dataset, summary, write_session_output
 from .paths import plain_output_root
 from .rejections import RejectionLog
 from .solving import make_tracker, noise_options, report_dict, solve_and_assess, verdict_options
-from .time_offsets import add_offset_reasons, correct_time_offsets
+from .time_offsets import add_offset_reasons, correct_time_offsets, offsets_then_assess
 
 __all__ = ["CalibrationSession"]
 
@@ -415,20 +415,25 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 message = too_few_pairs_words(counts, c.solver.min_pairs, "solver.min_pairs") \
                     + f"; the {n} pairs are kept"
             return SolveOutcome(False, message, excluded=excl, identifiability=ident)
-        try:
-            problem, dataset, offsets = correct_time_offsets(
-                problem, dataset, c, mode=c.solver.mode, priors=c.priors.entries,
+        def estimate(p, d):
+            return correct_time_offsets(
+                p, d, c, mode=c.solver.mode, priors=c.priors.entries,
                 unobservable_std_m=c.solver.unobservable_std_m, min_scale=c.solver.min_scale,
                 reject_outliers=c.solver.reject_outliers, noise=noise_options(c.noise))
-            solved = solve_and_assess(
-                problem, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
+
+        def assess(p, d):
+            return solve_and_assess(
+                p, mode=c.solver.mode, reject_outliers=c.solver.reject_outliers,
                 priors=c.priors.entries, unobservable_std_m=c.solver.unobservable_std_m,
                 min_scale=c.solver.min_scale, sdp_backend=c.solver.sdp_backend,
                 thresholds=verdict_options(c.verdict),
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
-                accuracy=self._accuracy_options(), corners=corner_data(dataset),
+                accuracy=AccuracyOptions.from_config(c), corners=corner_data(d),
                 noise=noise_options(c.noise), on_phase=on_phase, refine=c.solver.refine)
+        try:
+            problem, dataset, offsets, solved = offsets_then_assess(problem, dataset, estimate,
+                                                                    assess)
         except Exception as exc:  # noqa: BLE001 - reported to the caller, data kept
             return SolveOutcome(
                 False, f"the solver stopped with an error in mode {c.solver.mode} "
@@ -460,14 +465,6 @@ class CalibrationSession(ImageInput, CaptureMixin):
             f"\nWRITING THE OUTPUTS FAILED: {write_error}" if write_error else "")
         return SolveOutcome(True, message, result, excl, files, ident, text, verdict,
                             solved.accuracy, write_error, time_offsets=offsets)
-
-    def _accuracy_options(self) -> AccuracyOptions:
-        """``accuracy.*`` of the configuration; the guidance moves the carrier that moves (the
-        camera carrier unless only the tag carrier does)."""
-        c = self.config
-        moving = "x" if c.tag_carrier.moving and not c.camera_carrier.moving else "y"
-        return AccuracyOptions(folds=c.accuracy.cross_validation_folds,
-                               guidance=c.accuracy.guidance, moving=moving)
 
     # --- outputs -----------------------------------------------------------------------------
     def published_transforms(self, result: CalibrationResult, verdict: Verdict | None = None

@@ -56,7 +56,8 @@ from .time_offset_report import (
 __all__ = ["TimeOffsetOptions", "CameraOffset", "TimeOffsetReport", "estimate_offsets",
            "one_step_offsets", "add_offset_reasons", "shift_dataset",
            "MOVING_SPEED_M_S", "MOVING_RATE_RAD_S", "MIN_MOVING_PAIRS", "SIGNIFICANT_SIGMAS",
-           "CAUTION_S", "MAX_ITERATIONS", "correct_time_offsets", "live_offsets"]
+           "CAUTION_S", "MAX_ITERATIONS", "correct_time_offsets", "live_offsets",
+           "offsets_then_assess"]
 
 _NS = 1_000_000_000
 #: A pair counts as moving when the stream moved faster than this [m/s] ...
@@ -312,18 +313,27 @@ def _estimate_offsets(problem, stamps, track, options, solve_fn):
                      f"{MAX_ITERATIONS} Newton steps")
     cams = _judge(problem, options, delta, step, moving_counts, clipped)
     report = TimeOffsetReport(cams, iterations, solves, 0.0, options.range_s, notes)
-    applied = np.array([cams[c].estimate_s if cams[c].applied else 0.0
-                        for c in problem.y_names])
-    out = problem
-    if applied.any():
-        out, masks = _reinterpolated(problem, st, track, np.round(applied * _NS).astype(np.int64))
-        for m, e in zip(masks, problem.edges, strict=True):
-            cams[e.y].dropped += int((~m).sum())
-        out = Problem(out.x_names, out.y_names,
-                      [Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa)
-                       for e in out.edges], unknown_scale=out.unknown_scale)
+    out = _shifted(problem, st, track, report)
     report.elapsed_s = time.perf_counter() - t0
     return report, out
+
+
+def _shifted(problem: Problem, st: list[np.ndarray], track: PoseTrackData,
+             report: TimeOffsetReport) -> Problem:
+    """``problem`` with the pairs of the cameras whose offset ``report`` applies re-interpolated
+    at the corrected stamps (``st``: per edge); the pairs the stream does not reach there are
+    left out and counted in the cameras' :attr:`CameraOffset.dropped`."""
+    applied = report.applied
+    shift = np.array([applied.get(c, 0.0) for c in problem.y_names])
+    if not shift.any():
+        return problem
+    out, masks = _reinterpolated(problem, st, track, np.round(shift * _NS).astype(np.int64))
+    for m, e in zip(masks, problem.edges, strict=True):
+        if e.y in report.cameras:
+            report.cameras[e.y].dropped += int((~m).sum())
+    return Problem(out.x_names, out.y_names,
+                   [Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa)
+                    for e in out.edges], unknown_scale=out.unknown_scale)
 
 
 def one_step_offsets(problem: Problem, result, stamps: Mapping[tuple[str, str], np.ndarray],
@@ -481,6 +491,51 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
     except Exception as exc:  # noqa: BLE001 - an extra of the calibration, never its failure
         why = f"the estimate failed: {type(exc).__name__}: {exc}"
         return problem, dataset, _not(problem, options, "not_estimated", why)
+
+
+def offsets_then_assess(problem: Problem, dataset, estimate: Callable, assess: Callable):
+    """The calibrate step's time offsets and solve, in order: ``estimate(problem, dataset) ->
+    (problem, dataset, report)`` (:func:`correct_time_offsets` with the caller's options), then
+    ``assess(problem, dataset) -> Solved`` (:func:`~rwhec_ros.session.solving.solve_and_assess`
+    with the caller's options). When the assessment's exclusion left targets or edges out
+    (:mod:`rwhec_ros.core.verdict.exclusion`) and offsets were applied, the offsets are estimated
+    again without them, applied to all the pairs, and the problem is assessed again: a target
+    that does not fit (a wrong size, a move) leaves residuals that grow with the motion, which
+    an offset partly explains (with ``--robust``, a tag of the rendered rig configured 10 %
+    too small made a camera's offset 48-52 ms, applied, and that camera 1-2 deg off). The
+    estimate without them then says whether the offsets were real; when it applies the same
+    offsets (the same cameras, each within its std), the first solve stands. Returns ``(problem, dataset, report, solved)``."""
+    p, d, report = estimate(problem, dataset)
+    solved = assess(p, d)
+    ex = solved.exclusion
+    if not report.applied or ex is None or not ex.excluded or dataset is None:
+        return p, d, report, solved
+    gone = {n for m in ex.excluded for n in m.edges}
+    rest = [e for e in problem.edges if e.name not in gone]
+    if not rest:
+        return p, d, report, solved
+    import dataclasses
+
+    rest_d = dataclasses.replace(dataset, edges=tuple(
+        e for e in dataset.edges if f"({e.x}, {e.y})" not in gone))
+    again = estimate(problem.with_edges(rest), rest_d)[2]
+    first, second = report.applied, again.applied
+    if set(first) == set(second) and all(abs(first[c] - v) <= again.cameras[c].std_s
+                                         for c, v in second.items()):
+        return p, d, report, solved  # the same offsets (within their std): the solve stands
+    stamps = {(e.x, e.y): e.stamps_ns for e in dataset.edges}
+    st = _check_stamps(problem, stamps)
+    if st is None:
+        return p, d, report, solved
+    for o in again.cameras.values():
+        o.dropped = 0  # counted again on all the pairs
+    out = _shifted(problem, st, dataset.pose_stream, again)
+    names = ", ".join(m.name for m in ex.excluded)
+    again.notes.append(f"estimated without {names} (excluded by the verdict: it does not fit); "
+                       f"with it the estimate applied " + (", ".join(
+                           f"{c} {1e3 * v:+.1f} ms" for c, v in report.applied.items())))
+    d2 = shift_dataset(dataset, again, dataset.pose_stream)
+    return out, d2, again, assess(out, d2)
 
 
 def live_offsets(problem, result, snap, config, cache: dict):

@@ -37,7 +37,7 @@ published).
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -71,6 +71,8 @@ class Misfit:
         2.7x, ...)``).
     noise_ratio_without : float
         The a-posteriori noise ratio of the rest solved without it (``nan``: not tried).
+    causes : str
+        Its likely causes, in words (the verdict's reason; a size found wrong says so).
     """
 
     kind: str
@@ -79,6 +81,7 @@ class Misfit:
     pairs: int
     finding: str
     noise_ratio_without: float = float("nan")
+    causes: str = "its size is wrong, it moved during the recording, or its pose flips"
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, "name": self.name, "edges": list(self.edges),
@@ -332,6 +335,25 @@ def misfits(fit: FitStatistics | None, given: Problem, *,
     return list(out.values())
 
 
+def size_misfits(attempt: Attempt, given: Problem, found: list[Misfit],
+                 options: VerdictOptions) -> list[Misfit]:
+    """The tags whose size disagrees with the other tags' (:mod:`.tag_scale_check`) and are not
+    among the ``found`` candidates as a tag already (an edge of it may be: the choice tries
+    both), as candidates for exclusion (module docstring, step 1): a tag 10 % too small hides
+    among the edges' statistics once the noise is estimated per camera."""
+    from .tag_scale_check import scale_misfit_tags
+
+    named = {m.name for m in found if m.kind == "tag"}
+    by_tag: dict[str, list[str]] = {}
+    sizes = {e.name: e.n for e in given.edges}
+    for e in given.edges:
+        by_tag.setdefault(e.x, []).append(e.name)
+    return [Misfit("tag", s.tag, tuple(by_tag[s.tag]), sum(sizes[n] for n in by_tag[s.tag]),
+                   s.words(), causes="its size is wrong (or it is another tag)")
+            for s in scale_misfit_tags(attempt.problem, attempt.result, options)
+            if s.tag in by_tag and s.tag not in named]
+
+
 #: At most this many candidates are tried per exclusion (those with the largest share of the
 #: misfit, :func:`_misfit_chi2`): each trial is a solve.
 _MAX_TRIALS = 6
@@ -376,7 +398,7 @@ def choose(candidates: list[Misfit], solved: Problem, options: VerdictOptions,
                 pass
         if not np.isfinite(ratio):
             ratio = float("inf")
-        scored.append(Misfit(m.kind, m.name, m.edges, m.pairs, m.finding, ratio))
+        scored.append(replace(m, noise_ratio_without=ratio))
     scored.sort(key=lambda m: (m.noise_ratio_without, m.pairs))
     return scored
 
@@ -487,6 +509,7 @@ def exclude_misfits(
             break
         cands = misfits(fit, given, rejected=current.rejected, options=opts,
                         excluded=[n for m in exclusion.excluded for n in m.edges])
+        cands += size_misfits(current, given, cands, opts)
         if not cands:
             break
         if len(exclusion.excluded) >= opts.exclusion_max_rounds:
@@ -545,8 +568,8 @@ def exclusion_reasons(b: Builder, exclusion: Exclusion | None) -> None:
             f = b.frames.get(m.name)
             if f is not None:
                 f.calibrated = False
-            text = (f"{m.name}: excluded and not calibrated: {m.finding}: its size is wrong, it "
-                    f"moved during the recording, or its pose flips{moved}; {note}; check "
+            text = (f"{m.name}: excluded and not calibrated: {m.finding}: {m.causes}{moved}; "
+                    f"{note}; check "
                     f"{m.name} (its size in tags.sizes, that it is fixed) or remove it from "
                     "tags.ids")
             b.add("unusable", "excluded", text, [m.name], why="excluded: does not fit")
