@@ -243,3 +243,30 @@ def test_cli_no_refine(tmp_path, refined):
     page = (tmp_path / "report" / "report.html").read_text()
     assert f"<h2>{REFINEMENT_HEADING}</h2>" in page
     assert docs["--report"]["certificate_scope"] in page
+
+
+def test_the_refinement_gets_the_corners_of_the_pairs_solved_only():
+    """session.solving._kept_corners: the corners of an edge dropped (excluded, wholly
+    rejected) and of the pairs the outlier rejection left out do not reach the refinement and
+    the reprojection figures (a flipped tag's views rendered flipped have the flipped pose's
+    corners: with them, --robust published cameras 3-5 std off)."""
+    from rwhec_ros.core.problem import Edge, Problem
+    from rwhec_ros.session.solving import _kept_corners
+    from rwhec_ros.vision.reprojection import CornerObservation
+
+    rng = np.random.default_rng(0)
+    A = np.array([make_transform(so3_exp(rng.normal(size=3)), rng.normal(size=3))
+                  for _ in range(5)])
+    B = np.array([make_transform(so3_exp(rng.normal(size=3)), rng.normal(size=3))
+                  for _ in range(5)])
+    problem = Problem(["t0", "t1"], ["c0"], [Edge.build("t0", "c0", A, B, sigma=0.01, kappa=1e3),
+                                             Edge.build("t1", "c0", A, B, sigma=0.01, kappa=1e3)])
+    px = np.zeros((4, 2))
+    obs = [CornerObservation(x, "c0", a + 1e-12, px, 0.1) for x in ("t0", "t1") for a in A]
+    corners = (obs, {})
+    assert _kept_corners(corners, problem, {}, {}) is corners
+    kept, _ = _kept_corners(corners, problem, {}, {"(t0, c0)": [1, 3]})
+    assert [(o.x, i) for o in kept for i, a in enumerate(A) if np.allclose(o.A, a)] == [
+        ("t0", 0), ("t0", 2), ("t0", 4), ("t1", 0), ("t1", 1), ("t1", 2), ("t1", 3), ("t1", 4)]
+    kept, _ = _kept_corners(corners, problem, {"(t1, c0)": "excluded"}, {"(t0, c0)": [0]})
+    assert len(kept) == 4 and all(o.x == "t0" for o in kept)

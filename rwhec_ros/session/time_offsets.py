@@ -504,7 +504,8 @@ def offsets_then_assess(problem: Problem, dataset, estimate: Callable, assess: C
     an offset partly explains (with ``--robust``, a tag of the rendered rig configured 10 %
     too small made a camera's offset 48-52 ms, applied, and that camera 1-2 deg off). The
     estimate without them then says whether the offsets were real; when it applies the same
-    offsets (the same cameras, each within its std), the first solve stands. Returns ``(problem, dataset, report, solved)``."""
+    offsets (the same cameras, each within its std), the first solve stands. Returns
+    ``(problem, dataset, report, solved)``."""
     p, d, report = estimate(problem, dataset)
     solved = assess(p, d)
     ex = solved.exclusion

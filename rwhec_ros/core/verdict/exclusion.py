@@ -14,7 +14,12 @@ between the solve and the verdict:
    (``VerdictOptions.exclusion_rejected_share``), because what is left of it is the few pairs
    that happen to agree, not a measurement of it. A camera all of whose edges
    fit badly is *not* a candidate: its intrinsics or time stamps are wrong, and no target's
-   exclusion mends that (the verdict names it);
+   exclusion mends that (the verdict names it). Two findings the edge statistics miss once the
+   noise is estimated per camera (:mod:`.hidden_misfits`): a tag whose size disagrees with the
+   other tags' (:mod:`.tag_scale_check`), and the shared tags of a camera whose estimated noise
+   is far above the other cameras' (a tag that moved while that camera saw it pulls the camera
+   and every edge of it), each excluded only when the re-solve without it brings that camera's
+   noise back among the others';
 2. the **choice** (:func:`choose`): each candidate is left out in turn and the rest solved again
    (mode ``fast``): the one whose exclusion makes the rest fit best (smallest a-posteriori noise
    ratio, :attr:`.fit.FitStatistics.noise_ratio`) is excluded. One at a time, because a bad
@@ -73,6 +78,9 @@ class Misfit:
         The a-posteriori noise ratio of the rest solved without it (``nan``: not tried).
     causes : str
         Its likely causes, in words (the verdict's reason; a size found wrong says so).
+    camera : str
+        A candidate for the misfit of this camera (:func:`.hidden_misfits.camera_misfits`):
+        excluded only when the re-solve shows that it explains it.
     """
 
     kind: str
@@ -82,6 +90,7 @@ class Misfit:
     finding: str
     noise_ratio_without: float = float("nan")
     causes: str = "its size is wrong, it moved during the recording, or its pose flips"
+    camera: str = ""
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, "name": self.name, "edges": list(self.edges),
@@ -241,13 +250,15 @@ class Attempt:
     rejection: the inlier problem), the pairs it rejected (edge ``"(x, y)"`` -> count),
     whatever else the caller keeps (``extra``, returned untouched) and whether the problem's
     weights are the noise estimated from the data (``noise_estimated``: an edge is then flagged
-    only by its ratio to the median edge, :func:`~.fit.goodness_of_fit`)."""
+    only by its ratio to the median edge, :func:`~.fit.goodness_of_fit`), and the estimate
+    (``noise``: :class:`~rwhec_ros.core.noise.NoiseEstimate` or None)."""
 
     result: CalibrationResult
     problem: Problem
     rejected: Mapping[str, int] = field(default_factory=dict)
     extra: object = None
     noise_estimated: bool = False
+    noise: object = None
 
 
 # ------------------------------------------------------------------------------------------------
@@ -333,25 +344,6 @@ def misfits(fit: FitStatistics | None, given: Problem, *,
                 out[name] = Misfit("edge", name, (name,), n,
                                    f"the outlier rejection left out {gone} of its {n} pairs")
     return list(out.values())
-
-
-def size_misfits(attempt: Attempt, given: Problem, found: list[Misfit],
-                 options: VerdictOptions) -> list[Misfit]:
-    """The tags whose size disagrees with the other tags' (:mod:`.tag_scale_check`) and are not
-    among the ``found`` candidates as a tag already (an edge of it may be: the choice tries
-    both), as candidates for exclusion (module docstring, step 1): a tag 10 % too small hides
-    among the edges' statistics once the noise is estimated per camera."""
-    from .tag_scale_check import scale_misfit_tags
-
-    named = {m.name for m in found if m.kind == "tag"}
-    by_tag: dict[str, list[str]] = {}
-    sizes = {e.name: e.n for e in given.edges}
-    for e in given.edges:
-        by_tag.setdefault(e.x, []).append(e.name)
-    return [Misfit("tag", s.tag, tuple(by_tag[s.tag]), sum(sizes[n] for n in by_tag[s.tag]),
-                   s.words(), causes="its size is wrong (or it is another tag)")
-            for s in scale_misfit_tags(attempt.problem, attempt.result, options)
-            if s.tag in by_tag and s.tag not in named]
 
 
 #: At most this many candidates are tried per exclusion (those with the largest share of the
@@ -497,12 +489,15 @@ def exclude_misfits(
     (Exclusion, Attempt)
         What was excluded, and the solve to publish (``first`` when nothing was).
     """
+    from .hidden_misfits import camera_misfits, explained, judged_weights, size_misfits
+
     opts = options or VerdictOptions()
     fit = _fit(first, opts)
     exclusion = Exclusion(first=_first_solve(first, fit, problem),
                           pairs_total=problem.n_measurements,
                           pairs_kept=problem.n_measurements)
     current, given, gone = first, problem, 0
+    unexplained: set[str] = set()  # cameras whose misfit no tag's exclusion explained
     while True:
         if current.result.certificate.status is Status.SOLVER_FAILED:
             exclusion.stopped = "the solver failed"
@@ -510,6 +505,9 @@ def exclude_misfits(
         cands = misfits(fit, given, rejected=current.rejected, options=opts,
                         excluded=[n for m in exclusion.excluded for n in m.edges])
         cands += size_misfits(current, given, cands, opts)
+        named = {m.name for m in cands}
+        cands += [m for m in camera_misfits(current, given, opts)
+                  if m.camera not in unexplained and m.name not in named]
         if not cands:
             break
         if len(exclusion.excluded) >= opts.exclusion_max_rounds:
@@ -526,7 +524,7 @@ def exclude_misfits(
             exclusion.remaining = tuple(m.name for m in cands)
             break
         fits = sorted(fits, key=lambda m: -_misfit_chi2(m, fit))[:_MAX_TRIALS]
-        best = choose(fits, current.problem, opts, solve_options)[0]
+        best = choose(fits, judged_weights(current.problem, fits), opts, solve_options)[0]
         rest = _without(given, best.edges)
         if rest is None:
             exclusion.stopped = f"excluding {best.name} would leave no data"
@@ -539,6 +537,12 @@ def exclude_misfits(
                                  f"{exc})")
             exclusion.remaining = tuple(m.name for m in cands)
             break
+        if best.camera:
+            checked = explained(best, current, attempt, opts)
+            if checked is None:  # not this tag's: the camera's own (intrinsics, stamps)
+                unexplained.add(best.camera)
+                continue
+            best = checked
         _add(exclusion.excluded, best)
         gone += best.pairs
         given, current = rest, attempt
