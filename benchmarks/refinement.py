@@ -42,8 +42,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # real_sets
 
 from rwhec_ros.cli.replay import demo_parameters  # noqa: E402
 from rwhec_ros.config import CalibratorConfig  # noqa: E402
@@ -225,6 +227,23 @@ def _solve_both(problem, corners, moving):
     return rec.certified or solved.result, solved.result, rec
 
 
+def _refitted_intrinsics(folder: Path, tmp: Path) -> str:
+    """The set's intrinsics refitted by ``cv2.calibrateCamera`` from its chessboard views
+    (``benchmarks/real_sets.py``, as ``real_data.py`` uses them), written as a ROS
+    camera_calibration YAML; its path."""
+    from real_sets import load_set
+
+    K = load_set(folder).intrinsics
+    doc = {"image_width": int(K.width), "image_height": int(K.height),
+           "camera_matrix": {"rows": 3, "cols": 3, "data": [float(v) for v in K.K.ravel()]},
+           "distortion_model": K.model,
+           "distortion_coefficients": {"rows": 1, "cols": int(K.D.size),
+                                       "data": [float(v) for v in K.D]}}
+    path = tmp / "intrinsics.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return str(path)
+
+
 def real_table() -> list[str]:
     from rwhec_ros.cli import main
     from rwhec_ros.config.specs import TARGET_TYPES
@@ -250,8 +269,14 @@ def real_table() -> list[str]:
                          "`targets` branch adds it)")
             continue
         with tempfile.TemporaryDirectory() as tmp:
+            extra = []
+            if kind == "chessboard":  # no intrinsics shipped: refitted as real_data.py does
+                from real_sets import MOUNTS
+
+                extra = ["--intrinsics", _refitted_intrinsics(folder, Path(tmp)),
+                         f"--{MOUNTS[name].replace('_', '-')}"]
             code = main(["samples", str(folder), "-o", f"{tmp}/out", "-q", "--folds", "0",
-                         "--no-guidance"], stdout=io.StringIO(), stderr=io.StringIO())
+                         "--no-guidance", *extra], stdout=io.StringIO(), stderr=io.StringIO())
             if not Path(f"{tmp}/out/dataset.yaml").exists():
                 notes.append(f"{name}: samples gave exit code {code} and no data set")
                 continue
