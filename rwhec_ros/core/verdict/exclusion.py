@@ -50,53 +50,14 @@ from ..lie import rotation_distance, transform_to_quat_xyzw
 from ..problem import Problem
 from ..result import CalibrationResult, Status
 from .fit import EdgeFit, FitStatistics, goodness_of_fit
+from .hidden_misfits import camera_misfits, explained, judged_weights, size_misfits
+from .misfit import Attempt, Misfit
 from .model import Builder
 from .options import VerdictOptions
 from .words import deg, mm, names, times
 
 __all__ = ["Misfit", "FrameShift", "FirstSolve", "Exclusion", "Attempt", "misfits", "choose",
            "exclude_misfits", "frame_shifts", "exclusion_reasons"]
-
-@dataclass(frozen=True)
-class Misfit:
-    """A target or an edge that does not fit (a candidate for exclusion).
-
-    Attributes
-    ----------
-    kind : str
-        ``"tag"`` (every edge of the target) or ``"edge"``.
-    name : str
-        The tag's name, or the edge ``"(x, y)"``.
-    edges : tuple of str
-        The edges ``"(x, y)"`` it stands for (in the data given to the solve).
-    pairs : int
-        Their pairs.
-    finding : str
-        What was found, in words (``every edge of tag_2 fits far worse than the others (cam0
-        2.7x, ...)``).
-    noise_ratio_without : float
-        The a-posteriori noise ratio of the rest solved without it (``nan``: not tried).
-    causes : str
-        Its likely causes, in words (the verdict's reason; a size found wrong says so).
-    camera : str
-        A candidate for the misfit of this camera (:func:`.hidden_misfits.camera_misfits`):
-        excluded only when the re-solve shows that it explains it.
-    """
-
-    kind: str
-    name: str
-    edges: tuple[str, ...]
-    pairs: int
-    finding: str
-    noise_ratio_without: float = float("nan")
-    causes: str = "its size is wrong, it moved during the recording, or its pose flips"
-    camera: str = ""
-
-    def to_dict(self) -> dict:
-        return {"kind": self.kind, "name": self.name, "edges": list(self.edges),
-                "pairs": int(self.pairs), "finding": self.finding,
-                "noise_ratio_without": float(self.noise_ratio_without)}
-
 
 @dataclass(frozen=True)
 class FrameShift:
@@ -242,23 +203,6 @@ class Exclusion:
         return (f"the published estimate is the solve of the remaining {self.pairs_kept} of "
                 f"{self.pairs_total} pairs (without {names([m.name for m in self.excluded])}); "
                 "its certificate is for that problem")
-
-
-@dataclass
-class Attempt:
-    """One solve of the caller's solver: the ``result``, the ``problem`` it solved (with outlier
-    rejection: the inlier problem), the pairs it rejected (edge ``"(x, y)"`` -> count),
-    whatever else the caller keeps (``extra``, returned untouched) and whether the problem's
-    weights are the noise estimated from the data (``noise_estimated``: an edge is then flagged
-    only by its ratio to the median edge, :func:`~.fit.goodness_of_fit`), and the estimate
-    (``noise``: :class:`~rwhec_ros.core.noise.NoiseEstimate` or None)."""
-
-    result: CalibrationResult
-    problem: Problem
-    rejected: Mapping[str, int] = field(default_factory=dict)
-    extra: object = None
-    noise_estimated: bool = False
-    noise: object = None
 
 
 # ------------------------------------------------------------------------------------------------
@@ -489,8 +433,6 @@ def exclude_misfits(
     (Exclusion, Attempt)
         What was excluded, and the solve to publish (``first`` when nothing was).
     """
-    from .hidden_misfits import camera_misfits, explained, judged_weights, size_misfits
-
     opts = options or VerdictOptions()
     fit = _fit(first, opts)
     exclusion = Exclusion(first=_first_solve(first, fit, problem),

@@ -25,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..problem import Edge, Problem
-from .exclusion import Attempt, Misfit
+from .misfit import Attempt, Misfit
 from .options import VerdictOptions
 from .words import times
 
