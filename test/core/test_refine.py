@@ -346,7 +346,13 @@ def test_auto_keeps_the_fit_that_predicts_unseen_corners_better():
     r = refine_views(_views(obs, 3, 2), cams, X, Y, 1.0, False)
     assert r.model == "pose_noise", r.held_out_rms_px
     assert set(r.held_out_rms_px) == {"pose_noise", "plain"}
+    # 6 pose samples: 3 folds of 2 (a real chessboard set has 6 views); an exact stream: both
+    # predict alike, the fit with pose errors stays
     obs, cams, X, Y = _scene(np.random.default_rng(10), G=6)
+    r = refine_views(_views(obs, 3, 2), cams, X, Y, 1.0, False)
+    assert r.model == "pose_noise" and set(r.held_out_rms_px) == {"pose_noise", "plain"}
+    # 3 pose samples: no fold of two; the fit with pose errors kept, with a note
+    obs, cams, X, Y = _scene(np.random.default_rng(11), G=3)
     r = refine_views(_views(obs, 3, 2), cams, X, Y, 1.0, False)
     assert r.model == "pose_noise" and not r.held_out_rms_px
     assert "too few" in r.notes[0]
