@@ -69,8 +69,31 @@ def _grid_labels(cols: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
     return a, b
 
 
+class _Grid:
+    """What a grid without coded markers has: ``cols`` x ``rows`` points found by OpenCV's
+    grid detectors (a chessboard's inner corners, a circle grid's centres)."""
+
+    cols: int
+    rows: int
+
+    @property
+    def marker_ids(self) -> tuple[int, ...]:
+        """No coded markers."""
+        return ()
+
+    @property
+    def pattern_size(self) -> tuple[int, int]:
+        """OpenCV's ``patternSize`` ``(cols, rows)``."""
+        return self.cols, self.rows
+
+    @property
+    def n_corners(self) -> int:
+        """Points of the grid (the points of a pose)."""
+        return self.cols * self.rows
+
+
 @dataclass(frozen=True)
-class ChessboardSpec:
+class ChessboardSpec(_Grid):
     """A plain chessboard (module docstring for the layout and the frame).
 
     Attributes
@@ -101,20 +124,6 @@ class ChessboardSpec:
                 f"{self.cols + 1} x {self.rows + 1} squares) make a board that looks the same "
                 f"turned by 180 degrees, so its corner order can flip between views; use a "
                 f"board with one odd and one even number of squares (e.g. 9 x 6 inner corners)")
-
-    @property
-    def marker_ids(self) -> tuple[int, ...]:
-        """No coded markers."""
-        return ()
-
-    @property
-    def pattern_size(self) -> tuple[int, int]:
-        """OpenCV's ``patternSize`` ``(cols, rows)``."""
-        return self.cols, self.rows
-
-    @property
-    def n_corners(self) -> int:
-        return self.cols * self.rows
 
     @property
     def pitch(self) -> float:
@@ -160,7 +169,7 @@ class ChessboardSpec:
 
 
 @dataclass(frozen=True)
-class CircleGridSpec:
+class CircleGridSpec(_Grid):
     """A grid of dark circles (module docstring for the layouts and the frame).
 
     Attributes
@@ -225,21 +234,6 @@ class CircleGridSpec:
     def kind(self) -> str:
         """``"asymmetric_circles"`` or ``"circles"``."""
         return "asymmetric_circles" if self.asymmetric else "circles"
-
-    @property
-    def marker_ids(self) -> tuple[int, ...]:
-        """No coded markers."""
-        return ()
-
-    @property
-    def pattern_size(self) -> tuple[int, int]:
-        """OpenCV's ``patternSize`` ``(cols, rows)``."""
-        return self.cols, self.rows
-
-    @property
-    def n_corners(self) -> int:
-        """Circles of the grid (the points of a pose)."""
-        return self.cols * self.rows
 
     @property
     def pitch(self) -> float:
