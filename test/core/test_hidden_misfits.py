@@ -150,3 +150,14 @@ def test_a_camera_with_its_own_fault_keeps_its_tags():
     assert far == ["cam0"]  # the camera candidates were tried (measured: 14.6x) ...
     assert not any(m.camera for m in solved.exclusion.excluded)  # ... and none explained it
     assert any(r.code == "camera" and "cam0" in r.message for r in solved.verdict.reasons)
+
+
+def test_a_tag_found_by_its_edges_gets_its_size_in_the_finding():
+    """A tag 25 % too small is found by its edges (every one far worse than the others); the
+    size check adds what its size is, so the reason names the fix."""
+    _, problem = rig_pairs(np.random.default_rng(8), size_factor=0.75)
+    solved = solve_and_assess(problem, accuracy=FAST, noise=NoiseOptions(given="stated"))
+    (m,) = solved.exclusion.excluded
+    assert m.name == "tag_2" and "~25 % too small" in m.finding
+    assert m.causes.startswith("its size is wrong")
+    assert any("true size = configured / 0.7" in r.message for r in solved.verdict.reasons)

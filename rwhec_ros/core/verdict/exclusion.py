@@ -446,7 +446,7 @@ def exclude_misfits(
             break
         cands = misfits(fit, given, rejected=current.rejected, options=opts,
                         excluded=[n for m in exclusion.excluded for n in m.edges])
-        cands += size_misfits(current, given, cands, opts)
+        cands = size_misfits(current, given, cands, opts)
         named = {m.name for m in cands}
         cands += [m for m in camera_misfits(current, given, opts)
                   if m.camera not in unexplained and m.name not in named]

@@ -34,18 +34,22 @@ __all__ = ["size_misfits", "camera_misfits", "explained", "judged_weights"]
 
 def size_misfits(attempt: Attempt, given: Problem, found: list[Misfit],
                  options: VerdictOptions) -> list[Misfit]:
-    """The tags whose size disagrees with the other tags' (:mod:`.tag_scale_check`) and are not
-    among the ``found`` candidates as a tag already (an edge of it may be: the choice tries
-    both)."""
+    """``found`` and the tags whose size disagrees with the other tags'
+    (:mod:`.tag_scale_check`): a tag ``found`` already (by its edges) gets the size in its
+    finding and causes (the fix: its true size), any other is added as a candidate (an edge of
+    it may be one: the choice tries both)."""
     from .tag_scale_check import scale_misfit_tags
 
-    named = {m.name for m in found if m.kind == "tag"}
     by_tag = _by_tag(given)
     sizes = {e.name: e.n for e in given.edges}
-    return [Misfit("tag", s.tag, tuple(by_tag[s.tag]), sum(sizes[n] for n in by_tag[s.tag]),
-                   s.words(), causes="its size is wrong (or it is another tag)")
-            for s in scale_misfit_tags(attempt.problem, attempt.result, options)
-            if s.tag in by_tag and s.tag not in named]
+    off = {s.tag: s for s in scale_misfit_tags(attempt.problem, attempt.result, options)
+           if s.tag in by_tag}
+    causes = "its size is wrong (or it is another tag)"
+    out = [replace(m, finding=f"{m.finding}; {off[m.name].words()}", causes=causes)
+           if m.kind == "tag" and m.name in off else m for m in found]
+    named = {m.name for m in found if m.kind == "tag"}
+    return out + [Misfit("tag", t, tuple(by_tag[t]), sum(sizes[n] for n in by_tag[t]),
+                         s.words(), causes=causes) for t, s in off.items() if t not in named]
 
 
 def _by_tag(problem: Problem) -> dict[str, list[str]]:
