@@ -97,9 +97,11 @@ def explained(m: Misfit, before: Attempt, after: Attempt, options: VerdictOption
         return None
     what, q = _far(before.noise, options).get(m.camera, ("translation", float("nan")))
     q_after = _ratio(after.noise, m.camera, what)
+    now = f"{times(q_after)}" if np.isfinite(q_after) else "among the others'"
+    was = f"{times(q)} the other cameras'" if np.isfinite(q) else "far above the other cameras'"
     return replace(m, finding=(
-        f"{m.camera}'s {what} noise is {times(q)} the other cameras' with {m.name} and "
-        f"{times(q_after)} without it: {m.name} does not fit where {m.camera} saw it"),
+        f"{m.camera}'s {what} noise is {was} with {m.name} and {now} without it: {m.name} "
+        f"does not fit where {m.camera} saw it"),
         causes="it moved during the recording (or was bumped), its pose flips on "
                f"{m.camera}'s views, or its size is wrong")
 
