@@ -375,15 +375,18 @@ def screen_edges(sums: GroupSums, groups: NoiseGroups, names: list[str],
     return why
 
 
-def components_of(sums: GroupSums, used: np.ndarray, what: str, min_redundancy: float
-                  ) -> list[ComponentNoise]:
+def components_of(sums: GroupSums, used: np.ndarray, what: str, min_redundancy: float,
+                  keep_given: np.ndarray | None = None) -> list[ComponentNoise]:
     """The components (one per group) of ``what`` (``"translation"``/``"rotation"``) from the
     sums at a solution whose weights have the variance factors ``used`` (G,) on the given ones:
-    own estimate, pool, the other groups' estimate or the given value (module docstring)."""
+    own estimate, pool, the other groups' estimate or the given value (module docstring);
+    ``keep_given`` (G,) bool: components held at their given value (:func:`estimate_noise`)."""
     chi = np.asarray(getattr(sums, f"chi2_{what}"), float)
     r = np.asarray(getattr(sums, f"redundancy_{what}"), float)
     G = chi.shape[0]
     rounding = (chi <= _ROUNDING_FACTOR * np.maximum(r, 1.0))  # exact data: keep as given
+    if keep_given is not None:
+        rounding = rounding | np.asarray(keep_given, bool)
     own = (r >= min_redundancy) & ~rounding
     factor, source, dof = np.ones(G), ["given"] * G, np.zeros(G)
     factor[own] = used[own] * chi[own] / r[own]
@@ -415,6 +418,7 @@ def estimate_noise(
     given: Problem | None = None,
     used: dict[str, tuple[float, float]] | None = None,
     groups: NoiseGroups | None = None,
+    keep_given: dict[str, tuple[bool, bool]] | None = None,
 ) -> NoiseEstimate:
     """The noise of every group of ``problem`` at its solution ``result`` (one step, module
     docstring).
@@ -436,6 +440,10 @@ def estimate_noise(
         Per group the variance factors of ``problem``'s weights on ``given``'s (default 1).
     groups : NoiseGroups, optional
         Default ``noise_groups(problem, options.groups)``.
+    keep_given : dict of str to (bool, bool), optional
+        Per group, whether its translation / rotation component stays at its given value
+        whatever its redundancy now (:func:`~.reweight.solve_with_noise`: a component found
+        below the redundancy bound once).
 
     Returns
     -------
@@ -456,8 +464,10 @@ def estimate_noise(
         sums = sums.without(groups.edge_group, mask)
     u_t = np.array([(used or {}).get(n, (1.0, 1.0))[0] for n in groups.names])
     u_r = np.array([(used or {}).get(n, (1.0, 1.0))[1] for n in groups.names])
-    comp_t = components_of(sums, u_t, "translation", opts.min_redundancy)
-    comp_r = components_of(sums, u_r, "rotation", opts.min_redundancy)
+    k_t = np.array([(keep_given or {}).get(n, (False, False))[0] for n in groups.names])
+    k_r = np.array([(keep_given or {}).get(n, (False, False))[1] for n in groups.names])
+    comp_t = components_of(sums, u_t, "translation", opts.min_redundancy, k_t)
+    comp_r = components_of(sums, u_r, "rotation", opts.min_redundancy, k_r)
     st = given.stacked()
     pg = groups.pair_group(given)
     out = []
