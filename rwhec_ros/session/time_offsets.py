@@ -32,6 +32,7 @@ as they are: zero is as good an estimate). How the offsets are reported (result,
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -412,8 +413,6 @@ def shift_dataset(dataset, report: TimeOffsetReport | None, track: PoseTrackData
     the same object when nothing was applied."""
     if dataset is None or report is None or track is None or not report.applied:
         return dataset
-    import dataclasses
-
     from ..sync.edge_pairs import DatasetEdge
 
     applied = report.applied
@@ -456,9 +455,8 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
     it (on the benchmark's 0.2 m/s bags the frames' largest error against the truth then drops
     a little in each of 4 runs, e.g. 0.535 -> 0.528 mm: the offsets' remaining error, 0.1-0.3
     ms, is that of the motion-capture noise; a noise-free stream gives 0.01-0.02 ms). An
-    unexpected error of
-    the estimate is reported as ``not_estimated`` with its message; the calibration goes on
-    with the pairs as they are."""
+    unexpected error of the estimate is reported as ``not_estimated`` with its message; the
+    calibration goes on with the pairs as they are."""
     from ..core.solve import solve
     from .solving import _solve, solve_options
 
@@ -515,8 +513,6 @@ def offsets_then_assess(problem: Problem, dataset, estimate: Callable, assess: C
     rest = [e for e in problem.edges if e.name not in gone]
     if not rest:
         return p, d, report, solved
-    import dataclasses
-
     rest_d = dataclasses.replace(dataset, edges=tuple(
         e for e in dataset.edges if f"({e.x}, {e.y})" not in gone))
     again = estimate(problem.with_edges(rest), rest_d)[2]

@@ -102,9 +102,10 @@ class TagScale:
                 f"{self.ratio:.3f})")
 
 
-def _rotations(result, names, which: str) -> dict[str, np.ndarray]:
-    return {n: np.asarray(result.transform(n))[:3, :3] for n in names if
-            n in (result.x_names if which == "X" else result.y_names)}
+def _rotations(result, names) -> dict[str, np.ndarray]:
+    """The rotations of the frames ``names`` that ``result`` has."""
+    have = set(result.x_names) | set(result.y_names)
+    return {n: np.asarray(result.transform(n))[:3, :3] for n in names if n in have}
 
 
 def tag_scales(problem: Problem, result) -> dict[str, TagScale]:
@@ -113,7 +114,7 @@ def tag_scales(problem: Problem, result) -> dict[str, TagScale]:
     such tags or when a frame of the problem is not in ``result``."""
     tags = list(dict.fromkeys(e.x for e in problem.edges))
     cams = list(dict.fromkeys(e.y for e in problem.edges))
-    RX, RY = _rotations(result, tags, "X"), _rotations(result, cams, "Y")
+    RX, RY = _rotations(result, tags), _rotations(result, cams)
     if len(RX) != len(tags) or len(RY) != len(cams):
         return {}
     pairs = {t: sum(e.n for e in problem.edges if e.x == t) for t in tags}
