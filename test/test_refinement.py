@@ -130,6 +130,40 @@ def test_the_refined_estimate_is_published_with_both_in_the_result(refined):
         assert c["rms_px_refined"] < c["rms_px_certified"]
         assert doc["reprojection"][cam]["rms_px"] == pytest.approx(c["rms_px_certified"])
         assert doc["reprojection"][cam]["rms_px_refined"] == pytest.approx(c["rms_px_refined"])
+    # the cross-validation scored the pose-level fit on the same held-out corners: the views'
+    # A found their pairs in every fold, and the refinement predicts them better
+    held = r["held_out_rms_px"]
+    assert set(held) == {"pose_noise", "plain", "certified"}, rec.refinement.notes
+    assert held[r["model"]] <= held["certified"]
+    assert not any("pose-level" in n for n in rec.refinement.notes)
+
+
+def test_the_pose_level_fit_of_a_fold_leaves_out_its_pose_samples_only():
+    """``pose_level_fit`` solves the pairs of every other pose sample; None when a held-out
+    ``A`` matches no pair (it would score data it was fitted to) or a frame loses every pair."""
+    from rwhec_ros.core.solve import SolveOptions, solve
+    from rwhec_ros.session.refinement import pose_level_fit
+
+    ds, truth = _scene(n=20)
+    problem = ds.to_problem(min_pairs=3)
+    fit = pose_level_fit(problem, SolveOptions(mode="fast", fallback_to_sdp=False))
+    all_A = np.concatenate([e.A for e in problem.edges])
+    held = np.unique(all_A, axis=0)[:3]
+    X, Y, alpha = fit(held)
+    keys = {A.tobytes() for A in held}
+    masks = [np.array([A.tobytes() not in keys for A in e.A]) for e in problem.edges]
+    assert 0 < sum((~m).sum() for m in masks) < len(all_A)
+    from rwhec_ros.core.problem import Edge, Problem
+
+    sub = Problem(problem.x_names, problem.y_names,
+                  [Edge.build(e.x, e.y, e.A[m], e.B[m], e.sigma[m], e.kappa[m])
+                   for e, m in zip(problem.edges, masks, strict=True) if m.any()])
+    ref = solve(sub, SolveOptions(mode="fast", fallback_to_sdp=False))
+    assert np.allclose(X, ref.X, atol=1e-9) and np.allclose(Y, ref.Y, atol=1e-9)
+    assert alpha == pytest.approx(1.0)
+    # an A of no pair, or every A held out: no estimate
+    assert fit(held + 1e-3) is None
+    assert fit(np.unique(all_A, axis=0)) is None
 
 
 def test_the_truth_is_nearer_after_the_refinement(refined):

@@ -4,8 +4,10 @@ After the certified solve and its accuracy (:mod:`.accuracy`), when the data kee
 and the cameras' intrinsics (:func:`rwhec_ros.data.corners.corner_data`) and ``solver.refine``
 is on, :func:`refine_solution` refines the frames on the reprojection error of every kept corner
 (:func:`rwhec_ros.core.refine.refine_views`) and decides which estimate is published
-(:func:`rwhec_ros.core.refine.decide`: the refined one when it lowers the corner residual and
-every frame stays within the uncertainties of the certified one). :func:`published_result` is the
+(:func:`rwhec_ros.core.refine.decide`: the refined one when it lowers the corner residual,
+every frame stays within the uncertainties of the certified one and it predicts the corners of
+held-out pose samples no worse than the pose-level solve of the other samples,
+:func:`pose_level_fit`). :func:`published_result` is the
 :class:`~rwhec_ros.core.result.CalibrationResult` that the outputs publish: the certified one, or
 a copy with the refined frames whose certificate is still the pose-level one and whose notes say
 so (:data:`~rwhec_ros.core.refine.SCOPE`). :class:`CornerRefinement` gives the result-YAML
@@ -27,6 +29,7 @@ from ..core.lie import transform_to_quat_xyzw
 from ..core.refine import (
     SCOPE,
     Decision,
+    PoseLevelFit,
     Refinement,
     RefinementFailed,
     RefineOptions,
@@ -37,7 +40,7 @@ from ..core.refine import (
 from ..core.result import CalibrationResult
 from ..vision.projection import IntrinsicsProjector
 
-__all__ = ["CornerRefinement", "refine_solution", "published_result"]
+__all__ = ["CornerRefinement", "refine_solution", "published_result", "pose_level_fit"]
 
 #: ``std_kind`` of a frame whose published estimate is the refined one, per kept fit.
 REFINED_STD_KIND = {
@@ -181,12 +184,50 @@ def _scope(result: CalibrationResult) -> str:
             "corner-level refinement started from it (a local estimate, not certified)")
 
 
+def pose_level_fit(problem, options) -> PoseLevelFit:
+    """The pose-level estimate of ``problem`` (the weighted pairs the certified estimate was
+    solved on) without given pose samples, for the refinement's cross-validation
+    (:data:`~rwhec_ros.core.refine.PoseLevelFit`): the pairs whose ``A`` is bit for bit one of
+    the held-out ``A`` (the views' ``A`` are their pairs') are left out and the rest solved with
+    ``options`` (:class:`~rwhec_ros.core.solve.SolveOptions`, mode ``fast``). None when a
+    held-out ``A`` matches no pair (the fold would score data it was fitted to), a frame loses
+    every pair, or the solve fails."""
+    from ..core.outliers.pairs import restrict_problem
+    from ..core.solve import solve
+
+    keys = {e.name: [np.ascontiguousarray(A).tobytes() for A in e.A] for e in problem.edges}
+
+    def fit(held_A: np.ndarray):
+        held = {np.ascontiguousarray(A).tobytes() for A in np.asarray(held_A, float)}
+        masks = {n: np.array([k not in held for k in ks], bool) for n, ks in keys.items()}
+        matched = {k for ks in keys.values() for k in ks if k in held}
+        if matched != held:
+            return None
+        try:
+            sub = restrict_problem(problem, masks, what="refinement cross-validation")
+            if {e.x for e in sub.edges} != set(problem.x_names) or \
+                    {e.y for e in sub.edges} != set(problem.y_names):
+                return None
+            res = solve(sub, options)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            return None
+        if not (np.isfinite(res.X).all() and np.isfinite(res.Y).all()):
+            return None
+        return np.array(res.X), np.array(res.Y), float(res.scale)
+
+    return fit
+
+
 def refine_solution(problem, result: CalibrationResult, corners, uncertainty=None,
-                    moving: str = "y") -> CornerRefinement:
+                    moving: str = "y", pose_level_options=None) -> CornerRefinement:
     """Refine ``result`` on ``corners`` ``(observations, intrinsics)`` and decide what is
     published (module docstring). ``uncertainty`` (the certified estimate's
     :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty`) enters the consistency check
-    a posteriori; ``moving`` is the carrier that moves (``"y"`` cameras, ``"x"`` targets).
+    a posteriori; ``moving`` is the carrier that moves (``"y"`` cameras, ``"x"`` targets);
+    ``pose_level_options`` (:class:`~rwhec_ros.core.solve.SolveOptions`; None: not compared)
+    solve ``problem`` without each cross-validation fold's pose samples, so that the refinement
+    is published only where it predicts unseen corners no worse than the pose-level estimate
+    (:func:`pose_level_fit`, :func:`~rwhec_ros.core.refine.decide`).
     Never raises for the data's sake: a refinement that cannot run says why."""
     t0 = time.perf_counter()
     out = CornerRefinement(scope=_scope(result), certified=result)
@@ -199,7 +240,9 @@ def refine_solution(problem, result: CalibrationResult, corners, uncertainty=Non
     cameras = {n: IntrinsicsProjector(intrinsics[n]) for n in result.y_names if n in intrinsics}
     try:
         ref = refine_views(views, cameras, result.X, result.Y, float(result.scale),
-                           bool(problem.unknown_scale), RefineOptions(moving=moving))
+                           bool(problem.unknown_scale), RefineOptions(moving=moving),
+                           pose_level=None if pose_level_options is None else
+                           pose_level_fit(problem, pose_level_options))
     except (RefinementFailed, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         out.skipped = f"the refinement failed ({exc})"
         out.timing_s = time.perf_counter() - t0

@@ -5,7 +5,7 @@ shared by the CLI and the node."""
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -306,8 +306,10 @@ def solve_and_assess(
         acc = assess_accuracy(solved, result, solve_options=options, options=accuracy,
                               carriers=carriers, corners=corners)
     if acc is not None and corners is not None and refine:  # the corner-level refinement
-        acc.refinement = refine_solution(solved, result, corners, acc.uncertainty,
-                                         accuracy.moving)
+        acc.refinement = refine_solution(
+            solved, result, corners, acc.uncertainty, accuracy.moving,
+            pose_level_options=replace(options, mode="fast", fallback_to_sdp=False,
+                                       initial=(result.X, result.Y)))
     with blas_threads(1):
         verdict = assess(result, solved, identifiability=ident, options=thresholds,
                          uncertainty=None if acc is None else acc.uncertainty,

@@ -20,8 +20,17 @@ published.
 """
 
 from .decision import Decision, DecisionOptions, decide
-from .estimate import MODELS, SCOPE, Refinement, RefinementFailed, RefineOptions, refine_views
+from .estimate import (
+    MODELS,
+    SCOPE,
+    PoseLevelFit,
+    Refinement,
+    RefinementFailed,
+    RefineOptions,
+    refine_views,
+)
 from .views import CornerViews, corner_views
 
 __all__ = ["CornerViews", "corner_views", "RefineOptions", "Refinement", "RefinementFailed",
-           "refine_views", "SCOPE", "MODELS", "Decision", "DecisionOptions", "decide"]
+           "refine_views", "SCOPE", "MODELS", "PoseLevelFit", "Decision", "DecisionOptions",
+           "decide"]

@@ -12,7 +12,12 @@ The refinement (:mod:`.estimate`) is published when
    6 degrees of freedom (1 for the scale), where ``C_ref`` is the refinement's covariance and
    ``C_cert`` the certified estimate's (a-posteriori, when given). Both estimates come from the
    same data, so their difference varies less than ``C_ref + C_cert`` says: a frame beyond it
-   means the two models disagree about the data, and the certified estimate is kept.
+   means the two models disagree about the data, and the certified estimate is kept;
+4. it predicts the corners of unseen pose samples no worse than the certified estimate's model:
+   where the cross-validation scored the pose-level fit too (``"certified"`` in
+   :attr:`~.estimate.Refinement.held_out_rms_px`), the kept fit's held-out RMS is at most that
+   one's. A refinement that fits its own corners better and new ones worse has fitted the noise
+   of few pose samples, not the calibration.
 
 Otherwise the certified estimate is published, and :attr:`Decision.reason` says why.
 """
@@ -108,6 +113,15 @@ def decide(refinement: Refinement, result, certified_covariances: Mapping | None
     if not refinement.cost < refinement.cost_start:
         return Decision("certified", f"the refinement does not lower the corner residual "
                         f"(robust cost {refinement.cost_start:.6g} -> {refinement.cost:.6g})",
+                        limit=limit)
+    held = refinement.held_out_rms_px
+    if "certified" in held and refinement.model in held \
+            and not held[refinement.model] <= held["certified"]:
+        return Decision("certified", f"the certified estimate predicts the corners of unseen "
+                        f"pose samples better than the refinement (held-out RMS "
+                        f"{held['certified']:.3g} px against {held[refinement.model]:.3g} px, "
+                        f"cross-validation over the pose samples): the refinement fits its own "
+                        f"corners, not the calibration; record more poses to refine",
                         limit=limit)
     dist = {}
     for name in refinement.names:
