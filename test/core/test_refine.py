@@ -346,12 +346,12 @@ def test_auto_keeps_the_fit_that_predicts_unseen_corners_better():
     r = refine_views(_views(obs, 3, 2), cams, X, Y, 1.0, False)
     assert r.model == "pose_noise", r.held_out_rms_px
     assert set(r.held_out_rms_px) == {"pose_noise", "plain"}
-    # 6 pose samples: 3 folds of 2 (a real chessboard set has 6 views); an exact stream: both
+    # 6 pose samples: leave-one-out (a real chessboard set has 6 views); an exact stream: both
     # predict alike, the fit with pose errors stays
     obs, cams, X, Y = _scene(np.random.default_rng(10), G=6)
     r = refine_views(_views(obs, 3, 2), cams, X, Y, 1.0, False)
     assert r.model == "pose_noise" and set(r.held_out_rms_px) == {"pose_noise", "plain"}
-    # 3 pose samples: no fold of two; the fit with pose errors kept, with a note
+    # 3 pose samples: no cross-validation; the fit with pose errors kept, with a note
     obs, cams, X, Y = _scene(np.random.default_rng(11), G=3)
     r = refine_views(_views(obs, 3, 2), cams, X, Y, 1.0, False)
     assert r.model == "pose_noise" and not r.held_out_rms_px
@@ -397,6 +397,14 @@ def test_the_cross_validation_scores_the_pose_level_fit_and_the_decision_uses_it
     r = refine_views(views, cams, start_X, start_Y, 1.0, False, pose_level=lambda A: None)
     assert not r.held_out_rms_px and "no pose-level estimate" in r.notes[0]
     assert decide(r, cert, big).published == "refined"
+    # fewer than 10 pose samples: leave-one-out, each fold one pose sample
+    obs6, cams6, X6, Y6 = _scene(np.random.default_rng(13), G=6, sigma_px=0.3)
+    views6 = _views(obs6, 3, 2)
+    held6 = []
+    r = refine_views(views6, cams6, X6, Y6, 1.0, False,
+                     pose_level=lambda A: held6.append(len({a.tobytes() for a in A})) or
+                     (X6, Y6, 1.0))
+    assert held6 == [1] * views6.n_groups == [1] * 6 and "certified" in r.held_out_rms_px
     # a fixed model is compared with the pose-level fit alone
     r = refine_views(views, cams, start_X, start_Y, 1.0, False, RefineOptions(model="plain"),
                      pose_level=truth)
