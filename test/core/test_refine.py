@@ -300,6 +300,8 @@ def test_refinement_refuses_what_it_cannot_do():
             RefineOptions(**bad)
     with pytest.raises(ValueError, match="consistency_quantile"):
         DecisionOptions(consistency_quantile=1.0)
+    with pytest.raises(ValueError, match="held_out_margin"):
+        DecisionOptions(held_out_margin=-0.1)
 
 
 class _Result:
@@ -384,7 +386,7 @@ def test_the_cross_validation_scores_the_pose_level_fit_and_the_decision_uses_it
     names = list(r.names)
     cert = _Result(names, list(np.concatenate([start_X, start_Y])))
     big = {n: np.eye(6) * 1e-4 for n in names}
-    d = decide(r, cert, big)
+    d = decide(r, cert, big, options=DecisionOptions(held_out_margin=0.0))
     assert d.published == "certified" and "predicts the corners of unseen pose samples" in d.reason
 
     def off(held_A):
@@ -393,6 +395,13 @@ def test_the_cross_validation_scores_the_pose_level_fit_and_the_decision_uses_it
     r = refine_views(views, cams, start_X, start_Y, 1.0, False, pose_level=off)
     assert r.held_out_rms_px["certified"] > r.held_out_rms_px[r.model]
     assert decide(r, cert, big).published == "refined"
+    # within the margin (5 %) the two predict alike and the refinement stands; beyond, not
+    r.held_out_rms_px = {**r.held_out_rms_px, "certified": r.held_out_rms_px[r.model] / 1.04}
+    assert decide(r, cert, big).published == "refined"
+    r.held_out_rms_px["certified"] = r.held_out_rms_px[r.model] / 1.06
+    assert decide(r, cert, big).published == "certified"
+    assert decide(r, cert, big, options=DecisionOptions(held_out_margin=0.1)).published == \
+        "refined"
     # a pose-level fit that cannot be done leaves its folds out, with a note; nothing compared
     r = refine_views(views, cams, start_X, start_Y, 1.0, False, pose_level=lambda A: None)
     assert not r.held_out_rms_px and "no pose-level estimate" in r.notes[0]
