@@ -85,11 +85,11 @@ class RefineOptions:
         Cross-validation folds over the pose groups (``auto``, and with a pose-level fit);
         with fewer than ``2 folds`` pose groups, leave-one-out (each fold one pose group: the
         training parts stay as close to all the data as they can, where a few pose samples
-        decide how well the frames are determined; on a real 6-view chessboard set 3 folds of 2
-        trained on 4 views and kept a fit that predicted new views worse than the certified
-        estimate, 2.04 against 1.21 px, leave-one-out keeps one that predicts them better, 1.03
-        px); with fewer than 4 pose groups no cross-validation (the fit with pose errors is
-        kept, with a note).
+        decide how well the frames are determined: on a real 6-view chessboard set, 3 folds of
+        2 trained on 4 views and kept a fit that predicted new views worse than the certified
+        estimate, 2.04 against 1.21 px, see benchmarks/refinement.md for today's numbers); with
+        fewer than 4 pose groups no cross-validation (the fit with pose errors is kept, with a
+        note).
     plain_margin : float
         The plain fit is kept when its held-out RMS is below ``1 - plain_margin`` times the
         other's.
