@@ -141,6 +141,7 @@ def test_the_refined_estimate_is_published_with_both_in_the_result(refined):
 def test_the_pose_level_fit_of_a_fold_leaves_out_its_pose_samples_only():
     """``pose_level_fit`` solves the pairs of every other pose sample; None when a held-out
     ``A`` matches no pair (it would score data it was fitted to) or a frame loses every pair."""
+    from rwhec_ros.core.problem import Edge, Problem
     from rwhec_ros.core.solve import SolveOptions, solve
     from rwhec_ros.session.refinement import pose_level_fit
 
@@ -153,8 +154,6 @@ def test_the_pose_level_fit_of_a_fold_leaves_out_its_pose_samples_only():
     keys = {A.tobytes() for A in held}
     masks = [np.array([A.tobytes() not in keys for A in e.A]) for e in problem.edges]
     assert 0 < sum((~m).sum() for m in masks) < len(all_A)
-    from rwhec_ros.core.problem import Edge, Problem
-
     sub = Problem(problem.x_names, problem.y_names,
                   [Edge.build(e.x, e.y, e.A[m], e.B[m], e.sigma[m], e.kappa[m])
                    for e, m in zip(problem.edges, masks, strict=True) if m.any()])

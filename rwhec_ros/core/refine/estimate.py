@@ -237,7 +237,6 @@ def _held_out(views: CornerViews, cameras, unknown_scale, opts, starts: dict[str
             continue
         train = CornerFit(train_views, cameras, unknown_scale, opts.moving, opts.huber)
         tester = CornerFit(test_views, cameras, unknown_scale, opts.moving, opts.huber)
-
         part = {}
         try:
             for name, s0 in starts.items():
