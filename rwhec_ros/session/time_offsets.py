@@ -11,8 +11,9 @@ Method (:func:`estimate_offsets`; the maths and why it is done this way:
 profile Newton steps on all cameras' offsets at once, each followed by the pairs re-interpolated
 from the recorded stream (:mod:`rwhec_ros.sync.pose_track`) at their shifted stamps and a warm
 started solve, until a step is below a tenth of the offsets' standard deviations (at most
-``MAX_ITERATIONS``). The standard deviation is the marginal one (extrinsics free), a posteriori
-(scaled by the residuals' variance factor).
+``MAX_ITERATIONS``). The standard deviation is the marginal one (extrinsics free), cluster-robust
+(pairs within 100 ms of each other share a cluster: the stream's error is shared), and never below
+the model-based one (the residuals' variance factor times the inverse information).
 
 Only pairs taken while the stream moved say anything about an offset (a pair at rest pairs with
 the same pose whatever the offset): a pair counts when the stream moved more than
@@ -77,6 +78,9 @@ MAX_RATE_RAD_S = 30.0
 #: residuals of a camera whose offset is still uncorrected grow with each pair's speed squared
 #: (a factor ~10 between the median and the fastest pair in the benchmark's motions).
 OUTLIER_RATIO = 30.0
+#: Pairs whose (shifted) stamps fall in the same window of this length share a cluster of the
+#: offsets' cluster-robust covariance: the motion window of the moving test (100 ms).
+CLUSTER_WINDOW_NS = 2 * MOTION_HALF_WINDOW_NS
 #: Newton steps at most (each a re-interpolation and a solve); 2-3 suffice in the benchmark.
 MAX_ITERATIONS = 6
 #: Stop when every step is below this fraction of its offset's std (or below 50 us).
@@ -154,6 +158,18 @@ def _moving(track: PoseTrackData, q: np.ndarray) -> np.ndarray:
     window = 2 * MOTION_HALF_WINDOW_NS / _NS
     with np.errstate(invalid="ignore"):
         return (shift > MOVING_SPEED_M_S * window) | (angle > MOVING_RATE_RAD_S * window)
+
+
+def _clusters(problem: Problem, stamps: list[np.ndarray], delta_ns: np.ndarray) -> np.ndarray:
+    """A cluster label (N,) per pair: the :data:`CLUSTER_WINDOW_NS` window of the pose stream its
+    shifted stamp falls in, whatever the camera (pairs of one image, of images taken together,
+    of neighbouring stream samples share the stream's error: the offsets' cluster-robust
+    covariance, :func:`~rwhec_ros.core.analysis.time_offset.offset_step`)."""
+    if not stamps:
+        return np.zeros(0, dtype=np.int64)
+    q = np.concatenate([s + int(delta_ns[k]) for s, k in zip(stamps, problem.edge_y,
+                                                              strict=True)])
+    return np.floor_divide(q, CLUSTER_WINDOW_NS)
 
 
 def _per_camera(problem: Problem, stamps: list[np.ndarray], flags: np.ndarray) -> np.ndarray:
@@ -288,7 +304,8 @@ def _estimate_offsets(problem, stamps, track, options, solve_fn):
     for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 - reported
         rates = _fitting(weighted, result, _rates(problem, st, track, dns, moving)[kept])
         step = offset_step(offset_terms(weighted, result.X, result.Y, result.scale, rates),
-                           information_matrix(weighted, result.X, result.Y, result.scale).H)
+                           information_matrix(weighted, result.X, result.Y, result.scale).H,
+                           _clusters(problem, st, dns)[kept])
         new = np.where(step.determined, delta + step.step_s, 0.0)
         clipped = np.abs(new) > options.range_s
         new = np.clip(new, -options.range_s, options.range_s)
@@ -395,7 +412,8 @@ def _one_step_offsets(problem, result, stamps, track, options, cache) -> TimeOff
     info = (information_from_edge_blocks if getattr(problem, "precomputed_blocks", None)
             is not None else information_matrix)
     step = offset_step(offset_terms(problem, result.X, result.Y, result.scale, rates),
-                       info(problem, result.X, result.Y, result.scale).H)
+                       info(problem, result.X, result.Y, result.scale).H,
+                       _clusters(problem, st, np.zeros(problem.P, dtype=np.int64)))
     delta = np.where(step.determined, step.step_s, 0.0)
     clipped = np.abs(delta) > options.range_s
     cams = _judge(problem, options, np.clip(delta, -options.range_s, options.range_s), step,

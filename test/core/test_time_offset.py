@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rwhec_ros.core.analysis.information import information_matrix
-from rwhec_ros.core.analysis.time_offset import offset_step, offset_terms
+from rwhec_ros.core.analysis.time_offset import MIN_CLUSTERS, offset_step, offset_terms
 from rwhec_ros.core.lie import invert_transform, make_transform, so3_exp
 from rwhec_ros.core.outliers.pairs import pair_residuals
 from rwhec_ros.core.problem import Edge, Problem
@@ -175,3 +175,104 @@ def test_std_matches_the_scatter_of_repeated_estimates():
     ratio = scatter / std.mean(axis=0)
     assert ((ratio > 0.75) & (ratio < 1.3)).all(), (scatter, std.mean(axis=0))
     assert (np.abs(est.mean(axis=0) - delta) < 3 * scatter / np.sqrt(40)).all()
+
+
+
+def _same_stamps(rng, delta, n: int):
+    """Noise-free pairs whose camera ``k`` sees every target at the same true times (one image,
+    three tags), stamped ``t - delta[k]``; returns the problem and its stamps per edge."""
+    X = [make_transform(so3_exp(rng.normal(size=3)), rng.normal(size=3)) for _ in range(3)]
+    Y = [make_transform(so3_exp(rng.normal(size=3)), 0.2 * rng.normal(size=3))
+         for _ in delta]
+    times = [np.sort(rng.uniform(0, 30, n)) for _ in delta]
+    edges, stamps = [], []
+    for j in range(len(X)):
+        for k in range(len(Y)):
+            A = np.array([stream(t - delta[k]) for t in times[k]])
+            B = np.array([invert_transform(Y[k]) @ stream(t) @ X[j] for t in times[k]])
+            edges.append(Edge.build(f"x{j}", f"y{k}", A, B, sigma=SIGMA, kappa=KAPPA))
+            stamps.append(times[k] - delta[k])
+    problem = Problem([f"x{j}" for j in range(len(X))], [f"y{k}" for k in range(len(Y))], edges)
+    return problem, stamps
+
+
+def _stream_error(rng, problem: Problem) -> list[np.ndarray]:
+    """Per edge, an error of the stream per pair, the same for every pair of one image (one
+    camera, one stamp): (n, 4, 4) transforms to left-multiply ``A`` with."""
+    shared: dict[tuple[int, int], np.ndarray] = {}
+    out = []
+    for e, k in zip(problem.edges, problem.edge_y, strict=True):
+        for i in range(e.n):
+            if (k, i) not in shared:
+                shared[k, i] = make_transform(so3_exp(2e-3 * rng.normal(size=3)),
+                                              4e-3 * rng.normal(size=3))
+        out.append(np.array([shared[k, i] for i in range(e.n)]))
+    return out
+
+
+def _with_errors(problem: Problem, errors, rng=None) -> Problem:
+    """``problem`` with the stream errors on ``A`` (and, given ``rng``, a little noise on B)."""
+    edges = []
+    for e, err in zip(problem.edges, errors, strict=True):
+        B = e.B if rng is None else np.array(
+            [make_transform(b[:3, :3] @ so3_exp(2e-4 * rng.normal(size=3)),
+                            b[:3, 3] + 2e-4 * rng.normal(size=3)) for b in e.B])
+        edges.append(Edge.build(e.x, e.y, err @ e.A, B, sigma=SIGMA, kappa=KAPPA))
+    return problem.with_edges(edges)
+
+
+@pytest.mark.slow
+def test_cluster_robust_std_holds_when_pairs_share_the_stream_error():
+    """Every target of a camera seen at the same stamps and the stream's error shared by the
+    pairs of one stamp (one image, three tags): the model-based std takes the pairs as
+    independent and is too small (2.0-2.3x here); the cluster-robust std, one cluster per
+    image, matches the scatter of 40 draws (ratio within [0.75, 1.3]: chi-square, 39 dof, 95 %)
+    and the model-based one does not (ratio above 1.3)."""
+    delta = np.array([0.015, -0.025])
+    exact, stamps = _same_stamps(np.random.default_rng(11), delta, 40)
+    clusters = np.concatenate([k * 10_000 + np.arange(e.n)
+                               for e, k in zip(exact.edges, exact.edge_y, strict=True)])
+    est, robust, model = [], [], []
+    for seed in range(40):
+        rng = np.random.default_rng(300 + seed)
+        errors = _stream_error(rng, exact)
+        problem = _with_errors(exact, errors, rng)
+        d, current = np.zeros(2), problem
+        for _ in range(2):
+            res = solve(current, SolveOptions())
+            rates = np.concatenate([[rate(s + d[k]) for s in st]
+                                    for st, k in zip(stamps, problem.edge_y, strict=True)])
+            step = offset_step(offset_terms(current, res.X, res.Y, res.scale, rates),
+                               information_matrix(current, res.X, res.Y, res.scale).H, clusters)
+            d = d + step.step_s
+            # re-interpolated at the shifted stamps, the same stream error on each pair
+            current = _with_errors(shifted(problem, stamps, d), errors)
+        assert step.clusters == 80
+        est.append(d)
+        robust.append(step.std_s)
+        model.append(np.sqrt(np.diag(step.covariance_model)))
+    scatter = np.array(est).std(axis=0, ddof=1)
+    ratio_robust = scatter / np.array(robust).mean(axis=0)
+    ratio_model = scatter / np.array(model).mean(axis=0)
+    assert ((ratio_robust > 0.75) & (ratio_robust < 1.3)).all(), (scatter, ratio_robust)
+    assert (ratio_model > 1.3).all(), ratio_model
+    assert (np.abs(np.array(est).mean(axis=0) - delta) < 3 * scatter / np.sqrt(40)).all()
+
+
+def test_clusters_of_one_pair_each_give_the_residual_based_std():
+    """Clusters must be one label per pair; with fewer than MIN_CLUSTERS labels the model-based
+    covariance is kept, with more the robust one is never below it."""
+    rng = np.random.default_rng(4)
+    problem, _, rates, _ = planted(rng, np.array([0.01, -0.01]), n=8)
+    res = solve(problem, SolveOptions())
+    terms = offset_terms(problem, res.X, res.Y, res.scale, rates)
+    H = information_matrix(problem, res.X, res.Y, res.scale).H
+    with pytest.raises(ValueError, match=r"clusters: expected shape \(48,\)"):
+        offset_step(terms, H, np.zeros(5))
+    few = offset_step(terms, H, np.arange(48) % (MIN_CLUSTERS - 1))
+    assert few.clusters == MIN_CLUSTERS - 1
+    np.testing.assert_array_equal(few.covariance, few.covariance_model)
+    each = offset_step(terms, H, np.arange(48))
+    assert each.clusters == 48
+    assert (np.diag(each.covariance) >= np.diag(each.covariance_model) * (1 - 1e-12)).all()
+    np.testing.assert_allclose(each.step_s, few.step_s)
