@@ -363,6 +363,14 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("verdict.noise_group_ratio", "double", 5.0,
               doc="a camera whose estimated noise is this many times the others' median is "
                   "named (caution)"),
+    ParamSpec("verdict.lag_check", "bool", True,
+              doc="check whether the residuals follow the motion between neighbouring pairs "
+                  "(poses out of step with the images, seen without stamps; each edge's pairs "
+                  "in recording order)"),
+    ParamSpec("verdict.lag_sigmas", "double", 4.0,
+              doc="... caution when that lag is beyond this many standard deviations ..."),
+    ParamSpec("verdict.lag_shift_std", "double", 1.0,
+              doc="... and taking it out moves a frame by at least this many of its std"),
     ParamSpec("accuracy.cross_validation_folds", "int", 5,
               doc="k-fold cross-validation over the pairs at calibrate (held-out vs in-sample "
                   "residuals per edge); 0: off"),

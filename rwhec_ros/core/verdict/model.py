@@ -15,7 +15,7 @@ __all__ = ["Reason", "FrameVerdict", "Verdict", "Builder", "PRIORITY"]
 
 #: Order of the reasons of one level: the most specific cause first.
 PRIORITY = ("certificate_failed", "not_identifiable", "excluded", "not_calibrated", "tag",
-            "camera", "reprojection", "intrinsics", "edge", "scale", "fit", "precision",
+            "camera", "reprojection", "intrinsics", "edge", "scale", "time_offset", "fit", "precision",
             "certificate", "unseen_tag", "check_failed")
 
 
@@ -31,7 +31,7 @@ class Reason:
         What kind: one of ``certificate_failed``, ``not_identifiable``, ``excluded``
         (:mod:`.exclusion`), ``not_calibrated``, ``scale``, ``tag``, ``camera``,
         ``reprojection`` (:mod:`.reprojection_check`), ``intrinsics`` (:mod:`.focal_check`),
-        ``edge``,
+        ``edge``, ``time_offset`` (:mod:`.lag_check`, and the session's estimated offsets),
         ``fit``, ``precision``, ``certificate``, ``unseen_tag``, ``check_failed``.
     message : str
         A sentence: the frame or edge, the number, the likely cause, what to do.
@@ -116,6 +116,9 @@ class Verdict:
     noise : NoiseEstimate or None
         The noise per group estimated from the data that weighted the solve
         (:mod:`rwhec_ros.core.noise`); None: the stated noise weighted it.
+    motion_lag : MotionLag or None
+        How far the residuals follow the motion between neighbouring pairs
+        (:mod:`.lag_check`); None when not measured.
     """
 
     level: str
@@ -128,6 +131,7 @@ class Verdict:
     focal_check: dict | str = ""
     exclusion: object = None
     noise: Any = None
+    motion_lag: Any = None
 
     @property
     def usable(self) -> bool:
@@ -164,6 +168,7 @@ class Verdict:
             "focal_check": (self.focal_check if isinstance(self.focal_check, str) else
                             {cam: c.to_dict() for cam, c in self.focal_check.items()}),
             "noise": None if self.noise is None else self.noise.to_dict(),
+            "motion_lag": None if self.motion_lag is None else self.motion_lag.to_dict(),
         }
 
 

@@ -117,6 +117,13 @@ class VerdictOptions:
         A noise group (camera) whose estimated noise is this many times the median of the others
         (5.0), significantly so, is named (caution): a camera much noisier than the rest of the
         rig usually has a fault.
+    lag_check : bool
+        Check whether the residuals follow the motion between neighbouring pairs (poses out of
+        step with the images, :mod:`.lag_check`; True).
+    lag_sigmas : float
+        ... a caution when the lag is beyond this many standard deviations (4.0) ...
+    lag_shift_std : float
+        ... and taking it out moves a frame by at least this many of its std (1.0).
     """
 
     significance: float = 1e-3
@@ -147,6 +154,9 @@ class VerdictOptions:
     exclusion_rejected_share: float = 0.5
     noise_confidence: float = 0.95
     noise_group_ratio: float = 5.0
+    lag_check: bool = True
+    lag_sigmas: float = 4.0
+    lag_shift_std: float = 1.0
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():

@@ -57,6 +57,7 @@ from .reasons import (
     precision_reasons,
     scale_reason,
 )
+from .lag_check import lag_reasons
 from .reprojection_check import reprojection_reasons
 from .scale_check import ScaleCheck, check_scale
 from .words import deg, mm
@@ -150,6 +151,7 @@ def assess(
         edge_reasons(b, fit, problem, opts, strict=exclusion is not None,
                      noise_estimated=noise is not None and noise.estimated)
         fit_reasons(b, fit, opts, scale_check)
+    lag = lag_reasons(b, problem, result, opts)
     noise_reasons(b, noise, problem, opts)
     if uncertainty is None:
         uncertainty = _uncertainty(problem, result)
@@ -172,6 +174,7 @@ def assess(
     verdict.focal_check = focal
     verdict.exclusion = exclusion
     verdict.noise = noise
+    verdict.motion_lag = lag
     return verdict
 
 
