@@ -371,6 +371,11 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="... caution when that lag is beyond this many standard deviations ..."),
     ParamSpec("verdict.lag_shift_std", "double", 1.0,
               doc="... and taking it out moves a frame by at least this many of its std"),
+    ParamSpec("verdict.pair_check", "bool", True,
+              doc="name a single pair far off its camera's other pairs (beyond "
+                  "verdict.significance over all pairs) ..."),
+    ParamSpec("verdict.pair_shift_std", "double", 1.0,
+              doc="... when leaving it out would move a frame by at least this many of its std"),
     ParamSpec("accuracy.cross_validation_folds", "int", 5,
               doc="k-fold cross-validation over the pairs at calibrate (held-out vs in-sample "
                   "residuals per edge); 0: off"),

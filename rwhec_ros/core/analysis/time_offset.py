@@ -27,10 +27,10 @@ variance factor ``s0^2 = 2 f / dof`` of the residuals, is their model-based cova
 one image (several targets), of cameras triggered together and of neighbouring stream samples
 share the stream's error, which that covariance takes as independent: given cluster labels,
 :func:`offset_step` reports the cluster-robust ("sandwich") covariance ``S^-1 V S^-1`` instead,
-``V`` the spread of the profile gradient over the clusters (:func:`_robust_covariance`). A grid search needs
-tens of solves per camera and gives no standard deviation; offsets inside the local solver would
-leave the certificate, which proves optimality for fixed pairs only. Here every solve stays the
-certified solve of fixed pairs; the offsets only choose which pairs.
+``V`` the spread of the profile gradient over the clusters (:func:`_robust_covariance`). A grid
+search needs tens of solves per camera and gives no standard deviation; offsets inside the local
+solver would leave the certificate, which proves optimality for fixed pairs only. Here every solve
+stays the certified solve of fixed pairs; the offsets only choose which pairs.
 
 A camera whose pairs carry no rate (the rig at rest at its images: stop-and-go data) has no
 information on its offset (``S_kk = 0``): :attr:`OffsetStep.determined` is False, and no number is

@@ -15,8 +15,8 @@ __all__ = ["Reason", "FrameVerdict", "Verdict", "Builder", "PRIORITY"]
 
 #: Order of the reasons of one level: the most specific cause first.
 PRIORITY = ("certificate_failed", "not_identifiable", "excluded", "not_calibrated", "tag",
-            "camera", "reprojection", "intrinsics", "edge", "scale", "time_offset", "fit", "precision",
-            "certificate", "unseen_tag", "check_failed")
+            "camera", "reprojection", "intrinsics", "edge", "scale", "time_offset", "fit",
+            "precision", "certificate", "unseen_tag", "check_failed")
 
 
 @dataclass(frozen=True)
@@ -119,6 +119,8 @@ class Verdict:
     motion_lag : MotionLag or None
         How far the residuals follow the motion between neighbouring pairs
         (:mod:`.lag_check`); None when not measured.
+    far_pairs : list of FarPair
+        Single pairs far off that move a frame (:mod:`.pair_check`).
     """
 
     level: str
@@ -132,6 +134,7 @@ class Verdict:
     exclusion: object = None
     noise: Any = None
     motion_lag: Any = None
+    far_pairs: list = field(default_factory=list)
 
     @property
     def usable(self) -> bool:
@@ -169,6 +172,7 @@ class Verdict:
                             {cam: c.to_dict() for cam, c in self.focal_check.items()}),
             "noise": None if self.noise is None else self.noise.to_dict(),
             "motion_lag": None if self.motion_lag is None else self.motion_lag.to_dict(),
+            "far_pairs": [p.to_dict() for p in self.far_pairs],
         }
 
 

@@ -124,6 +124,12 @@ class VerdictOptions:
         ... a caution when the lag is beyond this many standard deviations (4.0) ...
     lag_shift_std : float
         ... and taking it out moves a frame by at least this many of its std (1.0).
+    pair_check : bool
+        Name single pairs far off their camera's other pairs (Bonferroni at ``significance``)
+        that move a frame by at least ``pair_shift_std`` of its std (1.0) (:mod:`.pair_check`;
+        True).
+    pair_shift_std : float
+        See ``pair_check``.
     """
 
     significance: float = 1e-3
@@ -157,6 +163,8 @@ class VerdictOptions:
     lag_check: bool = True
     lag_sigmas: float = 4.0
     lag_shift_std: float = 1.0
+    pair_check: bool = True
+    pair_shift_std: float = 1.0
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():

@@ -43,9 +43,11 @@ from ..result import CalibrationResult
 from .exclusion import exclusion_reasons
 from .fit import FitStatistics, goodness_of_fit
 from .focal_check import NOT_CHECKED, focal_checks, focal_reasons, focal_summary
+from .lag_check import lag_reasons
 from .model import Builder, FrameVerdict, Reason, Verdict
 from .noise_check import noise_reasons, precision_factors, stated_scale
 from .options import VerdictOptions
+from .pair_check import pair_reasons
 from .reasons import (
     all_determined,
     certificate_reasons,
@@ -57,7 +59,6 @@ from .reasons import (
     precision_reasons,
     scale_reason,
 )
-from .lag_check import lag_reasons
 from .reprojection_check import reprojection_reasons
 from .scale_check import ScaleCheck, check_scale
 from .words import deg, mm
@@ -151,6 +152,7 @@ def assess(
         edge_reasons(b, fit, problem, opts, strict=exclusion is not None,
                      noise_estimated=noise is not None and noise.estimated)
         fit_reasons(b, fit, opts, scale_check)
+    far = pair_reasons(b, problem, result, fit, opts) if fit is not None else []
     lag = lag_reasons(b, problem, result, opts)
     noise_reasons(b, noise, problem, opts)
     if uncertainty is None:
@@ -175,6 +177,7 @@ def assess(
     verdict.exclusion = exclusion
     verdict.noise = noise
     verdict.motion_lag = lag
+    verdict.far_pairs = far
     return verdict
 
 
