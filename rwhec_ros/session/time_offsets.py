@@ -514,18 +514,20 @@ def offsets_then_assess(problem: Problem, dataset, estimate: Callable, assess: C
     (problem, dataset, report)`` (:func:`correct_time_offsets` with the caller's options), then
     ``assess(problem, dataset) -> Solved`` (:func:`~rwhec_ros.session.solving.solve_and_assess`
     with the caller's options). When the assessment's exclusion left targets or edges out
-    (:mod:`rwhec_ros.core.verdict.exclusion`) and offsets were applied, the offsets are estimated
-    again without them, applied to all the pairs, and the problem is assessed again: a target
-    that does not fit (a wrong size, a move) leaves residuals that grow with the motion, which
-    an offset partly explains (with ``--robust``, a tag of the rendered rig configured 10 %
-    too small made a camera's offset 48-52 ms, applied, and that camera 1-2 deg off). The
-    estimate without them then says whether the offsets were real; when it applies the same
-    offsets (the same cameras, each within its std), the first solve stands. Returns
+    (:mod:`rwhec_ros.core.verdict.exclusion`) and some camera's offset was estimated (applied or
+    not), the offsets are estimated again without them, applied to all the pairs, and the
+    problem is assessed again: a target that does not fit (a wrong size, a move) leaves
+    residuals that grow with the motion, which an offset partly explains (with ``--robust``, a
+    tag of the rendered rig configured 10 % too small made a camera's offset 48-52 ms, applied,
+    and that camera 1-2 deg off), and its residuals raise the offsets' std, which can hide a real
+    offset. The estimate without them then says which offsets are real; when it applies the same
+    offsets (the same cameras, each within its std; none twice), the first solve stands. Returns
     ``(problem, dataset, report, solved)``."""
     p, d, report = estimate(problem, dataset)
     solved = assess(p, d)
     ex = solved.exclusion
-    if not report.applied or ex is None or not ex.excluded or dataset is None:
+    estimated = any(o.status == "estimated" for o in report.cameras.values())
+    if not estimated or ex is None or not ex.excluded or dataset is None:
         return p, d, report, solved
     gone = {n for m in ex.excluded for n in m.edges}
     rest = [e for e in problem.edges if e.name not in gone]
@@ -546,9 +548,10 @@ def offsets_then_assess(problem: Problem, dataset, estimate: Callable, assess: C
         o.dropped = 0  # counted again on all the pairs
     out = _shifted(problem, st, dataset.pose_stream, again)
     names = ", ".join(m.name for m in ex.excluded)
+    before = (", ".join(f"{c} {1e3 * v:+.1f} ms" for c, v in report.applied.items())
+              or "none (not significant)")
     again.notes.append(f"estimated without {names} (excluded by the verdict: it does not fit); "
-                       f"with it the estimate applied " + (", ".join(
-                           f"{c} {1e3 * v:+.1f} ms" for c, v in report.applied.items())))
+                       f"with it the estimate applied {before}")
     d2 = shift_dataset(dataset, again, dataset.pose_stream)
     return out, d2, again, assess(out, d2)
 
