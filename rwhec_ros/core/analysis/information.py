@@ -51,6 +51,7 @@ __all__ = [
     "scatter_information",
     "information_from_cost_matrix",
     "check_result_frames",
+    "frame_of_coordinate",
 ]
 
 _I3 = np.eye(3)
@@ -100,6 +101,17 @@ class TangentLayout:
         idx = np.concatenate([3 * xi + three, 3 * yi + three, a, self.r0 + 3 * xi + three,
                               self.r0 + 3 * yi + three], axis=1)
         return idx if self.unknown_scale else idx[:, _LOCAL_KNOWN]
+
+
+def frame_of_coordinate(problem: Problem, index: int) -> str:
+    """The frame a coordinate of the tangent (:class:`TangentLayout`) belongs to; ``"the
+    scale"`` for ``d alpha``."""
+    layout = TangentLayout(problem.M, problem.P, problem.unknown_scale)
+    names = list(problem.x_names) + list(problem.y_names)
+    for base in (0, layout.r0):
+        if base <= index < base + 3 * len(names):
+            return names[(index - base) // 3]
+    return "the scale"
 
 
 @dataclass

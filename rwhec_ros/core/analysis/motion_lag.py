@@ -44,9 +44,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..lie import invert_transform
+from ..numerics.pinv import pinv_solve
 from ..problem import Problem
-from .information import information_matrix
-from .time_offset import _pinv_solve, offset_step, offset_terms
+from .information import frame_of_coordinate, information_matrix
+from .time_offset import offset_step, offset_terms
 
 __all__ = ["MotionLag", "neighbour_rates", "motion_lag"]
 
@@ -140,24 +141,13 @@ def motion_lag(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float = 1.
     lag = var * float(w @ step.step_s[ix])
     delta = np.zeros(problem.P)
     delta[ix] = lag
-    shift = -_pinv_solve(H, terms.H_td @ delta)
-    cov_diag = np.diag(_pinv_solve(H, np.eye(H.shape[0]))) * step.variance_factor
+    shift = -pinv_solve(H, terms.H_td @ delta)
+    cov_diag = np.diag(pinv_solve(H, np.eye(H.shape[0]))) * step.variance_factor
     with np.errstate(divide="ignore", invalid="ignore"):
         z_shift = np.where(cov_diag > 0, np.abs(shift) / np.sqrt(cov_diag), 0.0)
     worst = int(np.argmax(z_shift))
     return MotionLag(lag=lag, std=float(np.sqrt(var)), z=lag / float(np.sqrt(var)),
                      cameras={problem.y_names[k]: float(step.step_s[k] / step.std_s[k])
                               for k in ix},
-                     shift_std=float(z_shift[worst]), frame=_frame_of(problem, worst))
+                     shift_std=float(z_shift[worst]), frame=frame_of_coordinate(problem, worst))
 
-
-def _frame_of(problem: Problem, index: int) -> str:
-    """The frame of a coordinate of the tangent (:class:`~.information.TangentLayout`)."""
-    from .information import TangentLayout
-
-    layout = TangentLayout(problem.M, problem.P, problem.unknown_scale)
-    names = list(problem.x_names) + list(problem.y_names)
-    for base in (0, layout.r0):
-        if base <= index < base + 3 * len(names):
-            return names[(index - base) // 3]
-    return "the scale"

@@ -48,9 +48,9 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from ..lie import hat
+from ..numerics.pinv import pinv_solve
 from ..problem import Problem
 from .information import TangentLayout
 
@@ -58,9 +58,6 @@ __all__ = ["OffsetTerms", "OffsetStep", "offset_terms", "offset_step", "MIN_CLUS
 
 #: ``hat(e_l)`` for the three unit vectors, shape (3, 3, 3).
 _E = hat(np.eye(3))
-#: Relative eigenvalue floor of the Jacobi-normalised ``H_tt`` below which a direction is a null
-#: (gauge) direction and left out of ``H_tt^+`` (exact symmetries give ~1e-12).
-_NULL_TOL = 1e-9
 #: An offset is determined when its marginal information is at least this fraction of the
 #: information the same pairs would carry with ``X, Y`` known (``S_kk / H_dd,kk``): below it the
 #: offset is confounded with the extrinsics (e.g. a pure translation along the camera axis).
@@ -250,27 +247,6 @@ def offset_terms(problem: Problem, X: np.ndarray, Y: np.ndarray, alpha: float,
                        pair_tangent=np.repeat(np.asarray(idx, dtype=int), sizes, axis=0))
 
 
-def _pinv_solve(H: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``H^+ B`` for a symmetric positive semi-definite ``H`` (n, n), its null (gauge)
-    directions left out (Jacobi-normalised eigenvalues below ``_NULL_TOL`` of the largest)."""
-    d = np.sqrt(np.clip(np.diag(H), 0.0, None))
-    d = np.where(d > 0, d, 1.0)
-    Hn = H / np.outer(d, d)
-    Bn = B / d.reshape((-1,) + (1,) * (B.ndim - 1))
-    try:  # the usual case, every direction determined: a Cholesky factor, well conditioned
-        L = np.linalg.cholesky(Hn)
-        if np.diag(L).min() ** 2 > _NULL_TOL ** 0.5:
-            x = scipy.linalg.cho_solve((L, True), Bn)
-            return x / d.reshape((-1,) + (1,) * (B.ndim - 1))
-    except np.linalg.LinAlgError:
-        pass
-    w, V = np.linalg.eigh(0.5 * (Hn + Hn.T))
-    keep = w > _NULL_TOL * max(float(w.max(initial=0.0)), 1e-300)
-    Vk = V[:, keep]
-    out = Vk @ ((Vk.T @ Bn) / w[keep].reshape((-1,) + (1,) * (B.ndim - 1)))
-    return out / d.reshape((-1,) + (1,) * (B.ndim - 1))
-
-
 def offset_step(terms: OffsetTerms, H_tt: np.ndarray,
                 clusters: np.ndarray | None = None) -> OffsetStep:
     """The profile Newton step and the marginal information of the offsets (module docstring).
@@ -295,7 +271,7 @@ def offset_step(terms: OffsetTerms, H_tt: np.ndarray,
     if clusters is not None and np.shape(clusters) != (terms.n_pairs,):
         raise ValueError(f"clusters: expected shape ({terms.n_pairs},) (one label per pair), "
                          f"got {np.shape(clusters)}")
-    Z = _pinv_solve(H_tt, np.c_[terms.H_td, terms.g_t])
+    Z = pinv_solve(H_tt, np.c_[terms.H_td, terms.g_t])
     S = terms.H_dd - terms.H_td.T @ Z[:, :m]
     S = 0.5 * (S + S.T)
     g = terms.g_d - terms.H_td.T @ Z[:, m]

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from ..analysis.information import information_matrix
-from ..analysis.motion_lag import _frame_of
-from ..analysis.time_offset import _pinv_solve, offset_terms
+from ..analysis.information import frame_of_coordinate, information_matrix
+from ..analysis.time_offset import offset_terms
+from ..numerics.pinv import pinv_solve
 from ..outliers.pairs import pair_residuals
 from ..problem import Edge, Problem
 from .fit import FitStatistics
@@ -99,13 +99,13 @@ def far_pairs(problem: Problem, result, fit: FitStatistics | None,
     H = information_matrix(problem, result.X, result.Y, alpha).H
     terms = offset_terms(problem, result.X, result.Y, alpha, np.zeros((N, 6)))
     s0 = max(1.0, float(2.0 * terms.cost / max(1, 6 * N - H.shape[0])))
-    std = np.sqrt(np.clip(np.diag(_pinv_solve(H, np.eye(H.shape[0]))) * s0, 0.0, None))
+    std = np.sqrt(np.clip(np.diag(pinv_solve(H, np.eye(H.shape[0]))) * s0, 0.0, None))
     starts = np.r_[0, np.cumsum([e.n for e in problem.edges])]
     out = []
     for i in candidates:
         g = np.zeros(H.shape[0])
         np.add.at(g, terms.pair_tangent[i], terms.pair_score_t[i])
-        shift = np.abs(_pinv_solve(_without_pair(problem, result, alpha, H, edge_of[i],
+        shift = np.abs(pinv_solve(_without_pair(problem, result, alpha, H, edge_of[i],
                                                  int(i - starts[edge_of[i]])), g))
         with np.errstate(divide="ignore", invalid="ignore"):
             z = np.where(std > 0, shift / std, 0.0)
@@ -117,7 +117,7 @@ def far_pairs(problem: Problem, result, fit: FitStatistics | None,
         r = res[e.name]
         out.append(FarPair((e.x, e.y), j, e.n, float(np.sqrt(ratio[i])),
                            float(r.translation[j]) / alpha, float(np.degrees(r.rotation[j])),
-                           float(z[worst]), _frame_of(problem, worst)))
+                           float(z[worst]), frame_of_coordinate(problem, worst)))
     return sorted(out, key=lambda p: -p.shift_std)
 
 
