@@ -309,12 +309,24 @@ def test_the_section_sits_before_the_excluded_edges_and_a_cut_inside_it_shows():
     assert "time_offsets" in incomplete_result({**base, "time_offsets": cut})
 
 
+def _excluding_x0(assessed: list):
+    """An ``assess`` for offsets_then_assess whose verdict excludes target x0 (and records each
+    call's problem and data set in ``assessed``)."""
+    from types import SimpleNamespace
+
+    def assess(p, d):
+        assessed.append((p, d))
+        return SimpleNamespace(exclusion=SimpleNamespace(excluded=[SimpleNamespace(
+            name="x0", edges=("(x0, y0)", "(x0, y1)"))]))
+
+    return assess
+
+
 def test_an_offset_a_misfit_hid_is_applied_once_it_is_excluded():
     """offsets_then_assess: a target that does not fit can raise the offsets' std so that a real
     offset is estimated but not applied; once the exclusion leaves the target out the offsets
     are estimated again, and the real one is applied to all the pairs."""
     import dataclasses
-    from types import SimpleNamespace
 
     from rwhec_ros.session.time_offsets import offsets_then_assess
 
@@ -331,11 +343,7 @@ def test_an_offset_a_misfit_hid_is_applied_once_it_is_excluded():
         return out, shifted, report
 
     assessed = []
-
-    def assess(p, d):  # the verdict excludes x0
-        assessed.append((p, d))
-        return SimpleNamespace(exclusion=SimpleNamespace(excluded=[SimpleNamespace(
-            name="x0", edges=("(x0, y0)", "(x0, y1)"))]))
+    assess = _excluding_x0(assessed)
 
     p, d, report, _ = offsets_then_assess(problem, data, estimate_hiding, assess)
     assert len(assessed) == 2 and assessed[1][0] is p
@@ -349,7 +357,6 @@ def test_offsets_a_misfit_faked_are_estimated_again_without_it():
     again without it, applied to all the pairs and the problem assessed again; offsets that
     stand without it keep the first solve."""
     import dataclasses
-    from types import SimpleNamespace
 
     from rwhec_ros.session.time_offsets import offsets_then_assess
 
@@ -365,11 +372,7 @@ def test_offsets_a_misfit_faked_are_estimated_again_without_it():
         return out, shifted, report
 
     assessed = []
-
-    def assess(p, d):  # the verdict excludes x0
-        assessed.append((p, d))
-        return SimpleNamespace(exclusion=SimpleNamespace(excluded=[SimpleNamespace(
-            name="x0", edges=("(x0, y0)", "(x0, y1)"))]))
+    assess = _excluding_x0(assessed)
 
     p, d, report, _ = offsets_then_assess(problem, data, estimate_faked, assess)
     assert len(assessed) == 2 and assessed[1][0] is p

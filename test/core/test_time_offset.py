@@ -139,6 +139,21 @@ def test_bad_rates_are_refused():
         offset_terms(problem, X[:1], Y, 1.0, rates)
 
 
+def _two_steps(problem: Problem, stamps, clusters=None, redo=lambda p: p):
+    """Two profile Newton steps from zero offsets, each followed by a solve of the pairs
+    re-interpolated at the shifted stamps (``redo`` applied to them); ``(offsets, last step)``."""
+    d, current = np.zeros(problem.P), problem
+    for _ in range(2):
+        res = solve(current, SolveOptions())
+        rates = np.concatenate([[rate(s + d[k]) for s in st]
+                                for st, k in zip(stamps, problem.edge_y, strict=True)])
+        step = offset_step(offset_terms(current, res.X, res.Y, res.scale, rates),
+                           information_matrix(current, res.X, res.Y, res.scale).H, clusters)
+        d = d + step.step_s
+        current = redo(shifted(problem, stamps, d))
+    return d, step
+
+
 @pytest.mark.slow
 def test_std_matches_the_scatter_of_repeated_estimates():
     """40 draws of the noise around one planted offset: the scatter of the estimates (two
@@ -159,15 +174,7 @@ def test_std_matches_the_scatter_of_repeated_estimates():
                                          b[:3, 3] + SIGMA * rng.normal(size=3)) for b in e.B])
             edges.append(Edge.build(e.x, e.y, e.A, B, sigma=SIGMA, kappa=KAPPA))
         problem = problem.with_edges(edges)
-        d, current = np.zeros(2), problem
-        for _ in range(2):
-            res = solve(current, SolveOptions())
-            rates = np.concatenate([[rate(s + d[k]) for s in st]
-                                    for st, k in zip(stamps, problem.edge_y, strict=True)])
-            step = offset_step(offset_terms(current, res.X, res.Y, res.scale, rates),
-                               information_matrix(current, res.X, res.Y, res.scale).H)
-            d = d + step.step_s
-            current = shifted(problem, stamps, d)
+        d, step = _two_steps(problem, stamps)
         est.append(d)
         std.append(step.std_s)
     est, std = np.array(est), np.array(std)
@@ -237,16 +244,9 @@ def test_cluster_robust_std_holds_when_pairs_share_the_stream_error():
         rng = np.random.default_rng(300 + seed)
         errors = _stream_error(rng, exact)
         problem = _with_errors(exact, errors, rng)
-        d, current = np.zeros(2), problem
-        for _ in range(2):
-            res = solve(current, SolveOptions())
-            rates = np.concatenate([[rate(s + d[k]) for s in st]
-                                    for st, k in zip(stamps, problem.edge_y, strict=True)])
-            step = offset_step(offset_terms(current, res.X, res.Y, res.scale, rates),
-                               information_matrix(current, res.X, res.Y, res.scale).H, clusters)
-            d = d + step.step_s
-            # re-interpolated at the shifted stamps, the same stream error on each pair
-            current = _with_errors(shifted(problem, stamps, d), errors)
+        # re-interpolated at the shifted stamps, the same stream error on each pair
+        d, step = _two_steps(problem, stamps, clusters,
+                             lambda p, errors=errors: _with_errors(p, errors))
         assert step.clusters == 80
         est.append(d)
         robust.append(step.std_s)
