@@ -139,7 +139,7 @@ def test_a_single_far_pair_that_moves_the_result_is_named():
     assert far.edge == ("x1", "y1") and far.index == far.of - 1 and far.shift_std >= 1.0
     assert 0.09 < far.translation_m < 0.11
     reason = next(r for r in v.reasons if "does not fit" in r.message)
-    assert reason.code == "edge" and ("x1", "y1") in reason.edges
+    assert reason.code == "pair" and ("x1", "y1") in reason.edges
     assert f"pair {far.of} of {far.of} of edge (x1, y1)" in reason.message
     off = assess(res, weighted, noise=noise, options=VerdictOptions(pair_check=False))
     assert not off.far_pairs

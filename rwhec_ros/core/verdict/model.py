@@ -16,7 +16,7 @@ __all__ = ["Reason", "FrameVerdict", "Verdict", "Builder", "PRIORITY"]
 #: Order of the reasons of one level: the most specific cause first.
 PRIORITY = ("certificate_failed", "not_identifiable", "excluded", "not_calibrated", "tag",
             "camera", "reprojection", "intrinsics", "edge", "scale", "time_offset", "fit",
-            "precision", "certificate", "unseen_tag", "check_failed")
+            "pair", "precision", "certificate", "unseen_tag", "check_failed")
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,8 @@ class Reason:
         (:mod:`.exclusion`), ``not_calibrated``, ``scale``, ``tag``, ``camera``,
         ``reprojection`` (:mod:`.reprojection_check`), ``intrinsics`` (:mod:`.focal_check`),
         ``edge``, ``time_offset`` (:mod:`.lag_check`, and the session's estimated offsets),
-        ``fit``, ``precision``, ``certificate``, ``unseen_tag``, ``check_failed``.
+        ``fit``, ``pair`` (:mod:`.pair_check`), ``precision``, ``certificate``, ``unseen_tag``,
+        ``check_failed``.
     message : str
         A sentence: the frame or edge, the number, the likely cause, what to do.
     frames : tuple of str

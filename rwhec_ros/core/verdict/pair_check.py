@@ -21,7 +21,8 @@ pair that moves nothing by its std leaves the result within its stated precision
 is: heavy-tailed real data have such pairs). Pairs of edges the edge check already names are left
 to it. The caution names the pair (its edge, its index in the edge's recording order), its size and
 the frame it moves, and the fix (remove it, or ``--robust``: ``solver.reject_outliers`` leaves such
-pairs out).
+pairs out). Its code, ``pair``, comes after the causes that concern all the data (a scale, a time
+offset, the fit) in the order of the reasons: one pair is rarely the main thing wrong.
 """
 
 from __future__ import annotations
@@ -154,7 +155,7 @@ def pair_reasons(b: Builder, problem: Problem, result, fit: FitStatistics | None
     more = f" (+{len(found) - MAX_NAMED} more)" if len(found) > MAX_NAMED else ""
     frames = list(dict.fromkeys(f for p in found[:MAX_NAMED] for f in (p.edge[0], p.frame)
                                 if f != "the scale"))
-    b.add("caution", "edge",
+    b.add("caution", "pair",
           f"{'a pair does' if len(found) == 1 else 'pairs do'} not fit: {words}{more}: a target "
           "that moved, a wrong detection or a glitch of the poses; it is kept in the solve. "
           "Leave it out, or calibrate with --robust (solver.reject_outliers), which rejects "
