@@ -322,36 +322,6 @@ def _excluding_x0(assessed: list):
     return assess
 
 
-def test_an_offset_a_misfit_hid_is_applied_once_it_is_excluded():
-    """offsets_then_assess: a target that does not fit can raise the offsets' std so that a real
-    offset is estimated but not applied; once the exclusion leaves the target out the offsets
-    are estimated again, and the real one is applied to all the pairs."""
-    import dataclasses
-
-    from rwhec_ros.session.time_offsets import offsets_then_assess
-
-    rng = np.random.default_rng(5)
-    data, problem, _ = scene(rng, moving, [0.0, -0.04], image_times=np.arange(0.5, 39.5, 0.05))
-
-    def estimate_hiding(p, d):  # with x0, y1's offset comes out uncertain: not applied
-        out, shifted, report = correct_time_offsets(p, d, None)
-        if any(e.x == "x0" for e in p.edges):
-            report.cameras["y1"] = dataclasses.replace(
-                report.cameras["y1"], status="estimated", estimate_s=-0.01, std_s=0.01,
-                applied=False)
-            return p, d, report
-        return out, shifted, report
-
-    assessed = []
-    assess = _excluding_x0(assessed)
-
-    p, d, report, _ = offsets_then_assess(problem, data, estimate_hiding, assess)
-    assert len(assessed) == 2 and assessed[1][0] is p
-    assert set(report.applied) == {"y1"} and abs(report.applied["y1"] + 0.04) <= 0.002
-    assert report.notes[-1].endswith("with it the estimate applied none (not significant)")
-    assert set(d.time_offsets_s) == {"y1"}
-
-
 def test_offsets_a_misfit_faked_are_estimated_again_without_it():
     """offsets_then_assess: when the exclusion leaves a target out, the offsets are estimated
     again without it, applied to all the pairs and the problem assessed again; offsets that

@@ -514,20 +514,20 @@ def offsets_then_assess(problem: Problem, dataset, estimate: Callable, assess: C
     (problem, dataset, report)`` (:func:`correct_time_offsets` with the caller's options), then
     ``assess(problem, dataset) -> Solved`` (:func:`~rwhec_ros.session.solving.solve_and_assess`
     with the caller's options). When the assessment's exclusion left targets or edges out
-    (:mod:`rwhec_ros.core.verdict.exclusion`) and some camera's offset was estimated (applied or
-    not), the offsets are estimated again without them, applied to all the pairs, and the
-    problem is assessed again: a target that does not fit (a wrong size, a move) leaves
-    residuals that grow with the motion, which an offset partly explains (with ``--robust``, a
-    tag of the rendered rig configured 10 % too small made a camera's offset 48-52 ms, applied,
-    and that camera 1-2 deg off), and its residuals raise the offsets' std, which can hide a real
-    offset. The estimate without them then says which offsets are real; when it applies the same
-    offsets (the same cameras, each within its std; none twice), the first solve stands. Returns
+    (:mod:`rwhec_ros.core.verdict.exclusion`) and offsets were applied, the offsets are estimated
+    again without them, applied to all the pairs, and the problem is assessed again: a target
+    that does not fit (a wrong size, a move) leaves residuals that grow with the motion, which
+    an offset partly explains (with ``--robust``, a tag of the rendered rig configured 10 %
+    too small made a camera's offset 48-52 ms, applied, and that camera 1-2 deg off). The
+    estimate without them then says whether the offsets were real; when it applies the same
+    offsets (the same cameras, each within its std), the first solve stands. (Estimating again
+    when none was applied, in case the misfit hid one, made a rendered camera 3.0 std off with
+    ``--robust`` in ``benchmarks/verdict.md`` part 4: not done.) Returns
     ``(problem, dataset, report, solved)``."""
     p, d, report = estimate(problem, dataset)
     solved = assess(p, d)
     ex = solved.exclusion
-    estimated = any(o.status == "estimated" for o in report.cameras.values())
-    if not estimated or ex is None or not ex.excluded or dataset is None:
+    if not report.applied or ex is None or not ex.excluded or dataset is None:
         return p, d, report, solved
     gone = {n for m in ex.excluded for n in m.edges}
     rest = [e for e in problem.edges if e.name not in gone]
