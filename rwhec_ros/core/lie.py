@@ -8,6 +8,9 @@ Conventions (see README):
   CSV files store ``(w, x, y, z)``; :func:`quat_wxyz_to_xyzw` / :func:`quat_xyzw_to_wxyz` are the
   one place where that order is converted.
 * ``vec`` is column-major (Fortran) vectorisation, as in the paper's eq. (26).
+* Twists are ``xi = [rho, phi]`` (translation part first; Barfoot, *State Estimation for
+  Robotics*, ch. 7-8): :func:`se3_exp`, :func:`se3_log` with the left Jacobian of SO(3), exact on
+  constant-twist motion (used by :mod:`rwhec_ros.sync.interpolation` and the core's analyses).
 
 All functions accept a single object or a stack along the leading axis where noted.
 """
@@ -18,6 +21,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 __all__ = [
+    "so3_left_jacobian",
+    "so3_left_jacobian_inverse",
+    "se3_exp",
+    "se3_log",
     "hat",
     "vee",
     "so3_exp",
@@ -173,3 +180,80 @@ def unvec(v: np.ndarray) -> np.ndarray:
     """Inverse of :func:`vec`: (..., 9) -> (..., 3, 3)."""
     v = np.asarray(v, dtype=float)
     return np.swapaxes(v.reshape(v.shape[:-1] + (3, 3)), -1, -2)
+
+
+#: Below this rotation angle [rad] the Jacobian coefficients use their Taylor series; the
+#: truncation error of the series is O(theta^6) < 1e-24 there, the closed forms lose ~8 digits.
+_SMALL_ANGLE = 1e-4
+
+
+def _jacobian_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a = (1 - cos t) / t^2`` and ``b = (t - sin t) / t^3``, series-safe near ``t = 0``."""
+    small = theta < _SMALL_ANGLE
+    t = np.where(small, 1.0, theta)  # dummy value where the series is used
+    t2 = theta * theta
+    a = np.where(small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, (1.0 - np.cos(t)) / (t * t))
+    b = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0, (t - np.sin(t)) / (t * t * t))
+    return a, b
+
+
+def so3_left_jacobian(phi: np.ndarray) -> np.ndarray:
+    """Left Jacobian ``J(phi) = I + a phi^ + b phi^ phi^`` of SO(3); (..., 3) -> (..., 3, 3).
+
+    ``a = (1 - cos theta) / theta^2``, ``b = (theta - sin theta) / theta^3``,
+    ``theta = |phi|`` (Barfoot eq. (7.86)); Taylor series below 1e-4 rad.
+    """
+    phi = np.asarray(phi, dtype=float)
+    theta = np.linalg.norm(phi, axis=-1)
+    a, b = _jacobian_coefficients(theta)
+    P = hat(phi)
+    return np.eye(3) + a[..., None, None] * P + b[..., None, None] * (P @ P)
+
+
+def so3_left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
+    """Inverse left Jacobian ``J^-1(phi) = I - phi^/2 + c phi^ phi^``; (..., 3) -> (..., 3, 3).
+
+    ``c = 1/theta^2 - cot(theta/2) / (2 theta)`` (Barfoot eq. (7.87)); finite on ``[0, pi]``
+    (``cot(pi/2) = 0``) and replaced by its series ``1/12 + theta^2/720 + theta^4/30240`` below
+    1e-4 rad. Singular at ``theta = 2 pi``, which :func:`se3_log` never produces.
+    """
+    phi = np.asarray(phi, dtype=float)
+    theta = np.linalg.norm(phi, axis=-1)
+    small = theta < _SMALL_ANGLE
+    t = np.where(small, 1.0, theta)
+    t2 = theta * theta
+    c = np.where(
+        small,
+        1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0,
+        1.0 / (t * t) - np.cos(0.5 * t) / (2.0 * t * np.sin(0.5 * t)),
+    )
+    P = hat(phi)
+    return np.eye(3) - 0.5 * P + c[..., None, None] * (P @ P)
+
+
+def se3_exp(xi: np.ndarray) -> np.ndarray:
+    """Exponential map se(3) -> SE(3); twists ``xi = [rho, phi]`` (..., 6) -> (..., 4, 4).
+
+    ``R = exp(phi^)``, ``t = J(phi) rho`` (Barfoot eq. (7.83)).
+    """
+    xi = np.asarray(xi, dtype=float)
+    if xi.shape[-1:] != (6,):
+        raise ValueError(f"xi: expected shape (..., 6), got {xi.shape}")
+    rho, phi = xi[..., :3], xi[..., 3:]
+    t = np.einsum("...ij,...j->...i", so3_left_jacobian(phi), rho)
+    return make_transform(so3_exp(phi), t)
+
+
+def se3_log(T: np.ndarray) -> np.ndarray:
+    """Logarithm SE(3) -> se(3); (..., 4, 4) -> twists ``[rho, phi]`` (..., 6).
+
+    ``phi = log(R)`` with ``|phi| <= pi`` (principal branch, via scipy) and
+    ``rho = J^-1(phi) t``. At exactly ``|phi| = pi`` the axis sign is ambiguous (either choice is
+    a valid logarithm).
+    """
+    T = np.asarray(T, dtype=float)
+    if T.shape[-2:] != (4, 4):
+        raise ValueError(f"T: expected shape (..., 4, 4), got {T.shape}")
+    phi = so3_log(T[..., :3, :3])
+    rho = np.einsum("...ij,...j->...i", so3_left_jacobian_inverse(phi), T[..., :3, 3])
+    return np.concatenate([rho, phi], axis=-1)

@@ -123,9 +123,7 @@ def _rates(problem: Problem, stamps: list[np.ndarray], track: PoseTrackData,
     in one batch."""
     if not stamps:
         return np.zeros((0, 6))
-    q = np.concatenate([s + int(delta_ns[k]) for s, k in zip(stamps, problem.edge_y,
-                                                              strict=True)])
-    xi, ok = track.rates(q)
+    xi, ok = track.rates(_shifted_stamps(problem, stamps, delta_ns))
     xi[~(ok & moving & _plausible(xi))] = np.nan
     return xi
 
@@ -167,9 +165,14 @@ def _clusters(problem: Problem, stamps: list[np.ndarray], delta_ns: np.ndarray) 
     covariance, :func:`~rwhec_ros.core.analysis.time_offset.offset_step`)."""
     if not stamps:
         return np.zeros(0, dtype=np.int64)
-    q = np.concatenate([s + int(delta_ns[k]) for s, k in zip(stamps, problem.edge_y,
-                                                              strict=True)])
-    return np.floor_divide(q, CLUSTER_WINDOW_NS)
+    return np.floor_divide(_shifted_stamps(problem, stamps, delta_ns), CLUSTER_WINDOW_NS)
+
+
+def _shifted_stamps(problem: Problem, stamps: list[np.ndarray], delta_ns: np.ndarray
+                    ) -> np.ndarray:
+    """Every pair's stamp (N,) in problem order, shifted by its camera's ``delta_ns``."""
+    return np.concatenate([s + int(delta_ns[k]) for s, k in zip(stamps, problem.edge_y,
+                                                                 strict=True)])
 
 
 def _per_camera(problem: Problem, stamps: list[np.ndarray], flags: np.ndarray) -> np.ndarray:

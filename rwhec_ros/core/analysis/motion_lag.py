@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lie import invert_transform
+from ..lie import invert_transform, se3_log
 from ..numerics.pinv import pinv_solve
 from ..problem import Problem
 from .information import frame_of_coordinate, information_matrix
@@ -91,8 +91,6 @@ def neighbour_rates(problem: Problem) -> np.ndarray:
     """Per pair (problem order), the motion of ``A`` per pair interval from its neighbours in its
     edge, shape (N, 6) ``[rho, omega]`` with ``A_{i+1} A_{i-1}^-1 = exp(2 xi^)`` (one-sided at the
     ends; zeros in an edge of fewer than 3 pairs)."""
-    from ...sync.interpolation import se3_log
-
     out = []
     for e in problem.edges:
         xi = np.zeros((e.n, 6))

@@ -98,6 +98,8 @@ def far_pairs(problem: Problem, result, fit: FitStatistics | None,
     if not candidates:
         return []
     H = information_matrix(problem, result.X, result.Y, alpha).H
+    # each pair's share of the gradient, J_i^T e_i, on its tangent coordinates (the offsets'
+    # terms compute it per pair; with zero rates their offset parts are zero and unused)
     terms = offset_terms(problem, result.X, result.Y, alpha, np.zeros((N, 6)))
     s0 = max(1.0, float(2.0 * terms.cost / max(1, 6 * N - H.shape[0])))
     std = np.sqrt(np.clip(np.diag(pinv_solve(H, np.eye(H.shape[0]))) * s0, 0.0, None))
