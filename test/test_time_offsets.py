@@ -129,6 +129,38 @@ def test_planted_offsets_are_estimated_applied_and_named_by_the_verdict():
     assert "not certified" in html and "y0" in html
 
 
+def test_the_likelihood_ratio_agrees_with_the_std_on_a_clear_offset_and_can_veto():
+    """A planted offset: the likelihood ratio of a solve without it (same weights) agrees with
+    estimate / std (the profile cost is near quadratic here; the other cameras' offsets held at
+    their estimates, hence a tolerance); a camera within 3 std gets no test. When the ratio is
+    below 3 (a profile flatter than its curvature, as on the demo's early data), the offset is
+    not applied and not named, and its words say why."""
+    import rwhec_ros.session.time_offsets as to
+    rng = np.random.default_rng(0)
+    data, problem, _ = scene(rng, moving, [0.01, 0.0], image_times=np.arange(0.5, 39.5, 0.05))
+    report, _ = estimate_offsets(problem, stamps_of(data), data.pose_stream,
+                                 TimeOffsetOptions(), solve_fn, solve_fn)
+    y0, y1 = report.cameras["y0"], report.cameras["y1"]
+    wald = abs(y0.estimate_s) / y0.std_s
+    assert wald > 5 and 0.8 * wald <= y0.lr_sigmas <= 1.25 * wald, (wald, y0.lr_sigmas)
+    assert y0.applied and y0.caution
+    assert not y1.significant and np.isnan(y1.lr_sigmas)
+    assert report.to_dict()["cameras"]["y0"]["likelihood_ratio_sigmas"] == pytest.approx(
+        y0.lr_sigmas)
+    vetoed = dict.fromkeys(range(problem.P), 2.0)
+    original = to.likelihood_ratio_sigmas
+    try:
+        to.likelihood_ratio_sigmas = lambda *a, **k: vetoed
+        report2, out = estimate_offsets(problem, stamps_of(data), data.pose_stream,
+                                        TimeOffsetOptions(), solve_fn, solve_fn)
+    finally:
+        to.likelihood_ratio_sigmas = original
+    z0 = report2.cameras["y0"]
+    assert z0.determined and abs(z0.estimate_s) > 3 * z0.std_s
+    assert not z0.applied and not z0.caution and out is problem
+    assert "a solve without it fits only 2.0 std worse" in z0.words()
+
+
 def test_stop_and_go_offsets_are_not_determined_and_nothing_changes():
     """Images only while the stream rests (0.2 s from a move either side): every pair pairs
     with the same pose whatever the offset; no camera's offset is determined, the problem and

@@ -104,6 +104,10 @@ class CameraOffset:
     dropped : int
         Pairs left out of the final solve because the recorded stream does not reach their
         corrected stamps.
+    lr_sigmas : float
+        The likelihood-ratio test of an offset beyond 3 std, in std
+        (:mod:`rwhec_ros.session.offset_significance`); NaN when not made. Below 3 the offset
+        is not significant.
     """
 
     camera: str
@@ -117,6 +121,7 @@ class CameraOffset:
     pairs: int = 0
     why: str = ""
     dropped: int = 0
+    lr_sigmas: float = math.nan
 
     @property
     def determined(self) -> bool:
@@ -129,7 +134,8 @@ class CameraOffset:
 
     @property
     def significant(self) -> bool:
-        return self.determined and abs(self.estimate_s) > SIGNIFICANT_SIGMAS * self.std_s
+        return (self.determined and abs(self.estimate_s) > SIGNIFICANT_SIGMAS * self.std_s
+                and not self.lr_sigmas <= SIGNIFICANT_SIGMAS)
 
     @property
     def caution(self) -> bool:
@@ -138,14 +144,21 @@ class CameraOffset:
         if not self.determined:
             return False
         d = abs(self.offset_s - self.parameter_s)
-        return d > SIGNIFICANT_SIGMAS * self.std_s and d > CAUTION_S
+        return (d > SIGNIFICANT_SIGMAS * self.std_s and d > CAUTION_S
+                and not self.lr_sigmas <= SIGNIFICANT_SIGMAS)
 
     def words(self) -> str:
         """``12.3 +- 0.4 ms (applied)`` or ``not determined (why)``."""
         if not self.determined:
             word = "not determined" if self.status == "not_determined" else "not estimated"
             return f"{word} ({self.why})"
-        tail = "applied" if self.applied else "not significant (within 3 std): not applied"
+        if self.applied:
+            tail = "applied"
+        elif self.lr_sigmas <= SIGNIFICANT_SIGMAS:
+            tail = (f"not significant (beyond 3 std, but a solve without it fits only "
+                    f"{self.lr_sigmas:.1f} std worse): not applied")
+        else:
+            tail = "not significant (within 3 std): not applied"
         conf = (f" ({1e3 * self.configured_s:g} ms of it in the pairs' stamps)"
                 if self.configured_s else "")
         return (f"{1e3 * self.offset_s:+.1f} +- {1e3 * self.std_s:.1f} ms{conf}, {tail}"
@@ -160,7 +173,8 @@ class CameraOffset:
                 "parameter_s": float(self.parameter_s),
                 "estimated_s": num(self.estimate_s), "applied": bool(self.applied),
                 "significant": bool(self.significant), "moving_pairs": int(self.moving_pairs),
-                "pairs": int(self.pairs), "dropped_pairs": int(self.dropped), "why": self.why}
+                "pairs": int(self.pairs), "dropped_pairs": int(self.dropped),
+                "likelihood_ratio_sigmas": num(self.lr_sigmas), "why": self.why}
 
 
 @dataclass

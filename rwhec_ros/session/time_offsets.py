@@ -46,6 +46,7 @@ from ..core.numerics.blas import blas_threads
 from ..core.outliers.pairs import pair_residuals
 from ..core.problem import Edge, Problem
 from ..sync.pose_track import MOTION_HALF_WINDOW_NS, PoseTrackData
+from .offset_significance import likelihood_ratio_sigmas
 from .time_offset_report import (
     CAUTION_S,
     SIGNIFICANT_SIGMAS,
@@ -216,7 +217,8 @@ def _unavailable(problem: Problem, stamps, track, options) -> TimeOffsetReport |
 
 
 def _judge(problem: Problem, options: TimeOffsetOptions, delta: np.ndarray, step,
-           moving_counts: np.ndarray, clipped: np.ndarray) -> dict[str, CameraOffset]:
+           moving_counts: np.ndarray, clipped: np.ndarray,
+           lr: Mapping[int, float] | None = None) -> dict[str, CameraOffset]:
     out = {}
     counts = np.zeros(problem.P, dtype=int)
     for e, k in zip(problem.edges, problem.edge_y, strict=True):
@@ -240,6 +242,7 @@ def _judge(problem: Problem, options: TimeOffsetOptions, delta: np.ndarray, step
                      f"{1e3 * options.max_std_s:g} ms: move faster or longer")
         else:
             o.status, o.estimate_s, o.std_s = "estimated", float(delta[k]), float(std[k])
+            o.lr_sigmas = float((lr or {}).get(k, math.nan))
             o.applied = o.significant
         out[cam] = o
     return out
@@ -259,6 +262,7 @@ def estimate_offsets(
     track: PoseTrackData | None,
     options: TimeOffsetOptions,
     solve_fn: Callable[[Problem, tuple | None], object],
+    solve_fixed: Callable[[Problem, tuple], object] | None = None,
 ) -> tuple[TimeOffsetReport, Problem]:
     """Estimate every camera's offset and return the problem with the significant ones applied
     (module docstring).
@@ -276,6 +280,11 @@ def estimate_offsets(
         The solve (``initial``: ``(X, Y)`` warm start or None); with the problem it solved when
         that carries other weights (the noise estimated from the data): the Newton steps and
         the offsets' std are then those of these weights.
+    solve_fixed : callable(problem, initial) -> CalibrationResult, optional
+        A solve that keeps the problem's weights: given, an offset that the Newton steps find
+        beyond 3 std is tested again by the likelihood ratio of a solve without it
+        (:mod:`rwhec_ros.session.offset_significance`), and is significant only when that
+        agrees. None: the 3-std test alone.
 
     Returns
     -------
@@ -286,10 +295,10 @@ def estimate_offsets(
         reach there left out, counted in :attr:`CameraOffset.dropped`).
     """
     with blas_threads(1):  # small dense matrices: threads only add contention
-        return _estimate_offsets(problem, stamps, track, options, solve_fn)
+        return _estimate_offsets(problem, stamps, track, options, solve_fn, solve_fixed)
 
 
-def _estimate_offsets(problem, stamps, track, options, solve_fn):
+def _estimate_offsets(problem, stamps, track, options, solve_fn, solve_fixed=None):
     t0 = time.perf_counter()
     missing = _unavailable(problem, stamps, track, options)
     if missing is not None:
@@ -300,6 +309,7 @@ def _estimate_offsets(problem, stamps, track, options, solve_fn):
     delta = np.zeros(problem.P)
     dns = np.zeros(problem.P, dtype=np.int64)
     current, kept = problem, np.ones(problem.n_measurements, dtype=bool)
+    masks = [np.ones(e.n, dtype=bool) for e in problem.edges]
     result, weighted = _solved(solve_fn(problem, None), problem)
     solves, iterations = 1, 0
     clipped = np.zeros(problem.P, dtype=bool)
@@ -332,7 +342,14 @@ def _estimate_offsets(problem, stamps, track, options, solve_fn):
     else:
         notes.append(f"the offsets moved by up to {1e3 * change.max():.2f} ms at the last of "
                      f"{MAX_ITERATIONS} Newton steps")
-    cams = _judge(problem, options, delta, step, moving_counts, clipped)
+    lr = {}
+    if solve_fixed is not None and step is not None:
+        wald = [k for k in range(problem.P) if step.determined[k]
+                and abs(delta[k]) > SIGNIFICANT_SIGMAS * step.std_s[k]]
+        lr = likelihood_ratio_sigmas(problem, lambda d: _reinterpolated(problem, st, track, d),
+                                     dns, masks, weighted, result, step, wald, solve_fixed)
+        solves += len(lr)
+    cams = _judge(problem, options, delta, step, moving_counts, clipped, lr)
     report = TimeOffsetReport(cams, iterations, solves, 0.0, options.range_s, notes)
     out = _shifted(problem, st, track, report)
     report.elapsed_s = time.perf_counter() - t0
@@ -498,6 +515,13 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
             return result, weighted
         return solve(p, opts)
 
+    def solve_fixed(p: Problem, initial):
+        opts, _ = solve_options(p, mode="fast" if mode == "sdp" else mode, priors=priors,
+                                unobservable_std_m=unobservable_std_m, min_scale=min_scale)
+        opts.fallback_to_sdp = False
+        opts.initial = initial
+        return solve(p, opts)
+
     options = TimeOffsetOptions.from_config(config)
     stamps = {} if dataset is None else {(e.x, e.y): e.stamps_ns for e in dataset.edges}
     track = None if dataset is None else dataset.pose_stream
@@ -505,7 +529,10 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
         options = TimeOffsetOptions(options.estimate, options.range_s, options.max_std_s,
                                     tuple(dataset.time_offsets_s.items()), options.configured_s)
     try:
-        report, out = estimate_offsets(problem, stamps, track, options, solve_fn)
+        # with --robust the pairs the robust solve rejects stay in the problem's cost: there
+        # the likelihood ratio would weigh them, and the 3-std test stands alone
+        report, out = estimate_offsets(problem, stamps, track, options, solve_fn,
+                                       None if reject_outliers else solve_fixed)
         return out, shift_dataset(dataset, report, track), report
     except Exception as exc:  # noqa: BLE001 - an extra of the calibration, never its failure
         why = f"the estimate failed: {type(exc).__name__}: {exc}"

@@ -37,9 +37,15 @@ __all__ = ["PoseTrack", "PoseTrackData", "track_window_ns", "RATE_HALF_STEP_NS"]
 
 _NS = 1_000_000_000
 #: Half the time step [ns] of the central difference that gives the stream's rate at a stamp
-#: (20 ms baseline: spans two samples of a 100 Hz stream, so the per-sample noise of a motion
-#: capture system is averaged; exact for constant-twist motion, O(h^2) otherwise).
-RATE_HALF_STEP_NS = 10_000_000
+#: (60 ms baseline: six samples of a 100 Hz stream apart; exact for constant-twist motion,
+#: ``O(h^2)`` otherwise, a gain of ``sin(w h) / (w h)`` = 0.95 at 3 Hz). The rate is the
+#: offsets' Jacobian (:mod:`rwhec_ros.core.analysis.time_offset`): its noise does not move the
+#: root of their estimating equation but inflates their error and deflates their std (errors in
+#: variables). With 0.5 mm / 0.5 mrad per sample at 100 Hz (``test/test_time_offsets.py``'s
+#: scene, 16 seeds, 0.3 m/s): a 20 ms baseline gave offsets 0.83 ms off (RMS) with a std 1.15x
+#: too small; 40, 60, 80 and 100 ms gave 0.75, 0.72, 0.73 and 0.74 ms with error / std 1.02,
+#: 0.98, 0.98 and 0.99 (the piecewise-linear stream's own slope, a baseline of 0: 1.82 ms, 2.9x).
+RATE_HALF_STEP_NS = 30_000_000
 
 
 #: Half-width [ns] of the window over which a pair's motion is measured (whether it moved).
