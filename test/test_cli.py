@@ -299,6 +299,40 @@ def test_dataset_round_trip_of_a_session_data_set(recorded, tmp_path):
         assert np.allclose(a["matrix"], b["matrix"], atol=1e-6)
 
 
+def test_a_data_set_recording_a_retired_parameter_still_loads(tmp_path):
+    """A data set written before a parameter was retired records it in ``metadata.config``:
+    ``dataset`` and ``check`` leave it out with a warning naming it, not refuse the data (a
+    parameter file setting it is refused: test_image_wait.py)."""
+    from rwhec_ros.core.problem import Edge, Problem
+    from rwhec_ros.simulation import demo_rig
+    from rwhec_ros.simulation.synthetic import random_instance
+
+    rig = demo_rig()
+    p, _ = random_instance(np.random.default_rng(3), 6, 3, n_per_edge=10, sigma=0.002,
+                           kappa=2000.0)
+    xs, ys = dict(zip(p.x_names, rig.target_names(), strict=True)), dict(zip(
+        p.y_names, rig.cameras, strict=True))
+    problem = Problem(list(xs.values()), list(ys.values()), [
+        Edge.build(xs[e.x], ys[e.y], e.A, e.B, e.sigma, e.kappa) for e in p.edges])
+    flat = demo_parameters(rig)
+    path = Dataset.from_problem(problem, metadata={"config": flat}).save(tmp_path / "new.yaml")
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "ref", "-q", "--folds", "0"])
+    assert code in (EXIT_OK, 4) and not stderr, stdout + stderr
+    doc = yaml.safe_load(path.read_text())
+    doc["metadata"]["config"]["sync.max_pending_images"] = 32
+    old = tmp_path / "old.yaml"
+    old.write_text(yaml.safe_dump(doc, sort_keys=False))
+    for argv in (["dataset", old, "-o", tmp_path / "out", "-q", "--folds", "0"],
+                 ["check", old, "--reference", tmp_path / "ref" / "result.yaml", "-o",
+                  tmp_path / "check", "-q"]):
+        code, stdout, stderr = run(argv)
+        # solved and judged (the check's few pairs leave cameras undecided: exit 6), not refused
+        assert code in (EXIT_OK, 4, 6) and stdout.startswith(("GOOD", "CAUTION", "CHECK")), (
+            argv[0], code, stdout, stderr)
+        assert re.search(r"warning: .*metadata.config: sync.max_pending_images \(value 32\) "
+                         r"ignored: retired", stderr), (argv[0], stderr)
+
+
 def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tmp_path):
     rig, root = recorded
     pairs, inputs = {}, {}

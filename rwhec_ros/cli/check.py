@@ -37,10 +37,10 @@ from .common import (
     BadInput,
     NoSolution,
     Printer,
-    config_from_parameters,
     output_dir,
     output_paths,
     read_config,
+    recorded_config,
     solver_overrides,
 )
 from .solving import _kept, _kept_files
@@ -321,10 +321,9 @@ def _check_dataset(args: argparse.Namespace, say: Printer) -> int:
     path = args.input / "dataset.yaml" if args.input.is_dir() else args.input
     config = read_config(args, solver_overrides(args))
     data = Dataset.load(path)
-    if config is None and data.metadata.get("config"):
-        flat = dict(data.metadata["config"])
-        flat.update(solver_overrides(args))
-        config = config_from_parameters(flat, f"{path}: metadata.config")
+    if config is None:
+        config = recorded_config(data.metadata, f"{path}: metadata.config", say, "check",
+                                 solver_overrides(args))[0]
     root = plain_output_root(config.output.directory if config is not None else "")
     paths = output_paths(args, report=False, root=root)  # refuse early, before any work
     if config is not None:

@@ -361,6 +361,26 @@ def config_from_parameters(flat: Mapping[str, Any], where: str):
         raise BadInput(f"{where}: {exc}") from None
 
 
+def recorded_config(metadata: Mapping[str, Any], where: str, say: Printer, command: str,
+                    overrides: Mapping[str, Any] | None = None):
+    """``(config, flat)``: the configuration recorded in a data set (``metadata.config``, flat
+    parameters ``flat``) with ``overrides``, validated (errors name ``where``); ``(None, {})``
+    when none is recorded. A parameter
+    retired since the data set was written (``RETIRED_PARAMETERS``) is left out with a warning
+    naming it: a data set is a record of how it was gathered, and an older one must still load
+    (a parameter file that sets it is refused, so that its author learns the replacement)."""
+    from ..config.validation import RETIRED_PARAMETERS
+
+    flat = dict(metadata.get("config") or {})
+    if not flat:
+        return None, {}
+    for key in sorted(set(flat) & set(RETIRED_PARAMETERS)):
+        say.warning(command, f"{where}: {key} (value {flat.pop(key)!r}) ignored: "
+                             f"{RETIRED_PARAMETERS[key].split(';')[0]}")
+    flat.update(overrides or {})
+    return config_from_parameters(flat, where), flat
+
+
 def read_config(args: argparse.Namespace, overrides: Mapping[str, Any] | None = None):
     """``--config FILE`` (section ``--node-name``) with ``overrides``, validated; None without
     ``--config``."""

@@ -15,10 +15,10 @@ from .common import (
     Printer,
     SolveSettings,
     check_output_room,
-    config_from_parameters,
     output_dir,
     output_paths,
     read_config,
+    recorded_config,
     refuse_existing,
     stated_noise,
     write_report,
@@ -156,9 +156,8 @@ def cmd_dataset(args: argparse.Namespace, say: Printer) -> int:
         if doc is not None and isinstance(doc.get("dataset_fingerprint"), dict):
             check_fingerprint(say, "dataset", doc, beside, data, Path(args.file))
     if config is None:
-        params = dict(data.metadata.get("config") or {})
-        if params:
-            config = config_from_parameters(params, f"{args.file}: metadata.config")
+        config, params = recorded_config(data.metadata, f"{args.file}: metadata.config", say,
+                                         "dataset")
     else:
         params = config.to_parameters()
     settings = SolveSettings.resolve(args, params)
