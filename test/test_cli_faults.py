@@ -346,6 +346,23 @@ def test_a_solver_failure_names_what_ran_and_only_what_is_left():
         assert what in first, first
 
 
+def test_exact_identical_pairs_raise_no_numpy_warning(tmp_path):
+    """20 identical pairs (exact data, nothing determined): the residual cost at rounding level
+    once came out a hair below zero, its square root was NaN and numpy's "invalid value
+    encountered in sqrt" reached the user as a note (``benchmarks/fault_table.md``)."""
+    from rwhec_ros.core.problem import Edge, Problem
+
+    A = np.tile(np.eye(4), (20, 1, 1))
+    A[:, :3, 3] = [0.1, 0.2, 0.3]
+    same = Problem(["tag_0"], ["cam_0"], [Edge.build("tag_0", "cam_0", A, np.tile(np.eye(4), (
+        20, 1, 1)), sigma=np.full(20, 0.01), kappa=np.full(20, 100.0))])
+    path = Dataset.from_problem(same).save(tmp_path / "same.yaml")
+    code, stdout, stderr = run(["dataset", path, "-o", tmp_path / "o", "-q"])
+    assert stdout.startswith("UNUSABLE") and "invalid value" not in stderr + stdout, stderr
+    doc = yaml.safe_load((tmp_path / "o" / "result.yaml").read_text())
+    assert doc["uncertainty"]["variance_factor"] >= 0.0
+
+
 def test_errors_name_the_option_and_its_value(tmp_path):
     data = _synthetic(tmp_path)
     code, stdout, stderr = run(["dataset", data, "-o", tmp_path / "o", "--min-pairs", "9",

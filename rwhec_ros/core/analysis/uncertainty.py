@@ -182,11 +182,16 @@ class FrameUncertainty:
 
     @property
     def std_translation_m_a_posteriori(self) -> np.ndarray:
-        return np.sqrt(self.variance_factor) * self.std_translation_m
+        return self._root_factor() * self.std_translation_m
 
     @property
     def std_rotation_deg_a_posteriori(self) -> np.ndarray:
-        return np.sqrt(self.variance_factor) * self.std_rotation_deg
+        return self._root_factor() * self.std_rotation_deg
+
+    def _root_factor(self) -> float:
+        """``sqrt(s0^2)``; exact data leave a residual cost at rounding level that can come out
+        a hair below zero: 0 then (no warning), NaN stays NaN."""
+        return float(np.sqrt(np.maximum(self.variance_factor, 0.0)))
 
     def worst_std(self) -> tuple[float, float]:
         """Predicted std in the worst direction: ``(translation [m], rotation [deg])``, the
@@ -537,7 +542,8 @@ def _uncertainty_from_information(info: Information, problem: Problem,
     C, ut, ur, scale_null = frame_covariances(cov, info, opts.axis_tol)
     lay = info.layout
     dof = 6 * info.n_pairs - cov.rank
-    s0 = info.chi2 / dof if dof > 0 else float("nan")
+    # chi2 is a sum of squares; on exact data its evaluation can come out a hair below zero
+    s0 = max(info.chi2, 0.0) / dof if dof > 0 else float("nan")
     frames = [FrameUncertainty(name, "X" if f < lay.M else "Y", C[f], s0, ut[f], ur[f])
               for f, name in enumerate(info.names)]
     scale_std = None
