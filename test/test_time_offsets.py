@@ -425,3 +425,25 @@ def test_offsets_a_misfit_faked_are_estimated_again_without_it():
         problem, data, lambda p, d: correct_time_offsets(p, d, None), assess)
     assert len(assessed) == 1 and set(report2.applied) == {"y1"} and not any(
         "without x0" in n for n in report2.notes)
+
+
+def test_a_glitch_in_the_rate_window_leaves_the_pair_out_of_the_offsets():
+    """One stream sample 90 deg and 0.5 m off: the rate's 60 ms difference dilutes it below the
+    plausibility bounds (~13 rad/s < 30), the 20 ms screen over the same window does not; pairs
+    whose rate interpolates it are left out, the others are kept."""
+    from rwhec_ros.session.offset_rates import glitch_free, plausible
+
+    ts = np.arange(0, 2 * NS, 10_000_000)
+    poses = np.array([moving(t / NS) for t in ts])
+    g = 100  # the sample at 1.0 s
+    poses[g] = make_transform(poses[g][:3, :3] @ so3_exp(np.array([np.pi / 2, 0.0, 0.0])),
+                              poses[g][:3, 3] + [0.5, 0.0, 0.0])
+    track = PoseTrackData(ts, poses, 100_000_000)
+    q = (np.array([0.5, 0.965, 0.975, 1.0, 1.025, 1.035, 1.5]) * NS).astype(np.int64)
+    xi, ok = track.rates(q)
+    rate = np.linalg.norm(xi[:, 3:], axis=1)
+    hit = [1, 2, 4, 5]  # s +- 30 ms between the glitch and a neighbour: ~13 rad/s, not 0.6
+    assert ok.all() and (rate[hit] > 10).all() and plausible(xi[hit]).all(), rate
+    # kept: far from it, and at 1.0 s itself (s +- 30 ms on good samples: the pair's own pose
+    # is the robust solve's to reject)
+    assert glitch_free(track, q).tolist() == [True, False, False, True, False, False, True]

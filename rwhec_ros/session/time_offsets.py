@@ -46,6 +46,7 @@ from ..core.numerics.blas import blas_threads
 from ..core.outliers.pairs import pair_residuals
 from ..core.problem import Edge, Problem
 from ..sync.pose_track import MOTION_HALF_WINDOW_NS, PoseTrackData
+from .offset_rates import glitch_free, plausible
 from .offset_significance import likelihood_ratio_sigmas
 from .time_offset_report import (
     CAUTION_S,
@@ -69,11 +70,6 @@ MOVING_SPEED_M_S = 0.05
 MOVING_RATE_RAD_S = 0.1
 #: Fewest moving pairs of a camera for its offset to count as determined.
 MIN_MOVING_PAIRS = 6
-#: A stream rate beyond these [m/s, rad/s] is a glitch of the stream (a wrong sample between
-#: good ones), not motion: the pair is left out of the offsets (1,700 deg/s; the translation rate
-#: of ``A`` includes the lever arm of the far carrier's origin, hence the generous bound).
-MAX_SPEED_M_S = 50.0
-MAX_RATE_RAD_S = 30.0
 #: A pair whose ``J_i`` (eq. (33)) exceeds this many times the median of its camera's pairs is
 #: left out of the offsets at that step (an outlier: wrong tag pose, glitch of the stream); the
 #: residuals of a camera whose offset is still uncorrected grow with each pair's speed squared
@@ -124,16 +120,10 @@ def _rates(problem: Problem, stamps: list[np.ndarray], track: PoseTrackData,
     in one batch."""
     if not stamps:
         return np.zeros((0, 6))
-    xi, ok = track.rates(_shifted_stamps(problem, stamps, delta_ns))
-    xi[~(ok & moving & _plausible(xi))] = np.nan
+    q = _shifted_stamps(problem, stamps, delta_ns)
+    xi, ok = track.rates(q)
+    xi[~(ok & moving & plausible(xi) & glitch_free(track, q))] = np.nan
     return xi
-
-
-def _plausible(xi: np.ndarray) -> np.ndarray:
-    """Rates (N, 6) within :data:`MAX_SPEED_M_S` and :data:`MAX_RATE_RAD_S` (NaN: False)."""
-    with np.errstate(invalid="ignore"):
-        return ((np.linalg.norm(xi[:, :3], axis=1) <= MAX_SPEED_M_S)
-                & (np.linalg.norm(xi[:, 3:], axis=1) <= MAX_RATE_RAD_S))
 
 
 def _fitting(problem: Problem, result, rates: np.ndarray) -> np.ndarray:
@@ -411,7 +401,7 @@ def _cached_rates(st, track, cache) -> tuple[np.ndarray, np.ndarray]:
         _, okm = track.lookup(np.concatenate([q[idx] + MOTION_HALF_WINDOW_NS,
                                               q[idx] - MOTION_HALF_WINDOW_NS]))
         okm = okm[: idx.shape[0]] & okm[idx.shape[0]:]
-        xi[~(ok & mv & _plausible(xi))] = np.nan
+        xi[~(ok & mv & plausible(xi) & glitch_free(track, q[idx]))] = np.nan
         rates[idx], moving[idx] = xi, mv
         passed = track.stamps_ns[-1] - MOTION_HALF_WINDOW_NS - 2 * track.max_gap_ns
         for j, i in enumerate(todo):

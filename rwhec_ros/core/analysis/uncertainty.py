@@ -182,16 +182,11 @@ class FrameUncertainty:
 
     @property
     def std_translation_m_a_posteriori(self) -> np.ndarray:
-        return self._root_factor() * self.std_translation_m
+        return np.sqrt(np.maximum(self.variance_factor, 0.0)) * self.std_translation_m
 
     @property
     def std_rotation_deg_a_posteriori(self) -> np.ndarray:
-        return self._root_factor() * self.std_rotation_deg
-
-    def _root_factor(self) -> float:
-        """``sqrt(s0^2)``; exact data leave a residual cost at rounding level that can come out
-        a hair below zero: 0 then (no warning), NaN stays NaN."""
-        return float(np.sqrt(np.maximum(self.variance_factor, 0.0)))
+        return np.sqrt(np.maximum(self.variance_factor, 0.0)) * self.std_rotation_deg
 
     def worst_std(self) -> tuple[float, float]:
         """Predicted std in the worst direction: ``(translation [m], rotation [deg])``, the
