@@ -365,10 +365,10 @@ def recorded_config(metadata: Mapping[str, Any], where: str, say: Printer, comma
                     overrides: Mapping[str, Any] | None = None):
     """``(config, flat)``: the configuration recorded in a data set (``metadata.config``, flat
     parameters ``flat``) with ``overrides``, validated (errors name ``where``); ``(None, {})``
-    when none is recorded. A parameter
-    retired since the data set was written (``RETIRED_PARAMETERS``) is left out with a warning
-    naming it: a data set is a record of how it was gathered, and an older one must still load
-    (a parameter file that sets it is refused, so that its author learns the replacement)."""
+    when none is recorded. A parameter retired since the data set was written
+    (``RETIRED_PARAMETERS``) is left out with a warning naming it: a data set is a record of how
+    it was gathered, and an older one must still load (a parameter file that sets it is
+    refused, so that its author learns the replacement)."""
     from ..config.validation import RETIRED_PARAMETERS
 
     flat = dict(metadata.get("config") or {})

@@ -79,10 +79,12 @@ def likelihood_ratio_sigmas(
         Camera index -> ``z_k``; a camera is left out when the test cannot be made (a pair
         reached at one of the two stamps and not the other, edges that differ, a failed solve).
     """
-    f_hat = direct_cost(weighted, result.X, result.Y, result.scale)
-    s0 = float(step.variance_factor)
     out: dict[int, float] = {}
-    if not (s0 > 0 and np.isfinite(f_hat)):
+    s0 = float(step.variance_factor)
+    if not cameras or not s0 > 0:
+        return out
+    f_hat = direct_cost(weighted, result.X, result.Y, result.scale)
+    if not np.isfinite(f_hat):
         return out
     for k in cameras:
         d0 = np.array(dns, dtype=np.int64)

@@ -133,9 +133,14 @@ class CameraOffset:
         return self.configured_s + self.estimate_s if self.determined else math.nan
 
     @property
+    def vetoed(self) -> bool:
+        """The likelihood-ratio test was made and found the offset within 3 std."""
+        return self.lr_sigmas <= SIGNIFICANT_SIGMAS  # NaN (not made): False
+
+    @property
     def significant(self) -> bool:
         return (self.determined and abs(self.estimate_s) > SIGNIFICANT_SIGMAS * self.std_s
-                and not self.lr_sigmas <= SIGNIFICANT_SIGMAS)
+                and not self.vetoed)
 
     @property
     def caution(self) -> bool:
@@ -144,8 +149,7 @@ class CameraOffset:
         if not self.determined:
             return False
         d = abs(self.offset_s - self.parameter_s)
-        return (d > SIGNIFICANT_SIGMAS * self.std_s and d > CAUTION_S
-                and not self.lr_sigmas <= SIGNIFICANT_SIGMAS)
+        return d > SIGNIFICANT_SIGMAS * self.std_s and d > CAUTION_S and not self.vetoed
 
     def words(self) -> str:
         """``12.3 +- 0.4 ms (applied)`` or ``not determined (why)``."""
@@ -154,7 +158,7 @@ class CameraOffset:
             return f"{word} ({self.why})"
         if self.applied:
             tail = "applied"
-        elif self.lr_sigmas <= SIGNIFICANT_SIGMAS:
+        elif self.vetoed:
             tail = (f"not significant (beyond 3 std, but a solve without it fits only "
                     f"{self.lr_sigmas:.1f} std worse): not applied")
         else:

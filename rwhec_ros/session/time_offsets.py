@@ -488,11 +488,15 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
     from ..core.solve import solve
     from .solving import _solve, solve_options
 
-    def solve_fn(p: Problem, initial):
+    def options_for(p: Problem, initial):
         opts, _ = solve_options(p, mode="fast" if mode == "sdp" else mode, priors=priors,
                                 unobservable_std_m=unobservable_std_m, min_scale=min_scale)
         opts.fallback_to_sdp = False
         opts.initial = initial
+        return opts
+
+    def solve_fn(p: Problem, initial):
+        opts = options_for(p, initial)
         if reject_outliers:
             robust = _solve(p, opts, True, noise)[0]
             if (list(robust.x_names), list(robust.y_names)) == (list(p.x_names),
@@ -505,12 +509,8 @@ def correct_time_offsets(problem: Problem, dataset, config, *, mode: str = "fast
             return result, weighted
         return solve(p, opts)
 
-    def solve_fixed(p: Problem, initial):
-        opts, _ = solve_options(p, mode="fast" if mode == "sdp" else mode, priors=priors,
-                                unobservable_std_m=unobservable_std_m, min_scale=min_scale)
-        opts.fallback_to_sdp = False
-        opts.initial = initial
-        return solve(p, opts)
+    def solve_fixed(p: Problem, initial):  # the problem's own weights
+        return solve(p, options_for(p, initial))
 
     options = TimeOffsetOptions.from_config(config)
     stamps = {} if dataset is None else {(e.x, e.y): e.stamps_ns for e in dataset.edges}
