@@ -152,8 +152,8 @@ def test_chessboards_and_circle_grids_round_trip():
 
 
 @pytest.mark.parametrize("targets,param,words", [
-    ({"cb": {**CHESS, "rows": 7}}, "targets.cb.cols",
-     "10 x 8 squares.*one odd and one even number of squares"),
+    ({"cb": {**CHESS, "rows": 9}}, "targets.cb.cols",
+     "square grid.*turned by 90 degrees.*different numbers of squares"),
     ({"dots": {**ORIGIN_GRID, "origin_circle": False}}, "targets.dots.origin_circle",
      "turned by 90 degrees.*origin_circle: true"),
     ({"ac": {**ACIRCLES, "rows": 10}}, "targets.ac.rows", "odd number of rows"),
@@ -181,3 +181,13 @@ def test_detection_gate_and_chessboard_refinement_are_checked():
     p["detection.chessboard_refinement"] = "classic"
     with pytest.raises(ValueError, match=r"^detection.chessboard_refinement: must be one of"):
         CalibratorConfig.from_parameters(p)
+
+
+def test_a_turn_symmetric_chessboard_is_accepted_and_its_views_turned_by_the_stream():
+    """The ROS tutorial's 8 x 6 board (9 x 7 squares) loads; the session's accumulator turns
+    its views (test/sync/test_board_turns.py, test/test_board_turns_session.py)."""
+    c = CalibratorConfig.from_parameters(with_targets(cb={**CHESS, "cols": 8}))
+    cb = {t.name: t for t in c.target_specs()}["cb"]
+    assert cb.turn_symmetric and cb.board.pattern_size == (8, 6)
+    assert not {t.name: t for t in CalibratorConfig.from_parameters(
+        with_targets(cb=CHESS)).target_specs()}["cb"].turn_symmetric

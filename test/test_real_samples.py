@@ -257,3 +257,26 @@ def test_ic_charuco_is_not_unusable_because_of_a_guessed_noise(ic_charuco):
     # the residuals fit a few mm where the corners alone predict about 1 mm
     assert 2.0 < cam["sigma_m"] / cam["sigma_given_m"] < 8.0
     assert "cam0: sigma" in text and "from the reprojection" in text
+
+
+def test_planted_turns_of_real_views_are_told_by_the_pose_stream(ic_charuco, tmp_path):
+    """A board that looked the same turned by 180 deg would give each real view one of two
+    labellings: the real views of ic_charuco (eye-to-hand) and ic_circle_10x10 (eye-in-hand),
+    a random 40 % of them turned (``B F``), 20 draws each: the pose stream tells every turned
+    view (``rwhec_ros.sync.board_turns``, the relative turns of real arm motion and real PnP
+    poses)."""
+    from rwhec_ros.sync.board_turns import TURN, resolve_turns
+
+    _, _, out = ic_charuco
+    code, text, err = run(["samples", real("ic_circle_10x10"), "-o", tmp_path / "o", "-q"])
+    assert code in (EXIT_OK, EXIT_UNUSABLE), text + err
+    for path in (out / "dataset.yaml", tmp_path / "o" / "dataset.yaml"):
+        (edge,) = Dataset.load(path).edges
+        rng = np.random.default_rng(0)
+        for _ in range(20):
+            planted = rng.random(edge.n) < 0.4
+            B = np.array(edge.B)
+            B[planted] = B[planted] @ TURN
+            res = resolve_turns(edge.A, B)
+            assert res.resolved.all(), path
+            assert np.array_equal(res.turned, planted) or np.array_equal(res.turned, ~planted)

@@ -458,7 +458,9 @@ TARGET_SPECS: tuple[ParamSpec, ...] = (
                   "circles, asymmetric_circles: rows of circles (asymmetric: odd)"),
     ParamSpec("cols", "int", None,
               doc="aprilgrid: columns of tags (Kalibr tagCols); chessboard: inner corners "
-                  "along x (cols + rows odd); circles, asymmetric_circles: circles per row"),
+                  "along x (not equal to rows; cols + rows even: a turn-symmetric board, "
+                  "each view's turn told by the pose stream); circles, asymmetric_circles: "
+                  "circles per row"),
     ParamSpec("spacing", "double", None,
               doc="aprilgrid: gap between tags as a fraction of tag_size (Kalibr tagSpacing; "
                   "default 0.3)"),
@@ -478,7 +480,8 @@ TARGET_SPECS: tuple[ParamSpec, ...] = (
                   "OpenCV's square size (half the centre distance in a row) [m]"),
     ParamSpec("origin_circle", "bool", None,
               doc="circles: the bottom-left circle is larger (industrial_calibration's modified "
-                  "circle grid); required true: a plain symmetric grid has no orientation"),
+                  "circle grid); false: a plain symmetric grid (cols != rows), which looks the "
+                  "same turned by 180 deg: each view's turn told by the pose stream"),
     ParamSpec("circle_diameter", "double", None,
               doc="circles, asymmetric_circles: printed circle diameter [m] (default: measured "
                   "in each image; it corrects the circle-centre projection bias)"),

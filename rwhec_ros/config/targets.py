@@ -16,18 +16,22 @@ Types (:data:`~rwhec_ros.config.specs.TARGET_TYPES`) and their keys:
   (0), ``family`` (tag36h11), ``border_bits`` (2), ``min_corners``;
 * ``charuco``: ``squares_x``, ``squares_y``, ``square_size``, ``marker_size`` (required),
   ``dictionary`` (DICT_5X5_100), ``first_id`` (0), ``legacy_pattern`` (false), ``min_corners``;
-* ``chessboard``: ``cols``, ``rows`` (inner corners, one odd and one even), ``square_size``
+* ``chessboard``: ``cols``, ``rows`` (inner corners, not equal), ``square_size``
   (required), ``min_corners``;
-* ``circles``: ``cols``, ``rows``, ``circle_spacing`` (required), ``origin_circle`` (must be true:
-  a larger bottom-left circle), ``circle_diameter`` (measured when unset), ``min_corners``;
+* ``circles``: ``cols``, ``rows``, ``circle_spacing`` (required), ``origin_circle`` (a larger
+  bottom-left circle; false: a plain grid, ``cols != rows``, turn-symmetric),
+  ``circle_diameter`` (measured when unset), ``min_corners``;
 * ``asymmetric_circles``: ``cols``, ``rows`` (odd), ``circle_spacing`` (OpenCV's square size),
   ``circle_diameter``, ``min_corners``;
 * ``tag``: ``tag_id``, ``tag_size`` (required): one tag of ``tags.family``, like ``tags.ids`` but
   with its own frame name.
 
-A layout that looks the same turned (a chessboard with both counts even or both odd, a circle
-grid without an origin circle, an asymmetric grid with an even number of rows) is refused with
-the reason and the fix: its point order could flip between views.
+A layout that looks the same turned by 90 degrees (a square chessboard or plain circle grid)
+or that the detector cannot label (an asymmetric grid with an even number of rows) is refused
+with the reason and the fix: its point order could flip between views. A chessboard with both
+square counts even or both odd, or a plain circle grid (no origin circle), looks the same turned
+by 180 degrees and is accepted: the pose stream tells which of its views are turned
+(:mod:`rwhec_ros.sync.board_turns`).
 
 A key of another type is refused by name (a typo would otherwise be silently ignored). Marker
 ids must be unique per dictionary across ``tags.ids``, the tag targets and every board

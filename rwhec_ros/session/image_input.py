@@ -428,9 +428,12 @@ class ImageInput(ImageWait):
             self._count("pairs_offered")
             if ok:
                 kept.append(x)
-                if self._tracker is not None:
+                # a turn-symmetric board's view as labelled like the edge's first (None: its
+                # turn not told yet; the solve's identifiability sees it once told)
+                B = self._acc.tracker_B(x, camera, stamp, o.T_cam_target)
+                if self._tracker is not None and B is not None:
                     try:
-                        self._tracker.add_pair(x, camera, A, o.T_cam_target, sigma, kappa)
+                        self._tracker.add_pair(x, camera, A, B, sigma, kappa)
                     except ValueError:
                         self._count("identifiability_rejected_pair")
         self._count("pairs_kept", len(kept))

@@ -31,6 +31,7 @@ from ..data.results import (
 )
 from ..errors import describe_os_error
 from ..sync.accumulator import PairAccumulator
+from ..sync.board_turns import turn_document, turn_lines
 from ..sync.buffer import PoseBuffer
 from ..sync.pose_track import PoseTrack, track_window_ns
 from ..sync.pose_wait import PoseLatency
@@ -154,6 +155,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
             max_edges=max(1, len(c.cameras) * len(c.x_names)),
             board_corners=max((t.board.n_corners for t in self._target_specs
                                if t.board is not None), default=0),
+            turnable=[t.name for t in self._target_specs if t.turn_symmetric],
         )
         self._tracker = make_tracker(c.tags.unknown_scale)
         # the pose stream around the kept pairs, for time offsets (rwhec_ros.sync.pose_track)
@@ -396,14 +398,14 @@ class CalibrationSession(ImageInput, CaptureMixin):
             except ValueError as exc:
                 problem, excluded, err = None, {}, str(exc)
             dataset = self._dataset_locked()
-            counts = self._acc.counts()
-        return problem, excluded, err, report, dataset, counts
+            counts, turns = self._acc.counts(), self._acc.turn_report()
+        return problem, excluded, err, report, dataset, counts, turns
 
     def _calibrate(self, output_dir: str | Path | None, force: bool,
                    on_phase: Callable[[str], None] | None = None) -> SolveOutcome:
         from .solving import solver_alternatives
         c = self.config
-        problem, excluded, err, report, dataset, counts = self._snapshot()
+        problem, excluded, err, report, dataset, counts, turns = self._snapshot()
         ident = report_dict(report)
         excl = {f"({x}, {y})": r for (x, y), r in excluded.items()}
         if problem is None:
@@ -450,7 +452,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
             result, excl, ident, verdict, solved.accuracy, solved.rejected_pairs,
             fingerprint=None if dataset is None else dataset_fingerprint(dataset))
         doc = offsets.into(doc)
-        text = dump_document(doc)
+        text = dump_document({**doc, "board_turns": turn_document(turns)} if turns else doc)
         if on_phase is not None:
             on_phase("writing")
         try:
@@ -461,7 +463,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
         except OSError as exc:
             files, write_error = {}, describe_os_error(exc)
         message = "\n".join([summary(result, solved.problem, excl, self.config, verdict,
-                                      solved.accuracy), *offsets.lines()]) + (
+                                      solved.accuracy), *offsets.lines(),
+                             *turn_lines(turns)]) + (
             f"\nWRITING THE OUTPUTS FAILED: {write_error}" if write_error else "")
         return SolveOutcome(True, message, result, excl, files, ident, text, verdict,
                             solved.accuracy, write_error, time_offsets=offsets)

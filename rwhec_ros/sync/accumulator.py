@@ -43,11 +43,12 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 
 import numpy as np
 
 from ..core.problem import DEFAULT_ROTATION_TOL, Problem, check_transforms
+from .board_turns import TURN, resolve_edges, resolve_turns
 from .edge_pairs import DatasetEdge
 from .edge_store import (
     _BYTES_PER_EDGE_OVERHEAD,
@@ -117,6 +118,12 @@ class PairAccumulator:
     board_corners : int
         The most corners a board pair offers (the session's largest board); 0 (default): board
         corners are not kept. Raises the memory bound (module docstring).
+    turnable : collection of str
+        Targets (X frames) that look the same turned by 180 degrees (symmetric chessboards):
+        their pairs are stored as detected and handed out (:meth:`edges`, :meth:`kept_pairs`,
+        :meth:`to_problem`) with the views whose corner order is turned turned back and the
+        views whose turn cannot be told left out (:mod:`rwhec_ros.sync.board_turns`;
+        :meth:`turn_report`).
     """
 
     def __init__(
@@ -128,6 +135,7 @@ class PairAccumulator:
         *,
         rotation_tol: float = DEFAULT_ROTATION_TOL,
         board_corners: int = 0,
+        turnable: Collection[str] = (),
     ) -> None:
         for name, value in (
             ("keyframe_rotation_rad", keyframe_rotation_rad),
@@ -146,6 +154,7 @@ class PairAccumulator:
             raise ValueError(f"board_corners: expected 0 or an integer >= 4, got "
                              f"{board_corners!r}")
         self.board_corners = int(board_corners)
+        self.turnable = frozenset(str(t) for t in turnable)
         self.keyframe_rotation_rad = float(keyframe_rotation_rad)
         self.keyframe_translation_m = float(keyframe_translation_m)
         self.max_pairs_per_edge = int(max_pairs_per_edge)
@@ -156,6 +165,7 @@ class PairAccumulator:
         self._y_frames: set[str] = set()
         self._listeners: list[PairListener] = []
         self._counters = dict.fromkeys(_COUNTERS, 0)
+        self._turn_report: dict[tuple[str, str], dict] = {}
 
     # --- listeners -----------------------------------------------------------------------------
     def add_listener(self, callback: PairListener) -> None:
@@ -373,8 +383,8 @@ class PairAccumulator:
     def edges(self) -> dict[tuple[str, str], DatasetEdge]:
         """Kept pairs per edge ``(x, y)`` (sorted by stamp; copies), in first-offer order, as
         the records of a :class:`~rwhec_ros.data.dataset.Dataset`."""
-        return {key: store.data(self.rotation_tol) for key, store in self._edges.items()
-                if store.n}
+        return self._turned({key: store.data(self.rotation_tol)
+                             for key, store in self._edges.items() if store.n})
 
     def kept_pairs(self) -> dict[tuple[str, str], KeptPairs]:
         """Kept pairs per edge ``(x, y)`` like :meth:`edges`, but as plain arrays without the
@@ -384,7 +394,39 @@ class PairAccumulator:
         in stamp order (the usual case) are read-only views of the stored arrays, taken in
         constant time, which the accumulator never changes afterwards (see
         :attr:`KeptPairs.lineage`); others sorted copies."""
-        return {key: store.copy() for key, store in self._edges.items() if store.n}
+        return self._turned({key: store.copy() for key, store in self._edges.items()
+                             if store.n})
+
+    def _turned(self, data: dict) -> dict:
+        """``data`` with the views of the :attr:`turnable` targets turned back
+        (:func:`~rwhec_ros.sync.board_turns.resolve_edges`); edges left out whole are kept
+        with their reason for :meth:`turn_report`."""
+        if not self.turnable or not any(x in self.turnable for x, _ in data):
+            self._turn_report = {}
+            return data
+        out, self._turn_report = resolve_edges(data, self.turnable)
+        return out
+
+    def tracker_B(self, x: str, y: str, stamp_ns: int, B: np.ndarray) -> np.ndarray | None:
+        """``B`` of the kept pair ``(x, y, stamp_ns)`` for an incremental consumer (the live
+        identifiability tracker): as offered for a target that is not :attr:`turnable`; else
+        turned to the labelling of the edge's first stored pair, or None while its turn cannot
+        be told (:func:`~rwhec_ros.sync.board_turns.resolve_turns`)."""
+        store = self._edges.get((x, y))
+        if x not in self.turnable or store is None or store.n < 2:
+            return B
+        n = store.n
+        res = resolve_turns(store.A[:n], store.B[:n])
+        i = np.flatnonzero(store.stamps[:n] == stamp_ns)
+        if not len(i) or not (res.resolved[i[0]] and res.resolved[0]):
+            return None
+        return B @ TURN if res.turned[i[0]] != res.turned[0] else B
+
+    def turn_report(self) -> dict[tuple[str, str], dict]:
+        """Per edge of a turnable target, as of the last :meth:`edges` / :meth:`kept_pairs`:
+        ``{"pairs", "turned", "unresolved"}`` and ``"left_out"`` (the reason) where the whole
+        edge was left out (:func:`~rwhec_ros.sync.board_turns.resolve_edges`)."""
+        return {k: dict(v) for k, v in self._turn_report.items()}
 
     def counts(self) -> dict[tuple[str, str], int]:
         """Number of kept pairs per edge ``(x, y)``."""
@@ -458,5 +500,8 @@ class PairAccumulator:
         ValueError
             If no edge is left.
         """
-        return problem_from_edges(self.edges(), x_names, y_names, unknown_scale, min_pairs,
-                                  self.rotation_tol)
+        problem, excluded = problem_from_edges(self.edges(), x_names, y_names, unknown_scale,
+                                               min_pairs, self.rotation_tol)
+        excluded.update({key: r["left_out"] for key, r in self._turn_report.items()
+                         if "left_out" in r})
+        return problem, excluded

@@ -19,8 +19,13 @@ Per board (:meth:`GridFinder.find`):
    must keep their orientation, ``z`` toward the camera) whose pattern matches -- a chessboard's
    square colours (sampled at the square centres), the larger origin circle at the bottom-left
    corner (blob size over the local spacing), the asymmetric grid's layout (homography fit).
-   One candidate left: labelled (always so for a whole board of a layout that the
-   configuration accepts). None: ``ambiguous_orientation``. Several (a part of a plain
+   One candidate left: labelled (always so for a whole board of a layout whose pattern fixes
+   the order). A whole turn-symmetric board (a chessboard with both square counts even or both
+   odd, a symmetric circle grid without an origin circle) leaves two, the board and the board
+   turned by 180 degrees: without a predicted pose the one whose ``x`` axis runs more to the
+   image's right is taken (``how = "turn_symmetric"``), and the pose stream tells across views
+   which views are turned (:mod:`rwhec_ros.sync.board_turns`).
+   None: ``ambiguous_orientation``. Several (a part of a plain
    chessboard: the colours halve the shifts, but a part turned by 180 degrees and shifted
    matches them too): a predicted ``T_cam_board`` picks the one whose points lie nearest its
    projection when that is clearly nearer than the next (within a third of a square, the next
@@ -64,7 +69,9 @@ _MIN_ORIGIN_RATIO = 1.25
 class GridPoints:
     """A labelled grid: ``image_points`` (N, 2) distorted pixels, ``object_points`` (N, 3)
     board frame, ``ideal`` (N, 2) undistorted pixels; ``partial`` when only part of the board
-    was found; ``how`` the way the labels were fixed (``"pattern"`` or ``"prediction"``)."""
+    was found; ``how`` the way the labels were fixed (``"pattern"``, ``"prediction"`` or
+    ``"turn_symmetric"``: one of a turn-symmetric board's two labellings, the pose stream tells
+    which views are turned, :mod:`rwhec_ros.sync.board_turns`)."""
 
     image_points: np.ndarray
     object_points: np.ndarray
@@ -193,6 +200,11 @@ class GridFinder:
             return None, [TargetRejection(name, RejectReason.AMBIGUOUS_ORIENTATION.value,
                                           self._no_order_detail(grid))], outline
         how = "pattern"
+        if (len(placements) == 2 and not partial and getattr(self.spec, "turn_symmetric", False)
+                and predicted is None):
+            # a turn-symmetric board: the two labellings are the board and the board turned;
+            # one fixed choice per image, the pose stream tells the turned views apart
+            placements, how = [self._upright(placements, ideal)], "turn_symmetric"
         if len(placements) > 1:
             chosen = None if predicted is None else self._by_prediction(
                 placements, grid, intrinsics, predicted)
@@ -365,6 +377,8 @@ class GridFinder:
         spec = self.spec
         if g.shape[:2] != (spec.rows, spec.cols):
             return False
+        if spec.turn_symmetric:
+            return True  # the board and the board turned: both fit (find() takes one)
         if spec.asymmetric:
             obj = spec.object_points()[:, :2]
             H, _ = cv2.findHomography(obj, gi.reshape(-1, 2), 0)
@@ -388,6 +402,14 @@ class GridFinder:
             return False
         self._origin_ratio = float(sizes[0] / np.median(sizes[1:]))
         return True
+
+    @staticmethod
+    def _upright(placements: list[np.ndarray], ideal: np.ndarray) -> np.ndarray:
+        """Of a turn-symmetric board's two labellings, the one whose ``x`` axis runs more to
+        the image's right (ties: the first)."""
+        pts = ideal.reshape(-1, 2)
+        rightward = [float(pts[order[0, -1], 0] - pts[order[0, 0], 0]) for order in placements]
+        return placements[int(np.argmax(rightward))]
 
     def _no_order_detail(self, grid: np.ndarray) -> str:
         spec = self.spec

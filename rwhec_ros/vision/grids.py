@@ -19,16 +19,22 @@ Chessboard (``cols x rows`` inner corners, squares of ``square_size``)
 ----------------------------------------------------------------------
 ``(cols + 1) x (rows + 1)`` squares; upright, the top-left square is black (OpenCV's
 ``gen_pattern.py``). Corner ``(a, b)`` sits at ``((a - (cols-1)/2) s, ((rows-1)/2 - b) s)``.
-Turned by 180 degrees the board looks the same when ``cols + rows`` is even (both square counts
-even or both odd): refused. With one odd and one even count the top-left square is black
-upright and white turned, which fixes the order.
+With one odd and one even square count the top-left square is black upright and white turned,
+which fixes the order. Turned by 180 degrees the board looks the same when ``cols + rows`` is
+even (both square counts even or both odd, e.g. the ROS ``camera_calibration`` tutorial's 8 x 6
+inner corners): such a board is **turn-symmetric** (:attr:`ChessboardSpec.turn_symmetric`). The
+detector labels it one fixed way per image and the pose stream tells, across views, which
+views are turned (:mod:`rwhec_ros.sync.board_turns`). A square grid (``cols == rows``) is
+refused: it may also look the same turned by 90 degrees.
 
 Circle grids (``cols`` circles per row, ``rows`` rows, dark circles on white)
 -----------------------------------------------------------------------------
 * symmetric (``circles``): point ``(a, b)`` at ``((a - (cols-1)/2) p, ((rows-1)/2 - b) p)``,
-  ``p = spacing``. Such a grid maps onto itself turned by 180 degrees (and by 90 when square):
-  refused unless it has a **larger origin circle** (``origin_circle``: industrial_calibration's
-  "modified circle grid"), which is the bottom-left point ``(0, rows - 1)`` of the upright board;
+  ``p = spacing``. Such a grid maps onto itself turned by 180 degrees (and by 90 when square)
+  unless it has a **larger origin circle** (``origin_circle``: industrial_calibration's
+  "modified circle grid"), which is the bottom-left point ``(0, rows - 1)`` of the upright board.
+  Without one it is turn-symmetric like a chessboard with both square counts even or both odd
+  (the pose stream tells which views are turned); a square one is refused;
 * asymmetric (``asymmetric_circles``, OpenCV's layout): row ``b`` shifted by half a period when
   ``b`` is odd, point ``(a, b)`` at ``((2a + b mod 2 - (cols - 1/2)) p, ((rows-1)/2 - b) p)``
   with ``p = spacing`` OpenCV's "square size" (neighbours in a row are ``2p`` apart, rows ``p``
@@ -99,8 +105,8 @@ class ChessboardSpec(_Grid):
     Attributes
     ----------
     cols, rows : int
-        Inner corners along ``x`` and ``y`` (OpenCV's ``patternSize``), each >= 2, one odd and
-        one even (``cols + rows`` odd).
+        Inner corners along ``x`` and ``y`` (OpenCV's ``patternSize``), each >= 2, not equal;
+        with ``cols + rows`` even the board is :attr:`turn_symmetric`.
     square_size : float
         Edge of a square [m] (nominal if the scale is unknown).
     """
@@ -118,12 +124,18 @@ class ChessboardSpec(_Grid):
         object.__setattr__(self, "rows", _count(owner, "rows", self.rows, 2))
         object.__setattr__(self, "square_size",
                            _positive(owner, "square_size", self.square_size))
-        if (self.cols + self.rows) % 2 == 0:
+        if self.cols == self.rows:
             raise ValueError(
-                f"{owner}: cols {self.cols} and rows {self.rows} inner corners ("
-                f"{self.cols + 1} x {self.rows + 1} squares) make a board that looks the same "
-                f"turned by 180 degrees, so its corner order can flip between views; use a "
-                f"board with one odd and one even number of squares (e.g. 9 x 6 inner corners)")
+                f"{owner}: cols {self.cols} and rows {self.rows} inner corners make a square "
+                f"grid, which can look the same turned by 90 degrees, so its corner order "
+                f"could turn between views; use a board with different numbers of squares "
+                f"along its two sides (e.g. 9 x 6 inner corners)")
+
+    @property
+    def turn_symmetric(self) -> bool:
+        """True when the board looks the same turned by 180 degrees (``cols + rows`` even):
+        which views are turned is told from the pose stream (module docstring)."""
+        return (self.cols + self.rows) % 2 == 0
 
     @property
     def pitch(self) -> float:
@@ -184,7 +196,8 @@ class CircleGridSpec(_Grid):
         OpenCV's asymmetric grid (``asymmetric_circles``).
     origin_circle : bool
         Symmetric grids: the bottom-left circle of the upright board is larger (the "modified
-        circle grid" of industrial_calibration), which fixes the order.
+        circle grid" of industrial_calibration), which fixes the order; without it the grid is
+        :attr:`turn_symmetric` (``cols != rows`` required).
     diameter : float or None
         Printed diameter of the (ordinary) circles [m], smaller than the distance of
         neighbours; None: measured in each image by the detector.
@@ -216,19 +229,26 @@ class CircleGridSpec(_Grid):
                     f"{owner}: rows {self.rows} is even: such an asymmetric grid looks the same "
                     f"turned by 180 degrees, so its point order can flip between views; use an "
                     f"odd number of rows (OpenCV's pattern is 4 x 11)")
-        elif not self.origin_circle:
-            turn = "90" if self.cols == self.rows else "180"
+        elif not self.origin_circle and self.cols == self.rows:
             raise ValueError(
-                f"{owner}: origin_circle is false: a symmetric circle grid looks the same turned "
-                f"by {turn} degrees, so its point order can flip between views; use "
-                f"asymmetric_circles, or a grid with a larger origin circle (origin_circle: "
-                f"true)")
+                f"{owner}: origin_circle is false and cols == rows {self.cols}: a square "
+                f"symmetric circle grid looks the same turned by 90 degrees, so its point order "
+                f"can turn between views; use asymmetric_circles, a grid with a larger origin "
+                f"circle (origin_circle: true), or one with different numbers of circles along "
+                f"its two sides (turned by 180 degrees then, which the pose stream tells)")
         if self.diameter is not None:
             d = _positive(owner, "diameter", self.diameter)
             if d >= self.neighbour_distance:
                 raise ValueError(f"{owner}: diameter {d!r} must be smaller than the distance of "
                                  f"neighbouring circles {self.neighbour_distance!r}")
             object.__setattr__(self, "diameter", d)
+
+    @property
+    def turn_symmetric(self) -> bool:
+        """A symmetric grid without an origin circle (``cols != rows``): it looks the same turned
+        by 180 degrees; the pose stream tells which views are turned
+        (:mod:`rwhec_ros.sync.board_turns`)."""
+        return not self.asymmetric and not self.origin_circle
 
     @property
     def kind(self) -> str:

@@ -104,6 +104,13 @@ class TargetSpec:
         """False for a chessboard or circle grid (found as a whole, no coded markers)."""
         return not isinstance(self.board, (ChessboardSpec, CircleGridSpec))
 
+    @property
+    def turn_symmetric(self) -> bool:
+        """A board that looks the same turned by 180 degrees (a chessboard with both square
+        counts even or both odd): its views' turns come from the pose stream
+        (:mod:`rwhec_ros.sync.board_turns`)."""
+        return bool(getattr(self.board, "turn_symmetric", False))
+
     def marker_ids(self) -> tuple[int, ...]:
         """Marker ids of the target (its dictionary: :meth:`dictionary`); empty for a
         chessboard or circle grid."""

@@ -40,11 +40,13 @@ def render(spec, T, rng, cam=CAM):
 
 # --------------------------------------------------------------------------------- layouts
 def test_symmetric_layouts_are_refused_with_the_reason_and_the_fix():
-    with pytest.raises(ValueError, match="one odd and one even number of squares"):
-        ChessboardSpec(8, 6, 0.03)  # 9 x 7 squares: the same turned by 180 degrees
-    with pytest.raises(ValueError, match="turned by 180 degrees.*origin_circle: true"):
-        CircleGridSpec(7, 5, 0.03)
-    with pytest.raises(ValueError, match="turned by 90 degrees"):
+    with pytest.raises(ValueError, match="square grid.*turned by 90 degrees.*different numbers"):
+        ChessboardSpec(6, 6, 0.03)
+    assert ChessboardSpec(8, 6, 0.03).turn_symmetric  # 9 x 7 squares: told by the pose stream
+    assert not ChessboardSpec(9, 6, 0.03).turn_symmetric
+    assert CircleGridSpec(7, 5, 0.03).turn_symmetric  # plain: told by the pose stream
+    assert not ORIGIN_RECT.turn_symmetric and not ACIRCLES.turn_symmetric
+    with pytest.raises(ValueError, match="turned by 90 degrees.*origin_circle: true"):
         CircleGridSpec(6, 6, 0.03)
     with pytest.raises(ValueError, match="rows 10 is even.*odd number of rows"):
         CircleGridSpec(4, 10, 0.02, asymmetric=True)
@@ -114,6 +116,31 @@ def test_a_board_turned_by_180_degrees_gives_the_turned_pose():
     Rz = make_transform(so3_exp(np.array([0.0, 0.0, np.pi])), np.zeros(3))
     t, r = errors(b, Rz @ a)
     assert t < 2.0 and r < 0.5, (t, r)
+
+
+@pytest.mark.parametrize("spec", [ChessboardSpec(8, 6, 0.03), CircleGridSpec(7, 5, 0.03)],
+                         ids=["chessboard_8x6", "plain_circles_7x5"])
+def test_a_turn_symmetric_board_gets_one_labelling_per_image_x_to_the_right(spec):
+    """The ROS tutorial's 8 x 6 board (9 x 7 squares: the same turned by 180 degrees) and a
+    plain 7 x 5 circle grid, rolled through all quadrants: every view is found whole, its pose
+    that of the render or of the board turned by 180 degrees about its normal, whichever has the
+    board's x axis running to the image's right (the pose stream tells the turned views apart
+    later, test/sync/test_board_turns.py)."""
+    rng = np.random.default_rng(3)
+    det = TargetDetector([TargetSpec("b", board=spec)])
+    F = np.diag([-1.0, -1.0, 1.0, 1.0])
+    turned = []
+    for k in range(6):
+        T = view(rng, roll=k * np.pi / 3 + 0.2)
+        obs = det.detect(render(spec, T, rng), CAM).by_name()["b"]
+        as_is, as_turned = errors(obs.T_cam_target, T), errors(obs.T_cam_target, T @ F)
+        assert min(as_is[1], as_turned[1]) < 0.4 and max(as_is[1], as_turned[1]) > 179.0
+        assert as_is[0] < 1.5
+        is_turned = as_turned[1] < as_is[1]
+        x_right = (T @ F if is_turned else T)[0, 0] > 0  # board x in the camera: image right
+        assert x_right, k
+        turned.append(is_turned)
+    assert any(turned) and not all(turned)
 
 
 def _partial_scene(shift_x):
