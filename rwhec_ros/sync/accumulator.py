@@ -416,11 +416,13 @@ class PairAccumulator:
         if x not in self.turnable or store is None or store.n < 2:
             return B
         n = store.n
-        res = resolve_turns(store.A[:n], store.B[:n])
         i = np.flatnonzero(store.stamps[:n] == stamp_ns)
-        if not len(i) or not (res.resolved[i[0]] and res.resolved[0]):
+        if not len(i):
             return None
-        return B @ TURN if res.turned[i[0]] != res.turned[0] else B
+        res = resolve_turns(store.A[:n], store.B[:n], views=np.array([0, i[0]]))
+        if not res.resolved.all():
+            return None
+        return B @ TURN if res.turned[0] != res.turned[1] else B
 
     def turn_report(self) -> dict[tuple[str, str], dict]:
         """Per edge of a turnable target, as of the last :meth:`edges` / :meth:`kept_pairs`:

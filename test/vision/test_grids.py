@@ -188,9 +188,17 @@ def test_chessboard_subpix_refinement_is_selectable():
 
 
 def test_nothing_found_is_no_rejection_and_other_targets_still_work():
+    """A noise image: nothing, whatever OpenCV's RNG held before (the sector-based search draws
+    from it; unseeded, it found a 3 x 3 "part" of the board in this image after seeds 21 and
+    56, and which one depended on the tests run before)."""
+    import cv2
+
     det = TargetDetector([TargetSpec("b", board=CHESS), TargetSpec("c", board=ACIRCLES)])
-    res = det.detect(render_tags(CAM, [], noise_std=2.0, rng=np.random.default_rng(0)), CAM)
-    assert not res.observations and not res.rejections and not res.markers
+    img = render_tags(CAM, [], noise_std=2.0, rng=np.random.default_rng(0))
+    for seed in (0, 21, 56):
+        cv2.setRNGSeed(seed)
+        res = det.detect(img, CAM)
+        assert not res.observations and not res.rejections and not res.markers, seed
 
 
 # --------------------------------------------------------------------------------- circle bias
