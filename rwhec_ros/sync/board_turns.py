@@ -1,8 +1,9 @@
 """Boards that look the same turned by 180 degrees: which views' corner order is turned.
 
 A chessboard with both square counts even or both odd (e.g. the ROS ``camera_calibration``
-tutorial's 8 x 6 inner corners, 9 x 7 squares) maps onto itself turned by 180 degrees about its
-normal: nothing in one image tells its corner ``k`` from corner ``N - 1 - k``. The detector
+tutorial's 8 x 6 inner corners, 9 x 7 squares), or a plain symmetric circle grid (OpenCV's
+``circles`` pattern, no origin circle), maps onto itself turned by 180 degrees about its normal:
+nothing in one image tells its point ``k`` from point ``N - 1 - k``. The detector
 labels such a board in a fixed way per image (:mod:`rwhec_ros.vision.grid_detection`), so a
 view's pose ``B = T_cam_board`` may be the board's or the board turned, ``B F`` with
 ``F = T_board_turned`` the 180-degree turn about the board's ``z`` axis through its centre (the
