@@ -48,7 +48,7 @@ from collections.abc import Callable, Collection, Sequence
 import numpy as np
 
 from ..core.problem import DEFAULT_ROTATION_TOL, Problem, check_transforms
-from .board_turns import TURN, resolve_edges, resolve_turns
+from .board_turns import TURN, apply_turns, resolve_turns, turn_decisions
 from .edge_pairs import DatasetEdge
 from .edge_store import (
     _BYTES_PER_EDGE_OVERHEAD,
@@ -166,6 +166,7 @@ class PairAccumulator:
         self._listeners: list[PairListener] = []
         self._counters = dict.fromkeys(_COUNTERS, 0)
         self._turn_report: dict[tuple[str, str], dict] = {}
+        self._turn_cache: tuple | None = None  # (state of the stored pairs, decisions)
 
     # --- listeners -----------------------------------------------------------------------------
     def add_listener(self, callback: PairListener) -> None:
@@ -399,13 +400,18 @@ class PairAccumulator:
 
     def _turned(self, data: dict) -> dict:
         """``data`` with the views of the :attr:`turnable` targets turned back
-        (:func:`~rwhec_ros.sync.board_turns.resolve_edges`); edges left out whole are kept
-        with their reason for :meth:`turn_report`."""
+        (:mod:`rwhec_ros.sync.board_turns`); edges left out whole are kept with their reason
+        for :meth:`turn_report`. The turns are decided once per state of the stored pairs (each
+        edge's count and lineage) and applied to :meth:`edges` and :meth:`kept_pairs` alike."""
         if not self.turnable or not any(x in self.turnable for x, _ in data):
             self._turn_report = {}
             return data
-        out, self._turn_report = resolve_edges(data, self.turnable)
-        return out
+        state = tuple((key, store.n, store.lineage) for key, store in self._edges.items()
+                      if store.n)
+        if self._turn_cache is None or self._turn_cache[0] != state:
+            decisions, self._turn_report = turn_decisions(data, self.turnable)
+            self._turn_cache = (state, decisions)
+        return apply_turns(data, self._turn_cache[1])
 
     def tracker_B(self, x: str, y: str, stamp_ns: int, B: np.ndarray) -> np.ndarray | None:
         """``B`` of the kept pair ``(x, y, stamp_ns)`` for an incremental consumer (the live

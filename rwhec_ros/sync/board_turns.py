@@ -45,8 +45,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["TURN", "TurnResolution", "resolve_turns", "turn_pairs", "resolve_edges",
-           "turn_document", "turn_lines",
+__all__ = ["TURN", "TurnResolution", "resolve_turns", "turn_pairs", "turn_decisions",
+           "apply_turns", "resolve_edges", "turn_document", "turn_lines",
            "MATCH_DEG", "GAP_DEG", "ANCHORS", "MISFIT_CAP_DEG", "CROSS_EDGE_MARGIN"]
 
 #: ``F = T_board_turned``: the 180-degree turn about the board's z axis through its centre.
@@ -164,13 +164,11 @@ def resolve_turns(A: np.ndarray, B: np.ndarray,
     return TurnResolution(turned, resolved)
 
 
-def turn_pairs(edge, resolution: TurnResolution, flip_edge: bool = False):
+def turn_pairs(edge, resolution: TurnResolution):
     """``edge`` (a :class:`~rwhec_ros.sync.edge_pairs.DatasetEdge` or
     :class:`~rwhec_ros.sync.edge_store.KeptPairs`) with its turned views turned (``B F``, the
-    corners' board points ``(-x, -y, z)``) and its unresolved views left out; ``flip_edge`` turns
-    every view once more (the across-edges choice)."""
-    turned = resolution.turned ^ bool(flip_edge)
-    keep = resolution.resolved
+    corners' board points ``(-x, -y, z)``) and its unresolved views left out."""
+    turned, keep = resolution.turned, resolution.resolved
     B = np.array(edge.B, dtype=float)
     B[turned] = B[turned] @ TURN
     fields = dict(stamps_ns=np.asarray(edge.stamps_ns)[keep], A=np.asarray(edge.A)[keep],
@@ -193,13 +191,11 @@ def _misfit(edges: list, unknown_scale: bool) -> float:
     :data:`MISFIT_CAP_DEG`, after a local solve of all of them (``mode: local`` from the
     closed-form start): capped, so that a stray pair (a wrong detection) weighs no more than
     one pair of a turned edge."""
-    from ..core.problem import Edge, Problem
     from ..core.solve import SolveOptions, solve
+    from .problems import problem_from_edges
 
-    xs = sorted({e.x for e in edges})
-    ys = sorted({e.y for e in edges})
-    problem = Problem(xs, ys, [Edge.build(e.x, e.y, e.A, e.B, sigma=e.sigma, kappa=e.kappa)
-                               for e in edges], unknown_scale=unknown_scale)
+    problem, _ = problem_from_edges({(e.x, e.y): e for e in edges},
+                                    unknown_scale=unknown_scale, min_pairs=1)
     result = solve(problem, SolveOptions(mode="local"))
     X = dict(zip(result.x_names, result.X, strict=True))
     Y = dict(zip(result.y_names, result.Y, strict=True))
@@ -213,74 +209,99 @@ def _misfit(edges: list, unknown_scale: bool) -> float:
     return total
 
 
-def resolve_edges(edges: Mapping[tuple[str, str], object], turnable: Collection[str], *,
-                  unknown_scale: bool = False, min_pairs: int = 3
-                  ) -> tuple[dict, dict[tuple[str, str], dict]]:
-    """``edges`` (per ``(x, y)``) with the views of the turnable boards ``turnable`` (target
-    names) turned and their unresolved views left out (module docstring), and per such edge what
-    was done: ``{"pairs", "turned", "unresolved", "left_out"}`` (``left_out``: the reason the
-    whole edge was left out, and is not in the edges returned; else absent). Edges of other
-    targets are returned as given."""
-    out = dict(edges)
+def turn_decisions(edges: Mapping[tuple[str, str], object], turnable: Collection[str], *,
+                   unknown_scale: bool = False, min_pairs: int = 3
+                   ) -> tuple[dict[tuple[str, str], TurnResolution | None],
+                              dict[tuple[str, str], dict]]:
+    """Per edge of a turnable board (``turnable``: target names) of ``edges`` (per ``(x, y)``)
+    its views' turns (module docstring; the across-edges choice folded in), or None where the
+    whole edge is left out; and per such edge what was done: ``{"pairs", "turned",
+    "unresolved", "left_out"}`` (``left_out``: the reason the whole edge was left out, else
+    absent). :func:`apply_turns` applies them."""
+    decisions: dict[tuple[str, str], TurnResolution | None] = {}
     report: dict[tuple[str, str], dict] = {}
     by_target: dict[str, list[tuple[str, str]]] = {}
-    resolutions = {}
+    resolved = {}
     for key, e in edges.items():
         if key[0] not in turnable:
             continue
-        res = resolve_turns(e.A, e.B)
-        resolutions[key] = res
+        res = decisions[key] = resolve_turns(e.A, e.B)
         report[key] = {"pairs": int(e.n), "turned": res.n_turned,
                        "unresolved": res.n_unresolved}
-        out[key] = turn_pairs(e, res)
-        if out[key].n >= min_pairs:
+        resolved[key] = turn_pairs(e, res)
+        if resolved[key].n >= min_pairs:
             by_target.setdefault(key[0], []).append(key)
-    shared = {k: sorted(v, key=lambda key: -out[key].n) for k, v in by_target.items()
+    shared = {k: sorted(v, key=lambda key: -resolved[key].n) for k, v in by_target.items()
               if len(v) > 1}
     if not shared:
-        return out, report
+        return decisions, report
     free = [key for keys in shared.values() for key in keys[1:]]
-    others = [e for key, e in out.items() if e.n >= min_pairs and key not in free]
-    combos = (list(itertools.product((False, True), repeat=len(free)))
-              if 2 ** len(free) <= _MAX_COMBINATIONS else None)
+    others = [resolved.get(key, e) for key, e in edges.items()
+              if key not in free and resolved.get(key, e).n >= min_pairs]
 
     def cost(flips) -> float:
-        trial = [turn_pairs(out[key], TurnResolution(np.zeros(out[key].n, dtype=bool),
-                                                     np.ones(out[key].n, dtype=bool)), f)
+        trial = [turn_pairs(resolved[key], TurnResolution(np.full(resolved[key].n, f),
+                                                          np.ones(resolved[key].n, dtype=bool)))
                  for key, f in zip(free, flips, strict=True)]
         try:
             return _misfit(others + trial, unknown_scale)
         except Exception:  # noqa: BLE001 - the live path never raises: not told, edge left out
             return float("nan")
 
-    if combos is None:  # one edge at a time from no turn
-        best = [False] * len(free)
+    if 2 ** len(free) <= _MAX_COMBINATIONS:
+        combos = list(itertools.product((False, True), repeat=len(free)))
+    else:  # one edge at a time from no turn
+        best = (False,) * len(free)
+        best_cost = cost(best)
         for i in range(len(free)):
-            flipped = best.copy()
-            flipped[i] = True
-            if cost(flipped) < cost(best):
-                best = flipped
-        combos = [tuple(best)] + [tuple(b ^ (j == i) for j, b in enumerate(best))
-                                  for i in range(len(free))]
+            flipped = tuple(b ^ (j == i) for j, b in enumerate(best))
+            c = cost(flipped)
+            if c < best_cost:
+                best, best_cost = flipped, c
+        combos = [best] + [tuple(b ^ (j == i) for j, b in enumerate(best))
+                           for i in range(len(free))]
     costs = np.array([cost(c) for c in combos])
     order = np.argsort(costs)
     best = combos[int(order[0])]
-    margin = CROSS_EDGE_MARGIN * MISFIT_CAP_DEG * min(out[key].n for key in free)
+    margin = CROSS_EDGE_MARGIN * MISFIT_CAP_DEG * min(resolved[key].n for key in free)
     decisive = bool(np.isfinite(costs).all()) and (
         len(costs) == 1 or costs[order[1]] >= costs[order[0]] + margin)
     for key, flip in zip(free, best, strict=True):
+        res = decisions[key]
         if not decisive:
             report[key]["left_out"] = (
                 f"the turn of the symmetric board {key[0]!r} seen by {key[1]!r} could not be "
                 f"matched with its other cameras' views (a solve with either turn fits "
                 f"about as well)")
-            del out[key]
+            decisions[key] = None
         elif flip:
-            res = resolutions[key]
-            out[key] = turn_pairs(edges[key], res, flip_edge=True)
-            report[key]["turned"] = int(np.count_nonzero(~res.turned & res.resolved))
-    return out, report
+            decisions[key] = TurnResolution(~res.turned, res.resolved)
+            report[key]["turned"] = decisions[key].n_turned
+    return decisions, report
 
+
+def apply_turns(edges: Mapping[tuple[str, str], object],
+                decisions: Mapping[tuple[str, str], TurnResolution | None]) -> dict:
+    """``edges`` with :func:`turn_decisions`' turns applied (:func:`turn_pairs`); an edge whose
+    decision is None is left out; edges without a decision as given."""
+    out = {}
+    for key, e in edges.items():
+        if key not in decisions:
+            out[key] = e
+        elif decisions[key] is not None:
+            out[key] = turn_pairs(e, decisions[key])
+    return out
+
+
+def resolve_edges(edges: Mapping[tuple[str, str], object], turnable: Collection[str], *,
+                  unknown_scale: bool = False, min_pairs: int = 3
+                  ) -> tuple[dict, dict[tuple[str, str], dict]]:
+    """``edges`` with the views of the turnable boards turned and their unresolved views left
+    out (:func:`turn_decisions`, :func:`apply_turns`), and the report of
+    :func:`turn_decisions` (an edge with ``left_out`` is not in the edges returned)."""
+    decisions, report = turn_decisions(edges, turnable, unknown_scale=unknown_scale,
+                                       min_pairs=min_pairs)
+    return apply_turns(edges, decisions), report
 
 
 def turn_document(report: Mapping[tuple[str, str], dict]) -> dict[str, dict]:

@@ -202,8 +202,7 @@ class GridFinder:
             return None, [TargetRejection(name, RejectReason.AMBIGUOUS_ORIENTATION.value,
                                           self._no_order_detail(grid))], outline
         how = "pattern"
-        if (len(placements) == 2 and not partial and getattr(self.spec, "turn_symmetric", False)
-                and predicted is None):
+        if len(placements) == 2 and not partial and self.spec.turn_symmetric and predicted is None:
             # a turn-symmetric board: the two labellings are the board and the board turned;
             # one fixed choice per image, the pose stream tells the turned views apart
             placements, how = [self._upright(placements, ideal)], "turn_symmetric"
