@@ -415,7 +415,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 message = no_pairs_words(self.counters(), searched, c, self.rejections())
             else:
                 message = too_few_pairs_words(counts, c.solver.min_pairs, "solver.min_pairs") \
-                    + f"; the {n} pairs are kept"
+                    + f"; the {n} pairs are kept" + "".join(f"\n{t}" for t in turn_lines(turns))
             return SolveOutcome(False, message, excluded=excl, identifiability=ident)
         def estimate(p, d):
             return correct_time_offsets(

@@ -228,6 +228,12 @@ def turn_decisions(edges: Mapping[tuple[str, str], object], turnable: Collection
         res = decisions[key] = resolve_turns(e.A, e.B)
         report[key] = {"pairs": int(e.n), "turned": res.n_turned,
                        "unresolved": res.n_unresolved}
+        if not res.resolved.any():  # nothing left of the edge: left out whole, with the reason
+            decisions[key] = None
+            report[key]["left_out"] = (
+                f"the turn of none of its {e.n} views of the symmetric board {key[0]!r} could "
+                f"be told (no two views less than about 70 deg apart)")
+            continue
         resolved[key] = turn_pairs(e, res)
         if resolved[key].n >= min_pairs:
             by_target.setdefault(key[0], []).append(key)

@@ -159,3 +159,22 @@ def test_the_accumulator_hands_out_resolved_pairs_and_reports_them():
         assert np.allclose(acc.tracker_B("b", "c", i, B[i]), want)
     b3 = B[3]
     assert plain.tracker_B("b", "c", 3, b3) is b3
+
+
+def test_an_edge_with_no_view_told_is_left_out_whole_with_the_reason():
+    """Two views turned by 180 deg about an in-plane axis (neither tells the other's turn): the
+    board's edge has no view left. It is left out whole, named with the reason in the report
+    and in to_problem's exclusions, and the other edges are handed out; edges() and
+    kept_pairs() do not raise (an empty edge is no data-set record)."""
+    A = [np.eye(4), make_transform(so3_exp(np.r_[np.pi, 0.0, 0.0]), np.zeros(3))]
+    acc = PairAccumulator(keyframe_rotation_rad=1e-9, keyframe_translation_m=1e-9,
+                          turnable=["b"])
+    for i, a in enumerate(A):
+        assert acc.offer("b", "c", i, a, a @ TURN if i else a, 0.002, 1e4)
+        assert acc.offer("t", "c", i, a, a, 0.002, 1e4)
+    assert set(acc.edges()) == set(acc.kept_pairs()) == {("t", "c")}
+    why = acc.turn_report()[("b", "c")]["left_out"]
+    assert "none of its 2 views" in why
+    _, excluded = acc.to_problem(min_pairs=1)
+    assert excluded == {("b", "c"): why}
+    assert acc.tracker_B("b", "c", 1, A[1]) is None
