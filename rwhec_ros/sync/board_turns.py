@@ -243,7 +243,8 @@ def turn_decisions(edges: Mapping[tuple[str, str], object], turnable: Collection
         return decisions, report
     free = [key for keys in shared.values() for key in keys[1:]]
     others = [resolved.get(key, e) for key, e in edges.items()
-              if key not in free and resolved.get(key, e).n >= min_pairs]
+              if key not in free and decisions.get(key, True) is not None
+              and resolved.get(key, e).n >= min_pairs]
 
     def cost(flips) -> float:
         trial = [turn_pairs(resolved[key], TurnResolution(np.full(resolved[key].n, f),
