@@ -159,6 +159,11 @@ def test_boards_and_tags_calibrate_certified_near_the_truth(run):
     result = outcome.result
     positions = rig.target_names()
     assert set(result.x_names) >= {"board_0", "board_1"}
+    # the boards' poses are noisier than the tags' (ChArUco's interpolated corners): their own
+    # noise groups, not misfits of their cameras' (core.noise.groups)
+    named = [r.message for r in outcome.verdict.reasons
+             if r.level != "good" and any(f.startswith("board_") for f in r.frames)]
+    assert not named, named
     X_true = np.array([rig.T_world_tag[positions[n]] for n in result.x_names])
     Y_true = np.array([rig.T_rig_cam[n] for n in result.y_names])
     err = result.errors_to(X_true, Y_true)

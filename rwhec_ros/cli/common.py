@@ -343,12 +343,15 @@ class SolveSettings:
                 "accuracy.guidance": self.guidance,
                 "noise.estimate": self.noise_estimate, "noise.groups": self.noise_groups}
 
-    def noise_options(self, given: str):
+    def noise_options(self, given: str, kinds=()):
         """:class:`~rwhec_ros.core.noise.NoiseOptions` of these settings, the pairs' noise
-        being ``given`` (``"stated"``, ``"reprojection"`` or ``"start"``)."""
+        being ``given`` (``"stated"``, ``"reprojection"`` or ``"start"``), the targets' kinds
+        ``kinds`` (:attr:`~rwhec_ros.config.CalibratorConfig.target_kinds`; empty: not
+        known)."""
         from ..core.noise import NoiseOptions
 
-        return NoiseOptions(estimate=self.noise_estimate, groups=self.noise_groups, given=given)
+        return NoiseOptions(estimate=self.noise_estimate, groups=self.noise_groups, given=given,
+                            kinds=tuple(kinds))
 
 
 def config_from_parameters(flat: Mapping[str, Any], where: str):

@@ -68,11 +68,13 @@ def solve_and_write(
     cam_carrier = next((naming.frames[n][0] for n in naming.y_names if n in naming.frames), "")
     tag_carrier = next((naming.frames[n][0] for n in naming.x_names if n in naming.frames), "")
 
+    kinds = _target_kinds(config)
+
     def estimate(p, d):
         return correct_time_offsets(
             p, d, config, mode=settings.mode, priors=settings.priors,
             unobservable_std_m=settings.unobservable_std_m, min_scale=settings.min_scale,
-            reject_outliers=settings.robust, noise=settings.noise_options(noise_given))
+            reject_outliers=settings.robust, noise=settings.noise_options(noise_given, kinds))
 
     def assess(problem, dataset):
         return solve_and_assess(
@@ -84,7 +86,7 @@ def solve_and_write(
             carriers=(cam_carrier or "the camera carrier", tag_carrier or "the tag carrier"),
             accuracy=AccuracyOptions(folds=settings.folds, guidance=settings.guidance,
                                      moving=_moving(config)),
-            corners=corner_data(dataset), noise=settings.noise_options(noise_given),
+            corners=corner_data(dataset), noise=settings.noise_options(noise_given, kinds),
             on_phase=run.enter, refine=settings.refine)
 
     try:
@@ -148,6 +150,19 @@ def _kept_files(run, dataset) -> dict[str, str]:
     if dataset.writes_npz():
         files["dataset_arrays"] = str(run.kept.with_suffix(".npz"))
     return files
+
+
+def _target_kinds(parameters: Mapping[str, Any]) -> tuple[tuple[str, str], ...]:
+    """The targets' kinds of a flat configuration (``()`` without targets: pose pairs from
+    files)."""
+    from ..config import CalibratorConfig
+
+    if not (parameters.get("tags.ids") or parameters.get("targets.names")):
+        return ()
+    try:
+        return CalibratorConfig.from_parameters(parameters).target_kinds
+    except ValueError:  # a partial configuration (data-set metadata of an older version)
+        return ()
 
 
 def _moving(parameters: Mapping[str, Any]) -> str:

@@ -115,6 +115,13 @@ class CalibratorConfig:
         return singles + self.targets.specs
 
     @property
+    def target_kinds(self) -> tuple[tuple[str, str], ...]:
+        """``(target name, kind)`` of every target (``"tag"``, ``"chessboard"``, ...,
+        :attr:`~rwhec_ros.vision.targets.TargetSpec.kind`): the noise groups split a camera
+        whose targets are of several kinds (:mod:`rwhec_ros.core.noise.groups`)."""
+        return tuple((t.name, t.kind) for t in self.target_specs())
+
+    @property
     def y_names(self) -> tuple[str, ...]:
         """Y-variable names (cameras) in configuration order."""
         return self.camera_names

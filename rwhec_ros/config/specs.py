@@ -145,8 +145,9 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="estimate the noise of each noise group from the residuals (Helmert "
                   "variance components) and solve with it; false: solve with the stated noise"),
     ParamSpec("noise.groups", "string", "camera",
-              doc="noise groups of the estimate: camera (one sigma/kappa per camera), "
-                  "camera_target (per camera-target edge) or global (one for all pairs)"),
+              doc="noise groups of the estimate: camera (one sigma/kappa per camera and kind "
+                  "of target: tags, each board type), camera_target (per camera-target edge) "
+                  "or global (one for all pairs)"),
     ParamSpec("sync.max_gap_s", "double", 0.1,
               doc="largest pose gap [s] bridged by interpolation at an image stamp"),
     ParamSpec("sync.extrapolation_tolerance_s", "double", 0.01,

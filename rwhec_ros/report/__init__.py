@@ -58,7 +58,10 @@ def weighted_from_document(doc: Mapping[str, Any], problem: Problem) -> Problem:
 
     factors = {name: (float(g["translation"]["used"]), float(g["rotation"]["used"]))
                for name, g in noise["groups"].items()}
-    return weighted_as(problem, str(noise.get("grouping", "camera")), factors)
+    edges = {name: [str(e) for e in g["edges"]] for name, g in noise["groups"].items()
+             if isinstance(g.get("edges"), list)}
+    return weighted_as(problem, str(noise.get("grouping", "camera")), factors,
+                       edges if len(edges) == len(factors) else None)
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,7 @@ from .outcomes import SolveOutcome, edge_rows, no_pairs_words, too_few_pairs_wor
 from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
 from .rejections import RejectionLog
-from .solving import make_tracker, noise_options, report_dict, solve_and_assess, verdict_options
+from .solving import config_noise, make_tracker, report_dict, solve_and_assess, verdict_options
 from .time_offsets import add_offset_reasons, correct_time_offsets, offsets_then_assess
 
 __all__ = ["CalibrationSession"]
@@ -421,7 +421,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
             return correct_time_offsets(
                 p, d, c, mode=c.solver.mode, priors=c.priors.entries,
                 unobservable_std_m=c.solver.unobservable_std_m, min_scale=c.solver.min_scale,
-                reject_outliers=c.solver.reject_outliers, noise=noise_options(c.noise))
+                reject_outliers=c.solver.reject_outliers, noise=config_noise(c))
 
         def assess(p, d):
             return solve_and_assess(
@@ -432,7 +432,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 expected_x=c.x_names, expected_y=c.y_names, excluded=excl,
                 carriers=(c.camera_carrier.frame, c.tag_carrier.frame),
                 accuracy=AccuracyOptions.from_config(c), corners=corner_data(d),
-                noise=noise_options(c.noise), on_phase=on_phase, refine=c.solver.refine)
+                noise=config_noise(c), on_phase=on_phase, refine=c.solver.refine)
         try:
             problem, dataset, offsets, solved = offsets_then_assess(problem, dataset, estimate,
                                                                     assess)

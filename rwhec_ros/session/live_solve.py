@@ -137,9 +137,9 @@ def solve_with_uncertainty(problem: Problem, config, initial: tuple | None = Non
     # (the same count, UncertaintyOptions' default) then find it set and skip set and restore
     noise = None
     if config.noise.estimate:
-        from .solving import noise_options
+        from .solving import config_noise
 
-        noise = noise_options(config.noise, information="edge_blocks", max_solves=3)
+        noise = config_noise(config, information="edge_blocks", max_solves=3)
 
     def run(opts):
         if noise is None:

@@ -231,15 +231,22 @@ def verdict_options(section: Mapping[str, Any] | None) -> VerdictOptions:
     return VerdictOptions(**dict(section or {}))
 
 
-def noise_options(noise_config, **overrides):
+def noise_options(noise_config, kinds=(), **overrides):
     """:class:`~rwhec_ros.core.noise.NoiseOptions` from a configuration's ``noise`` section
     (:class:`~rwhec_ros.config.sections.NoiseConfig`): ``estimate``, ``groups`` and what the
-    pairs' ``sigma``/``kappa`` are (stated, from the reprojection, start values);
+    pairs' ``sigma``/``kappa`` are (stated, from the reprojection, start values); ``kinds``:
+    the targets' kinds (:attr:`~rwhec_ros.config.CalibratorConfig.target_kinds`);
     ``overrides`` replace fields (e.g. ``information="edge_blocks"``)."""
     from ..core.noise import NoiseOptions
 
     return NoiseOptions(**{"estimate": noise_config.estimate, "groups": noise_config.groups,
-                           "given": noise_config.given, **overrides})
+                           "given": noise_config.given, "kinds": tuple(kinds), **overrides})
+
+
+def config_noise(config, **overrides):
+    """:func:`noise_options` of a :class:`~rwhec_ros.config.CalibratorConfig`: its ``noise``
+    section and its targets' kinds."""
+    return noise_options(config.noise, config.target_kinds, **overrides)
 
 
 #: What :func:`solve_and_assess` computes by default: uncertainty, 5-fold cross-validation,

@@ -243,3 +243,74 @@ def test_near_the_redundancy_bound_the_estimate_settles_on_the_given_noise(seed)
     plain = solve(p, SolveOptions(mode="fast"))
     np.testing.assert_allclose(ns.result.X, plain.X, atol=1e-9)
     np.testing.assert_allclose(ns.result.Y, plain.Y, atol=1e-9)
+
+
+def _with_noisier_kind(seed: int, factor: float = 6.0) -> Problem:
+    """The demo rig's pairs with tag_1 a target of another kind ("chessboard") whose poses'
+    rotations are ``factor`` times noisier than the tags' (the translations alike)."""
+    rng = np.random.default_rng(seed)
+    edges = []
+    for e in EXACT.edges:
+        s, k = 0.002, 2000.0
+        B = noisy_measurements(rng, e.B, s, k / factor**2 if e.x == "tag_1" else k)
+        edges.append(Edge.build(e.x, e.y, e.A, B, 0.01, 125.0))
+    return Problem(EXACT.x_names, EXACT.y_names, edges)
+
+
+KINDS = tuple((x, "chessboard" if x == "tag_1" else "tag") for x in EXACT.x_names)
+
+
+def test_groups_split_a_camera_by_kind_of_target():
+    problem = Problem(EXACT.x_names, EXACT.y_names, [e for e in EXACT.edges
+                                                     if (e.x, e.y) != ("tag_1", "cam2")])
+    groups = noise_groups(problem, "camera", dict(KINDS))
+    seen = {e.y for e in problem.edges if e.x == "tag_1"}
+    assert seen == {"cam0", "cam1"}
+    for cam in EXACT.y_names:
+        names = [n for n, c in zip(groups.names, groups.cameras, strict=True) if c == cam]
+        assert names == ([f"{cam} (chessboard)", f"{cam} (tag)"] if cam in seen else [cam])
+    for e, g in zip(problem.edges, groups.edge_group, strict=True):
+        assert groups.cameras[g] == e.y
+        assert groups.kinds[g] == ("chessboard" if e.x == "tag_1" else "tag")
+    plain = noise_groups(EXACT, "camera")  # kinds not known: one group per camera
+    assert plain.names == tuple(EXACT.y_names) and set(plain.kinds) == {""}
+    edge = noise_groups(EXACT, "camera_target", dict(KINDS))
+    assert edge.kinds == tuple("chessboard" if e.x == "tag_1" else "tag" for e in EXACT.edges)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_noisier_kind_of_target_gets_its_own_noise_not_a_misfit(seed):
+    """A board whose poses are 6x noisier in rotation than the tags' (as the demo's ChArUco and
+    chessboard boards are: interpolated or saddle-point corners against edge-refined tag
+    corners), the kinds given: its own group per camera, none of its edges left out, no group
+    far above its kind, and the verdict names nothing. Without the kinds the board is the misfit
+    of one group per camera (the behaviour this replaces)."""
+    problem = _with_noisier_kind(seed)
+    out = solve_with_noise(problem, options=NoiseOptions(kinds=KINDS))
+    est = out.estimate
+    assert not est.left_out and not est.far_above(5.0)
+    boards = [g for g in est.groups if g.kind == "chessboard"]
+    tags = [g for g in est.groups if g.kind == "tag"]
+    truth = np.degrees(1.0 / np.sqrt(2 * 2000.0))
+    for g in boards:  # each within its estimate's statistical error of the truth
+        assert g.rotation_std_deg == pytest.approx(6 * truth, rel=0.35), g.name
+    for g in tags:
+        assert g.rotation_std_deg == pytest.approx(truth, rel=0.25), g.name
+    v = assess(out.result, out.problem, noise=est)
+    assert v.level == "good", v.messages()
+    plain = solve_with_noise(problem)
+    flagged = set(plain.estimate.left_out) | {
+        f for r in assess(plain.result, plain.problem, noise=plain.estimate).reasons
+        if r.level != "good" for f in (*r.frames, *r.edges)}
+    assert any("tag_1" in f for f in flagged), flagged
+
+
+def test_a_noisy_camera_is_named_among_its_kind():
+    """Kinds given, a camera 15x noisier than the others on every kind of target is still
+    named (its groups against the other cameras' groups of the same kind)."""
+    noise = {"cam0": (0.002, 2000.0), "cam1": (0.002, 2000.0), "cam2": (0.03, 2000.0 / 225)}
+    out = solve_with_noise(_noisy(7, noise=noise), options=NoiseOptions(kinds=KINDS))
+    far = out.estimate.far_above(5.0)
+    assert far and {g.camera for g, *_ in far} == {"cam2"}
+    v = assess(out.result, out.problem, noise=out.estimate)
+    assert any("cam2" in r.frames and "noisier" in r.message for r in v.reasons), v.messages()

@@ -82,6 +82,10 @@ class NoiseOptions:
     outlier_significance : float
         ... significantly so (chi-square p-value below this over the number of edges: 1e-3) is
         left out of its group's estimate (module docstring).
+    kinds : tuple of (str, str)
+        Target name -> its kind (``"tag"``, ``"chessboard"``, ...): a camera that sees targets
+        of several kinds gets one group per kind (:func:`~.groups.noise_groups`); empty: one
+        group per camera whatever its targets.
     """
 
     estimate: bool = True
@@ -93,6 +97,7 @@ class NoiseOptions:
     information: str = "pairs"
     outlier_ratio: float = 5.0
     outlier_significance: float = 1e-3
+    kinds: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         if self.groups not in GROUPINGS:
@@ -192,6 +197,11 @@ class GroupNoise:
     kappa_given : float
         Median given ``kappa``.
     translation, rotation : ComponentNoise
+    camera : str
+        The group's camera (``""`` for the global group).
+    kind : str
+        The kind of its targets (``"tag"``, ``"chessboard"``, ...; ``""`` when not known):
+        groups are compared with groups of their kind only (:meth:`NoiseEstimate.far_above`).
     """
 
     name: str
@@ -201,6 +211,8 @@ class GroupNoise:
     kappa_given: float
     translation: ComponentNoise
     rotation: ComponentNoise
+    camera: str = ""
+    kind: str = ""
 
     @property
     def sigma_m(self) -> float:
@@ -306,9 +318,10 @@ class NoiseEstimate:
     def far_above(self, ratio: float, significance: float = 1e-3
                   ) -> list[tuple[GroupNoise, str, float, float]]:
         """Groups whose estimated noise (std units) is at least ``ratio`` times the median of the
-        other groups, significantly so (F-test of the two variance factors, Bonferroni over the
-        groups): ``(group, "translation" or "rotation", ratio to the others, p-value)``, the
-        largest ratio first; only components estimated on their own, against others that are."""
+        other groups of their kind (:attr:`GroupNoise.kind`: a board's detector is not a tag's),
+        significantly so (F-test of the two variance factors, Bonferroni over the groups):
+        ``(group, "translation" or "rotation", ratio to the others, p-value)``, the largest
+        ratio first; only components estimated on their own, against others that are."""
         out = []
         for what in ("translation", "rotation"):
             own = [g for g in self.groups if g.component(what).source == "estimated"]
@@ -317,7 +330,9 @@ class NoiseEstimate:
             std = {g.name: (g.sigma_m if what == "translation" else g.rotation_std_deg)
                    for g in own}
             for g in own:
-                others = [o for o in own if o is not g]
+                others = [o for o in own if o is not g and o.kind == g.kind]
+                if not others:
+                    continue
                 med = float(np.median([std[o.name] for o in others]))
                 dof_o = float(np.median([o.component(what).dof for o in others]))
                 if not med > 0:
@@ -343,9 +358,10 @@ def screen_edges(sums: GroupSums, groups: NoiseGroups, names: list[str],
 
     Per component, each edge's noise ratio ``sqrt(chi2_e / r_e)`` at the current weights is
     compared with the median of its group's edges (at least 3 edges with ``r_e >= 1``), else of
-    all edges; it is left out when ``options.outlier_ratio`` times that or more with a
-    chi-square p-value below ``options.outlier_significance / E``. A group keeps all its edges
-    when every one of them would be left out."""
+    the edges of its kind (as many), else of all edges; it is left out when
+    ``options.outlier_ratio`` times that or more with a chi-square p-value below
+    ``options.outlier_significance / E``. A group keeps all its edges when every one of them
+    would be left out."""
     E = groups.edge_group.shape[0]
     why: dict[int, str] = {}
     for what in ("translation", "rotation"):
@@ -355,9 +371,11 @@ def screen_edges(sums: GroupSums, groups: NoiseGroups, names: list[str],
         if valid.sum() < 3:
             continue
         s = np.sqrt(np.where(valid, chi, 0.0) / np.where(valid, r, 1.0))
+        kinds = groups.edge_kinds()
         for g in range(groups.size):
             mine = valid & (groups.edge_group == g)
-            ref = mine if mine.sum() >= 3 else valid
+            alike = valid & (kinds == groups.kinds[g])
+            ref = mine if mine.sum() >= 3 else alike if alike.sum() >= 3 else valid
             med = float(np.median(s[ref]))
             if not med > 0:
                 continue
@@ -376,11 +394,13 @@ def screen_edges(sums: GroupSums, groups: NoiseGroups, names: list[str],
 
 
 def components_of(sums: GroupSums, used: np.ndarray, what: str, min_redundancy: float,
-                  keep_given: np.ndarray | None = None) -> list[ComponentNoise]:
+                  keep_given: np.ndarray | None = None, kinds=None) -> list[ComponentNoise]:
     """The components (one per group) of ``what`` (``"translation"``/``"rotation"``) from the
     sums at a solution whose weights have the variance factors ``used`` (G,) on the given ones:
     own estimate, pool, the other groups' estimate or the given value (module docstring);
-    ``keep_given`` (G,) bool: components held at their given value (:func:`estimate_noise`)."""
+    ``keep_given`` (G,) bool: components held at their given value (:func:`estimate_noise`);
+    ``kinds`` (G,) str: the groups' kinds -- a group pools with, or takes the estimate of, the
+    groups of its kind first (:attr:`NoiseGroups.kinds`), then of any kind."""
     chi = np.asarray(getattr(sums, f"chi2_{what}"), float)
     r = np.asarray(getattr(sums, f"redundancy_{what}"), float)
     G = chi.shape[0]
@@ -392,19 +412,27 @@ def components_of(sums: GroupSums, used: np.ndarray, what: str, min_redundancy: 
     factor[own] = used[own] * chi[own] / r[own]
     for i in np.flatnonzero(own):
         source[i], dof[i] = "estimated", r[i]
-    low = np.flatnonzero(~own & ~rounding)
-    if low.size:
+    kinds = np.array(("",) * G if kinds is None else tuple(kinds), dtype=object)
+    todo = ~own & ~rounding
+    for alike in [kinds == k for k in dict.fromkeys(kinds[todo])] + [np.ones(G, bool)]:
+        low = np.flatnonzero(todo & alike)  # per kind first, then whatever is left together
+        if not low.size:
+            continue
         R = float(r[low].sum())
+        ref = own & alike
         if R >= min_redundancy:
             s2 = float(chi[low].sum()) / R
             factor[low] = used[low] * s2
             for i in low:
                 source[i], dof[i] = "pooled", R
-        elif own.any():
-            w = r[own] / r[own].sum()
-            factor[low] = float(np.exp(np.sum(w * np.log(factor[own]))))
+        elif ref.any():
+            w = r[ref] / r[ref].sum()
+            factor[low] = float(np.exp(np.sum(w * np.log(factor[ref]))))
             for i in low:
-                source[i], dof[i] = "others", float(r[own].sum())
+                source[i], dof[i] = "others", float(r[ref].sum())
+        else:
+            continue
+        todo[low] = False
     return [ComponentNoise(float(r[i]), float(chi[i]), float(used[i]), float(factor[i]),
                            source[i], float(dof[i])) for i in range(G)]
 
@@ -453,7 +481,7 @@ def estimate_noise(
         the weights solved with already fit (within ``options.tolerance``).
     """
     opts = options or NoiseOptions()
-    groups = groups or noise_groups(problem, opts.groups)
+    groups = groups or noise_groups(problem, opts.groups, dict(opts.kinds))
     given = given or problem
     sums = group_sums(problem, result, groups, gauge=gauge, information=opts.information)
     edge_names = [e.name for e in problem.edges]
@@ -466,8 +494,8 @@ def estimate_noise(
     u_r = np.array([(used or {}).get(n, (1.0, 1.0))[1] for n in groups.names])
     k_t = np.array([(keep_given or {}).get(n, (False, False))[0] for n in groups.names])
     k_r = np.array([(keep_given or {}).get(n, (False, False))[1] for n in groups.names])
-    comp_t = components_of(sums, u_t, "translation", opts.min_redundancy, k_t)
-    comp_r = components_of(sums, u_r, "rotation", opts.min_redundancy, k_r)
+    comp_t = components_of(sums, u_t, "translation", opts.min_redundancy, k_t, groups.kinds)
+    comp_r = components_of(sums, u_r, "rotation", opts.min_redundancy, k_r, groups.kinds)
     st = given.stacked()
     pg = groups.pair_group(given)
     out = []
@@ -477,7 +505,8 @@ def estimate_noise(
             name=name, edges=tuple(groups.edges_of(problem, g)), pairs=int(sums.pairs[g]),
             sigma_given_m=float(np.median(st["sigma"][sel])),
             kappa_given=float(np.median(st["kappa"][sel])),
-            translation=comp_t[g], rotation=comp_r[g]))
+            translation=comp_t[g], rotation=comp_r[g], camera=groups.cameras[g],
+            kind=groups.kinds[g]))
     est = NoiseEstimate(grouping=groups.grouping, given=opts.given, groups=out, rank=sums.rank,
                         min_redundancy=opts.min_redundancy,
                         left_out={edge_names[e]: w for e, w in sorted(left.items())})

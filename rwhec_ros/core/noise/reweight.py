@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import copy
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -81,13 +82,22 @@ def weighted_problem(problem: Problem, groups: NoiseGroups,
     return out
 
 
-def weighted_as(problem: Problem, grouping: str, factors: dict[str, tuple[float, float]]
-                ) -> Problem:
+def weighted_as(problem: Problem, grouping: str, factors: dict[str, tuple[float, float]],
+                group_edges: Mapping[str, Sequence[str]] | None = None) -> Problem:
     """``problem`` (the given weights) with the weights of a solve whose noise groups were
     ``grouping`` and variance factors ``factors`` (group name -> ``(f_t, f_R)``, e.g. the
     ``used`` factors a result YAML's ``noise`` section keeps): what a report made later from
-    the data set needs to show the fit the solve had."""
-    return weighted_problem(problem, noise_groups(problem, grouping), factors)
+    the data set needs to show the fit the solve had. ``group_edges`` (group name -> its edges
+    ``"(x, y)"``, the section's ``edges``): the groups as solved (a camera split by kind of
+    target); an edge of none of them keeps the given weight."""
+    if group_edges is None:
+        return weighted_problem(problem, noise_groups(problem, grouping), factors)
+    names = tuple(group_edges)
+    of = {e: i for i, n in enumerate(names) for e in group_edges[n]}
+    extra = len(names)
+    groups = NoiseGroups(grouping, names + ("(none)",),
+                         np.array([of.get(e.name, extra) for e in problem.edges], dtype=int))
+    return weighted_problem(problem, groups, factors)
 
 
 def _warm_factors(warm: dict | None, names) -> dict[str, tuple[float, float]]:
@@ -136,7 +146,7 @@ def solve_with_noise(
     final_mode = so.mode
     if so.mode == "sdp":
         so.mode = "fast"
-    groups = noise_groups(problem, opts.groups)
+    groups = noise_groups(problem, opts.groups, dict(opts.kinds))
     factors = _warm_factors(warm, groups.names)
     changes: list[float] = []
     notes: list[str] = []

@@ -59,14 +59,15 @@ def _by_tag(problem: Problem) -> dict[str, list[str]]:
     return out
 
 
-def _far(noise, options: VerdictOptions) -> dict[str, tuple[str, float]]:
-    """Camera -> (component, ratio to the other cameras) of the cameras whose estimated noise is
-    far above the others' (:meth:`~rwhec_ros.core.noise.NoiseEstimate.far_above`)."""
+def _far(noise, options: VerdictOptions) -> dict[str, tuple[str, float, tuple[str, ...], str]]:
+    """Camera -> (component, ratio to the other cameras, the group's edges, its kind) of the
+    cameras whose estimated noise (of one kind of target, where a camera's group is split by
+    kind) is far above the others' (:meth:`~rwhec_ros.core.noise.NoiseEstimate.far_above`)."""
     if noise is None or not getattr(noise, "estimated", False) or noise.grouping != "camera":
         return {}
-    out: dict[str, tuple[str, float]] = {}
+    out: dict[str, tuple[str, float, tuple[str, ...], str]] = {}
     for g, what, q, _ in noise.far_above(options.noise_group_ratio, options.significance):
-        out.setdefault(g.name, (what, float(q)))
+        out.setdefault(g.camera or g.name, (what, float(q), tuple(g.edges), g.kind))
     return out
 
 
@@ -79,9 +80,9 @@ def camera_misfits(attempt: Attempt, given: Problem, options: VerdictOptions) ->
     by_tag = _by_tag(given)
     sizes = {e.name: e.n for e in given.edges}
     out = []
-    for cam, (what, q) in far.items():
+    for cam, (what, q, mine, _) in far.items():
         for tag, edges in by_tag.items():
-            if len(edges) >= 2 and f"({tag}, {cam})" in edges:
+            if len(edges) >= 2 and f"({tag}, {cam})" in edges and f"({tag}, {cam})" in mine:
                 out.append(Misfit("tag", tag, tuple(edges), sum(sizes[n] for n in edges),
                                   f"{cam}'s {what} noise is {times(q)} the other cameras'",
                                   camera=cam))
@@ -95,8 +96,9 @@ def explained(m: Misfit, before: Attempt, after: Attempt, options: VerdictOption
     the camera stays far above (its misfit is not this tag's)."""
     if m.camera in _far(after.noise, options):
         return None
-    what, q = _far(before.noise, options).get(m.camera, ("translation", float("nan")))
-    q_after = _ratio(after.noise, m.camera, what)
+    what, q, _, kind = _far(before.noise, options).get(m.camera,
+                                                       ("translation", float("nan"), (), ""))
+    q_after = _ratio(after.noise, m.camera, what, kind)
     now = f"{times(q_after)}" if np.isfinite(q_after) else "among the others'"
     was = f"{times(q)} the other cameras'" if np.isfinite(q) else "far above the other cameras'"
     return replace(m, finding=(
@@ -106,12 +108,13 @@ def explained(m: Misfit, before: Attempt, after: Attempt, options: VerdictOption
                f"{m.camera}'s views, or its size is wrong")
 
 
-def _ratio(noise, camera: str, what: str) -> float:
-    """The camera's estimated noise over the median of the other cameras' (``what``)."""
+def _ratio(noise, camera: str, what: str, kind: str = "") -> float:
+    """The camera's estimated noise over the median of the other cameras' (``what``), its group
+    of targets of ``kind`` against the others of that kind."""
     if noise is None:
         return float("nan")
-    std = {g.name: (g.sigma_m if what == "translation" else g.rotation_std_deg)
-           for g in noise.groups}
+    std = {(g.camera or g.name): (g.sigma_m if what == "translation" else g.rotation_std_deg)
+           for g in noise.groups if g.kind == kind}
     others = [v for k, v in std.items() if k != camera]
     if camera not in std or not others:
         return float("nan")

@@ -44,7 +44,7 @@ def _frames(noise: NoiseEstimate, problem: Problem, groups) -> list[str]:
     """The frames a reason about ``groups`` concerns: their cameras (per-camera groups), their
     edges' frames (per-edge groups); none for the global group."""
     if noise.grouping == "camera":
-        return [g.name for g in groups]
+        return list(dict.fromkeys(g.camera or g.name for g in groups))
     if noise.grouping == "camera_target":
         names = {g.name for g in groups}
         return list(dict.fromkeys(n for e in problem.edges if e.name in names
@@ -88,8 +88,10 @@ def noise_reasons(b: Builder, noise: NoiseEstimate | None, problem: Problem,
         med = (mm(g.sigma_m / q) if what == "translation"
                else deg(g.rotation_std_deg / q) + " per axis")
         code = {"camera": "camera", "camera_target": "edge"}.get(noise.grouping, "fit")
+        of = f" on {g.kind} targets" if g.camera and g.name != g.camera else ""
         b.add("caution", code,
-              f"{g.name}: its {what} noise ({own}) is {q:.1f}x the median of the other {names} "
+              f"{g.name}: its {what} noise ({own}) is {q:.1f}x the median of the other "
+              f"{names}{of} "
               f"({med}); its pairs are weighted down by it, but one camera this much noisier "
               "than the rest usually has a fault: wrong intrinsics (focal length, distortion), "
               f"a loose mount, motion blur or a time offset of its own; check {g.name}",
