@@ -163,10 +163,23 @@ def test_chessboards_and_circle_grids_round_trip():
     ({"ac": {**ACIRCLES, "origin_circle": True}}, "targets.ac.origin_circle",
      "not a parameter of a 'asymmetric_circles'"),
     ({"cb": {"type": "chessboard", "cols": 9, "rows": 6}}, "targets.cb.square_size", "missing"),
+    # two plain boards, one's pattern inside the other's (either way round): refused
+    ({"cb": CHESS, "cb2": {**CHESS, "cols": 7, "rows": 5}}, "targets.names",
+     "'cb' \\(9 x 6\\) and 'cb2' \\(7 x 5\\).*fits inside.*markers"),
+    ({"cb": CHESS, "cb2": {**CHESS, "cols": 5, "rows": 8}}, "targets.names", "fits inside"),
+    ({"dots": ORIGIN_GRID, "dots2": ORIGIN_GRID}, "targets.names", "fits inside"),
 ])
 def test_bad_grids_name_the_parameter_the_reason_and_the_fix(targets, param, words):
     with pytest.raises(ValueError, match=rf"^{param}: .*{words}"):
         CalibratorConfig.from_parameters(with_targets(**targets))
+
+
+def test_plain_boards_that_cannot_fit_inside_each_other_are_accepted():
+    """9 x 6 and 7 x 8 chessboards (neither inside the other), a chessboard with a circle grid,
+    and a chessboard with a ChArUco board of any size: accepted."""
+    c = CalibratorConfig.from_parameters(with_targets(
+        cb=CHESS, cb2={**CHESS, "cols": 7, "rows": 8}, dots=ORIGIN_GRID, ac=ACIRCLES))
+    assert [t.name for t in c.targets.specs] == ["cb", "cb2", "dots", "ac"]
 
 
 def test_detection_gate_and_chessboard_refinement_are_checked():

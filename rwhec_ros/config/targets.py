@@ -46,7 +46,7 @@ from typing import Any
 from ..vision.boards import AprilGridSpec, CharucoSpec
 from ..vision.families import dictionary_key, dictionary_size
 from ..vision.grids import ChessboardSpec, CircleGridSpec
-from ..vision.targets import TargetSpec
+from ..vision.targets import TargetSpec, nested_grids
 from .specs import TARGET_SPECS, TARGET_TYPES
 from .validation import check_choice, check_positive
 
@@ -197,6 +197,10 @@ def build_targets(v: dict[str, Any], tag_family: str, single_tag_ids: tuple[int,
         if kind == "tag" and spec.tag_id >= dictionary_size(family):
             raise ValueError(f"{p}tag_id: {spec.tag_id} is not in {family} "
                              f"({dictionary_size(family)} tags)")
+        for other in out:
+            why = nested_grids(other, spec)
+            if why is not None:
+                raise ValueError(f"targets.names: {why}")
         out.append(spec)
     return tuple(out)
 

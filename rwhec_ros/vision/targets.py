@@ -29,6 +29,7 @@ __all__ = [
     "BOARD_TYPES",
     "TargetSpec",
     "validate_targets",
+    "nested_grids",
     "TargetObservation",
     "TargetRejection",
     "TargetDetectionResult",
@@ -125,9 +126,33 @@ class TargetSpec:
         return int(getattr(self.board, "border_bits", 1))
 
 
+def nested_grids(a: TargetSpec, b: TargetSpec) -> str | None:
+    """Why two targets cannot be told apart in an image, or None: two boards without markers of
+    one kind (two chessboards, two circle grids of one layout) of which one's pattern fits
+    inside the other's, either way round. OpenCV's grid detectors look for a pattern of a given
+    size, and can find the smaller pattern on the larger board (a 7 x 5 chessboard was found on a
+    9 x 5 one in one image per camera of a rendered scene; the pair was 66 deg and 1 m off, the
+    other board's place); nothing on a plain board says which board it is."""
+    if a.has_markers or b.has_markers or a.kind != b.kind:
+        return None
+    (c1, r1), (c2, r2) = a.board.pattern_size, b.board.pattern_size
+
+    def inside(c: int, r: int, cc: int, rr: int) -> bool:
+        return (c <= cc and r <= rr) or (c <= rr and r <= cc)
+
+    if not (inside(c1, r1, c2, r2) or inside(c2, r2, c1, r1)):
+        return None
+    return (f"targets {a.name!r} ({c1} x {r1}) and {b.name!r} ({c2} x {r2}) are {a.kind} "
+            "boards without markers, and one's pattern fits inside the other's: the detector "
+            "can find the smaller pattern on the larger board, and nothing on a plain board says "
+            "which board it is; use patterns that do not fit inside each other (e.g. 9 x 6 and "
+            "7 x 8), or a board with markers (charuco, aprilgrid)")
+
+
 def validate_targets(targets: Sequence[TargetSpec], tag_family: str) -> tuple[TargetSpec, ...]:
     """Check a set of targets: unique names, every single-tag id in ``tag_family``, no marker id
-    used by two targets of one dictionary (an id printed twice cannot be told apart).
+    used by two targets of one dictionary (an id printed twice cannot be told apart), no two
+    plain boards that can be taken for each other (:func:`nested_grids`).
 
     Returns
     -------
@@ -160,6 +185,11 @@ def validate_targets(targets: Sequence[TargetSpec], tag_family: str) -> tuple[Ta
                     f"{dictionary}: ids must be unique per dictionary"
                 )
             owners[(dictionary, marker)] = t.name
+    for i, a in enumerate(out):
+        for b in out[i + 1:]:
+            why = nested_grids(a, b)
+            if why is not None:
+                raise ValueError(why)
     return out
 
 
