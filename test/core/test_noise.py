@@ -314,3 +314,27 @@ def test_a_noisy_camera_is_named_among_its_kind():
     assert far and {g.camera for g, *_ in far} == {"cam2"}
     v = assess(out.result, out.problem, noise=out.estimate)
     assert any("cam2" in r.frames and "noisier" in r.message for r in v.reasons), v.messages()
+
+
+def test_a_board_that_moved_where_one_camera_saw_it_is_excluded_and_named():
+    """Kinds given, tag_1 (a "chessboard": its own group per camera) seen by cam0 5 cm off its
+    place (as after a move that only cam0 saw): cam0's board group is far above the other
+    cameras' board groups, the exclusion leaves tag_1 out and says where it does not fit."""
+    from rwhec_ros.core.lie import make_transform
+    from rwhec_ros.session.solving import solve_and_assess
+
+    problem = _with_noisier_kind(3, factor=3.0)
+    edges = []
+    for e in problem.edges:
+        if (e.x, e.y) == ("tag_1", "cam0"):
+            shift = make_transform(np.eye(3), [0.05, 0.0, 0.0])
+            e = Edge.build(e.x, e.y, e.A, e.B @ shift, e.sigma, e.kappa)
+        edges.append(e)
+    moved = Problem(problem.x_names, problem.y_names, edges)
+    solved = solve_and_assess(moved, accuracy=None, noise=NoiseOptions(kinds=KINDS))
+    v = solved.verdict
+    named = [r.message for r in v.reasons if "tag_1" in r.frames and "excluded" in r.message]
+    assert named, v.messages()
+    assert "cam0's translation noise on chessboard targets is" in named[0]
+    assert "tag_1 does not fit where cam0 saw it" in named[0]
+    assert "tag_1" not in solved.result.x_names

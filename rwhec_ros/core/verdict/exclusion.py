@@ -516,8 +516,8 @@ def exclusion_reasons(b: Builder, exclusion: Exclusion | None) -> None:
                 f.calibrated = False
             text = (f"{m.name}: excluded and not calibrated: {m.finding}: {m.causes}{moved}; "
                     f"{note}; check "
-                    f"{m.name} (its size in tags.sizes, that it is fixed) or remove it from "
-                    "tags.ids")
+                    f"{m.name} (its size: tags.sizes, or targets.{m.name}.* for a named target "
+                    "or board; that it is fixed) or remove it from tags.ids (or targets.names)")
             b.add("unusable", "excluded", text, [m.name], why="excluded: does not fit")
         else:
             x, y = (p.strip() for p in m.name.strip("()").split(","))

@@ -59,15 +59,15 @@ def _by_tag(problem: Problem) -> dict[str, list[str]]:
     return out
 
 
-def _far(noise, options: VerdictOptions) -> dict[str, tuple[str, float, tuple[str, ...], str]]:
-    """Camera -> (component, ratio to the other cameras, the group's edges, its kind) of the
-    cameras whose estimated noise (of one kind of target, where a camera's group is split by
-    kind) is far above the others' (:meth:`~rwhec_ros.core.noise.NoiseEstimate.far_above`)."""
+def _far(noise, options: VerdictOptions) -> dict[str, tuple[str, float, object]]:
+    """Camera -> (component, ratio to the other cameras, its group) of the cameras whose
+    estimated noise (on one kind of target, where a camera's group is split by kind) is far
+    above the others' (:meth:`~rwhec_ros.core.noise.NoiseEstimate.far_above`)."""
     if noise is None or not getattr(noise, "estimated", False) or noise.grouping != "camera":
         return {}
-    out: dict[str, tuple[str, float, tuple[str, ...], str]] = {}
+    out: dict[str, tuple[str, float, object]] = {}
     for g, what, q, _ in noise.far_above(options.noise_group_ratio, options.significance):
-        out.setdefault(g.camera or g.name, (what, float(q), tuple(g.edges), g.kind))
+        out.setdefault(g.camera or g.name, (what, float(q), g))
     return out
 
 
@@ -80,9 +80,9 @@ def camera_misfits(attempt: Attempt, given: Problem, options: VerdictOptions) ->
     by_tag = _by_tag(given)
     sizes = {e.name: e.n for e in given.edges}
     out = []
-    for cam, (what, q, mine, _) in far.items():
+    for cam, (what, q, group) in far.items():
         for tag, edges in by_tag.items():
-            if len(edges) >= 2 and f"({tag}, {cam})" in edges and f"({tag}, {cam})" in mine:
+            if len(edges) >= 2 and f"({tag}, {cam})" in group.edges:
                 out.append(Misfit("tag", tag, tuple(edges), sum(sizes[n] for n in edges),
                                   f"{cam}'s {what} noise is {times(q)} the other cameras'",
                                   camera=cam))
@@ -96,13 +96,18 @@ def explained(m: Misfit, before: Attempt, after: Attempt, options: VerdictOption
     the camera stays far above (its misfit is not this tag's)."""
     if m.camera in _far(after.noise, options):
         return None
-    what, q, _, kind = _far(before.noise, options).get(m.camera,
-                                                       ("translation", float("nan"), (), ""))
+    what, q, group = _far(before.noise, options).get(m.camera,
+                                                     ("translation", float("nan"), None))
+    kind = "" if group is None else group.kind
     q_after = _ratio(after.noise, m.camera, what, kind)
-    now = f"{times(q_after)}" if np.isfinite(q_after) else "among the others'"
+    split = group is not None and group.name != group.camera  # its targets of one kind
+    on = f" on {kind} targets" if split else ""
+    now = (f"{times(q_after)} without it" if np.isfinite(q_after)
+           else f"{m.camera} has no other {kind} target" if split
+           else "among the others' without it")
     was = f"{times(q)} the other cameras'" if np.isfinite(q) else "far above the other cameras'"
     return replace(m, finding=(
-        f"{m.camera}'s {what} noise is {was} with {m.name} and {now} without it: {m.name} "
+        f"{m.camera}'s {what} noise{on} is {was} with {m.name} and {now}: {m.name} "
         f"does not fit where {m.camera} saw it"),
         causes="it moved during the recording (or was bumped), its pose flips on "
                f"{m.camera}'s views, or its size is wrong")
