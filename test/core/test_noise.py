@@ -338,3 +338,58 @@ def test_a_board_that_moved_where_one_camera_saw_it_is_excluded_and_named():
     assert "cam0's translation noise on chessboard targets is" in named[0]
     assert "tag_1 does not fit where cam0 saw it" in named[0]
     assert "tag_1" not in solved.result.x_names
+
+
+def _moved_half(problem: Problem, x: str, shift_m: float) -> Problem:
+    """``problem`` with target ``x`` moved by ``shift_m`` along its x axis for the second half
+    of each of its edges' pairs (seen before and after by every camera)."""
+    from rwhec_ros.core.lie import make_transform
+
+    edges = []
+    for e in problem.edges:
+        if e.x == x:
+            B = e.B.copy()
+            B[e.n // 2:] = B[e.n // 2:] @ make_transform(np.eye(3), [shift_m, 0.0, 0.0])
+            e = Edge.build(e.x, e.y, e.A, B, e.sigma, e.kappa)
+        edges.append(e)
+    return Problem(problem.x_names, problem.y_names, edges)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_the_only_board_of_its_kind_that_moved_halfway_is_excluded_by_its_step(seed):
+    """The board (tag_1 as the only "chessboard") moved 5 cm halfway, seen before and after by
+    every camera: its own noise group absorbs the misfit on every camera alike (no edge, no
+    camera stands out; before the step check it was published GOOD 26 mm off with a std of
+    4 mm), and the step of its place in recording order names it; the same board unmoved is
+    kept (no step)."""
+    from rwhec_ros.core.verdict.step_check import lone_targets
+    from rwhec_ros.session.solving import solve_and_assess
+
+    problem = _with_noisier_kind(seed, factor=3.0)
+    still = solve_and_assess(problem, accuracy=None, noise=NoiseOptions(kinds=KINDS))
+    assert still.verdict.level == "good", still.verdict.messages()
+    assert lone_targets(still.noise) == {"tag_1"}
+    solved = solve_and_assess(_moved_half(problem, "tag_1", 0.05), accuracy=None,
+                              noise=NoiseOptions(kinds=KINDS))
+    named = [r.message for r in solved.verdict.reasons if "tag_1" in r.frames
+             and "excluded" in r.message]
+    assert named and "tag_1's place" in named[0] and "jumps" in named[0], \
+        solved.verdict.messages()
+    assert "it moved during the recording" in named[0]
+    assert "tag_1" not in solved.result.x_names
+
+
+def test_step_statistic_finds_the_split_and_not_a_still_target():
+    from rwhec_ros.core.lie import make_transform
+    from rwhec_ros.core.verdict.step_check import step_statistic
+
+    rng = np.random.default_rng(0)
+    still = np.array([make_transform(so3_exp(rng.normal(0, 0.01, 3)), rng.normal(0, 0.002, 3))
+                      for _ in range(20)])
+    p, *_ = step_statistic(still)
+    assert p > 1e-3
+    moved = still.copy()
+    moved[12:, :3, 3] += [0.02, 0.0, 0.0]
+    p, s, (dt, pt), (dr, pr) = step_statistic(moved)
+    assert p < 1e-8 and s == 12 and dt == pytest.approx(0.02, abs=0.003) and pr > 1e-4
+    assert step_statistic(still[:5])[:2] == (1.0, 0)

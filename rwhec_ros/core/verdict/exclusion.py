@@ -54,6 +54,7 @@ from .hidden_misfits import camera_misfits, explained, judged_weights, size_misf
 from .misfit import Attempt, Misfit
 from .model import Builder
 from .options import VerdictOptions
+from .step_check import step_misfits
 from .words import deg, mm, names, times
 
 __all__ = ["Misfit", "FrameShift", "FirstSolve", "Exclusion", "Attempt", "misfits", "choose",
@@ -450,6 +451,8 @@ def exclude_misfits(
         named = {m.name for m in cands}
         cands += [m for m in camera_misfits(current, given, opts)
                   if m.camera not in unexplained and m.name not in named]
+        named |= {m.name for m in cands}
+        cands += [m for m in step_misfits(current, given, opts) if m.name not in named]
         if not cands:
             break
         if len(exclusion.excluded) >= opts.exclusion_max_rounds:
