@@ -393,3 +393,25 @@ def test_step_statistic_finds_the_split_and_not_a_still_target():
     p, s, (dt, pt), (dr, pr) = step_statistic(moved)
     assert p < 1e-8 and s == 12 and dt == pytest.approx(0.02, abs=0.003) and pr > 1e-4
     assert step_statistic(still[:5])[:2] == (1.0, 0)
+
+
+def test_a_step_common_to_every_target_does_not_single_out_the_lone_board():
+    """Every target's place shifted by 5 cm for the second half of its pairs (as a pose stream
+    that shifted, or a robot's kinematic errors that differ between the two parts of a
+    recording): the board alone in its kind is not excluded for its step, since the tags step
+    too; a board moved alone is (the previous test)."""
+    from rwhec_ros.core.verdict.step_check import lone_targets, step_misfits
+    from rwhec_ros.core.verdict.misfit import Attempt
+    from rwhec_ros.core.verdict.options import VerdictOptions
+
+    problem = _with_noisier_kind(3, factor=3.0)
+    for x in EXACT.x_names:
+        problem = _moved_half(problem, x, 0.05)
+    out = solve_with_noise(problem, options=NoiseOptions(kinds=KINDS))
+    attempt = Attempt(out.result, out.problem, noise=out.estimate, noise_estimated=True)
+    assert lone_targets(out.estimate) == {"tag_1"}
+    assert step_misfits(attempt, problem, VerdictOptions()) == []
+    alone = _moved_half(_with_noisier_kind(3, factor=3.0), "tag_1", 0.05)
+    out = solve_with_noise(alone, options=NoiseOptions(kinds=KINDS))
+    attempt = Attempt(out.result, out.problem, noise=out.estimate, noise_estimated=True)
+    assert [m.name for m in step_misfits(attempt, alone, VerdictOptions())] == ["tag_1"]

@@ -17,9 +17,11 @@ rotation vector from the first pair's), the F statistic of two means against one
 ``F = (n1 n2 / n |m1 - m2|^2 / 3) / (W / (3 (n - 2)))`` with ``W`` the scatter within the two
 segments, ``F(3, 3 (n - 2))`` under "no step" for independent pairs of equal noise. The largest
 over the splits and the two components is significant when its p-value, times the number of
-splits and components tested (Bonferroni) and the number of edges tested, is below
-``VerdictOptions.significance``. A target with such an edge is a candidate: the exclusion leaves
-it out (it has no other of its kind to be compared with, so the step is the evidence).
+splits and components tested (Bonferroni) and the number of edges tested (every target's), is
+below ``VerdictOptions.significance``. A lone target with such an edge is a candidate, when no
+other target has one (a drift common to all targets -- a robot's kinematic errors, a pose
+stream that shifted -- is not one target's move): the exclusion leaves it out (it has no other
+of its kind to be compared with, so the step is the evidence).
 """
 
 from __future__ import annotations
@@ -95,25 +97,37 @@ def _places(attempt: Attempt, name: str) -> dict[str, np.ndarray]:
     return out
 
 
+def _stepping(places: dict[str, np.ndarray], tested: int, significance: float) -> list[str]:
+    """The steps in words of the edges (``"(x, y)"`` -> places) whose step is significant
+    (Bonferroni over the splits, the two components and ``tested`` edges)."""
+    found = []
+    for edge, T in places.items():
+        p, s, (dt, pt), (dr, pr) = step_statistic(T)
+        factor = 2 * (T.shape[0] - 2 * MIN_SIDE + 1) * tested
+        if s and p * factor < significance:
+            size = " / ".join(w for w, q in ((f"{1e3 * dt:.0f} mm", pt), (f"{dr:.1f} deg", pr))
+                              if q * factor < significance)
+            found.append(f"{size} on {edge} from its pair {s + 1} of {T.shape[0]}")
+    return found
+
+
 def step_misfits(attempt: Attempt, given: Problem, options: VerdictOptions) -> list[Misfit]:
     """The lone targets (:func:`lone_targets`) one of whose edges has a significant step (module
-    docstring), as candidates of the exclusion."""
+    docstring), as candidates of the exclusion -- provided no other target steps too: the
+    places of all targets drifting alike between the two parts of a recording (a robot's
+    kinematic errors, a pose stream that shifted) are not one target's move, and the other
+    checks of the verdict see them."""
     lone = lone_targets(attempt.noise)
     if not lone:
         return []
-    places = {x: _places(attempt, x) for x in sorted(lone)}
+    places = {x: _places(attempt, x) for x in sorted({e.x for e in attempt.problem.edges})}
     tested = sum(len(v) for v in places.values())
+    others = [x for x in places if x not in lone]
+    if any(_stepping(places[x], tested, options.significance) for x in others):
+        return []
     out = []
-    for x, edges in places.items():
-        found = []
-        for edge, T in edges.items():
-            p, s, (dt, pt), (dr, pr) = step_statistic(T)
-            factor = 2 * (T.shape[0] - 2 * MIN_SIDE + 1) * tested  # Bonferroni
-            if s and p * factor < options.significance:
-                size = " / ".join(w for w, q in ((f"{1e3 * dt:.0f} mm", pt),
-                                                 (f"{dr:.1f} deg", pr))
-                                  if q * factor < options.significance)
-                found.append(f"{size} on {edge} from its pair {s + 1} of {T.shape[0]}")
+    for x in sorted(lone):
+        found = _stepping(places[x], tested, options.significance)
         if not found:
             continue
         mine = tuple(e.name for e in given.edges if e.x == x)
@@ -121,6 +135,6 @@ def step_misfits(attempt: Attempt, given: Problem, options: VerdictOptions) -> l
         out.append(Misfit(
             "tag", x, mine, pairs,
             f"{x}'s place (A^-1 Y B of each pair, in recording order) jumps: "
-            + "; ".join(found) + " (the only target of its kind: no other to compare it with)",
-            causes="it moved during the recording (or was bumped)"))
+            + "; ".join(found) + " (the only target of its kind, while the other targets stay "
+            "put)", causes="it moved during the recording (or was bumped)"))
     return out
