@@ -363,6 +363,7 @@ def screen_edges(sums: GroupSums, groups: NoiseGroups, names: list[str],
     ``options.outlier_significance / E``. A group keeps all its edges when every one of them
     would be left out."""
     E = groups.edge_group.shape[0]
+    kinds = groups.edge_kinds()
     why: dict[int, str] = {}
     for what in ("translation", "rotation"):
         chi = np.asarray(getattr(sums, f"edge_chi2_{what}"), float)
@@ -371,7 +372,6 @@ def screen_edges(sums: GroupSums, groups: NoiseGroups, names: list[str],
         if valid.sum() < 3:
             continue
         s = np.sqrt(np.where(valid, chi, 0.0) / np.where(valid, r, 1.0))
-        kinds = groups.edge_kinds()
         for g in range(groups.size):
             mine = valid & (groups.edge_group == g)
             alike = valid & (kinds == groups.kinds[g])

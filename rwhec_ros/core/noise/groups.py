@@ -13,7 +13,7 @@ Three groupings (:data:`GROUPINGS`):
   given a noise of its own that would hide it. A camera that sees targets of several kinds (given
   as ``kinds``: single tags, and each board type) has **one group per kind**: the noise of a pose
   is its detector's as much as its camera's. On the demo rig (640 x 480, targets of 20-25 cm at
-  about 1 m) the rotation of a single tag, from four edge-refined corners, is 0.02-0.15 deg off
+  about 1 m) the rotation of a single tag, from four edge-refined corners, is 0.01-0.15 deg off
   per axis, of an 8 x 5 chessboard (saddle points) 0.06-0.27 deg, of a 5 x 4 ChArUco board
   (interpolated corners) 0.1-0.44 deg; in one group per camera such a board's every edge fit
   3-10x the noise of the median edge, and the verdict left a good board out as a misfit. Each

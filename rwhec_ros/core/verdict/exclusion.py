@@ -51,7 +51,7 @@ from ..problem import Problem
 from ..result import CalibrationResult, Status
 from .fit import EdgeFit, FitStatistics, goodness_of_fit
 from .hidden_misfits import camera_misfits, explained, judged_weights, size_misfits
-from .misfit import Attempt, Misfit
+from .misfit import Attempt, Misfit, edge_target
 from .model import Builder
 from .options import VerdictOptions
 from .step_check import step_misfits
@@ -258,10 +258,10 @@ def misfits(fit: FitStatistics | None, given: Problem, *,
     # the other edges of a tag found bad: wholly rejected, or excluded before
     lost: dict[str, list[str]] = {}
     for n in excluded:
-        lost.setdefault(_tag_of(n), []).append(f"{n} excluded before")
+        lost.setdefault(edge_target(n), []).append(f"{n} excluded before")
     for n, k in (rejected or {}).items():
         if n in sizes and int(k) >= sizes[n]:
-            lost.setdefault(_tag_of(n), []).append(f"{n} wholly rejected")
+            lost.setdefault(edge_target(n), []).append(f"{n} wholly rejected")
     for tag, es in tags.items():
         if len(es) + len(lost.get(tag, ())) >= 2 and tag in by_tag:
             detail = ", ".join(f"{e.y} {times(e.ratio)}" for e in es)
@@ -285,7 +285,7 @@ def misfits(fit: FitStatistics | None, given: Problem, *,
     for name, n in sizes.items():
         gone = int((rejected or {}).get(name, 0))
         if 0 < gone < n and gone / n > opts.exclusion_rejected_share and name not in out:
-            if _tag_of(name) not in out:
+            if edge_target(name) not in out:
                 out[name] = Misfit("edge", name, (name,), n,
                                    f"the outlier rejection left out {gone} of its {n} pairs")
     return list(out.values())
@@ -379,7 +379,7 @@ def _first_solve(attempt: Attempt, fit: FitStatistics | None, given: Problem) ->
 def _add(excluded: list[Misfit], m: Misfit) -> None:
     """Append ``m``; a tag takes in the edges of it excluded before (one entry per target)."""
     if m.kind == "tag":
-        mine = [e for e in excluded if e.kind == "edge" and _tag_of(e.name) == m.name]
+        mine = [e for e in excluded if e.kind == "edge" and edge_target(e.name) == m.name]
         if mine:
             for e in mine:
                 excluded.remove(e)
@@ -388,10 +388,6 @@ def _add(excluded: list[Misfit], m: Misfit) -> None:
                        m.finding + "; before: " + "; ".join(e.finding for e in mine),
                        m.noise_ratio_without)
     excluded.append(m)
-
-
-def _tag_of(edge: str) -> str:
-    return edge.strip("()").split(",")[0].strip()
 
 
 def _fit(attempt: Attempt, options: VerdictOptions) -> FitStatistics | None:

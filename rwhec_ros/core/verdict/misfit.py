@@ -9,7 +9,12 @@ from dataclasses import dataclass, field
 from ..problem import Problem
 from ..result import CalibrationResult
 
-__all__ = ["Misfit", "Attempt"]
+__all__ = ["Misfit", "Attempt", "edge_target"]
+
+
+def edge_target(edge: str) -> str:
+    """The target ``x`` of an edge named ``"(x, y)"``."""
+    return edge.strip("()").split(",")[0].strip()
 
 
 @dataclass(frozen=True)

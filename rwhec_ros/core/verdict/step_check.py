@@ -31,7 +31,7 @@ from scipy import stats
 
 from ..lie import invert_transform, so3_log
 from ..problem import Problem
-from .misfit import Attempt, Misfit
+from .misfit import Attempt, Misfit, edge_target
 from .options import VerdictOptions
 
 __all__ = ["MIN_SIDE", "lone_targets", "step_statistic", "step_misfits"]
@@ -52,7 +52,7 @@ def lone_targets(noise) -> set[str]:
     by_kind: dict[str, set[str]] = {}
     for g in groups:
         for e in g.edges:
-            by_kind.setdefault(g.kind, set()).add(e.strip("()").split(",")[0].strip())
+            by_kind.setdefault(g.kind, set()).add(edge_target(e))
     return {next(iter(xs)) for kind, xs in by_kind.items() if kind and len(xs) == 1}
 
 
@@ -68,19 +68,28 @@ def step_statistic(T: np.ndarray) -> tuple[float, int, tuple[float, float], tupl
     t = T[:, :3, 3]
     r = np.array([so3_log(T[0, :3, :3].T @ R) for R in T[:, :3, :3]])
     dof = 3 * (n - 2)
-    for s in range(MIN_SIDE, n - MIN_SIDE + 1):
-        steps = []
-        for comp in (t, r):
-            m1, m2 = comp[:s].mean(axis=0), comp[s:].mean(axis=0)
-            between = s * (n - s) / n * float(np.sum((m1 - m2) ** 2))
-            within = float(np.sum((comp[:s] - m1) ** 2) + np.sum((comp[s:] - m2) ** 2))
-            p = float(stats.f.sf((between / 3) / (within / dof), 3, dof)) if within > 0 else \
-                (0.0 if between > 0 else 1.0)
-            steps.append((float(np.linalg.norm(m1 - m2)), p))
-        p = min(steps[0][1], steps[1][1])
-        if p < best[0]:
-            best = (p, s, steps[0], (float(np.degrees(steps[1][0])), steps[1][1]))
-    return best
+    s = np.arange(MIN_SIDE, n - MIN_SIDE + 1)  # every split at once, from cumulative sums
+    steps, ps = [], []
+    for comp in (t, r):
+        c = comp - comp.mean(axis=0)  # centred: the sums of squares lose no digits
+        S, Q = np.cumsum(c, axis=0), np.cumsum(np.sum(c * c, axis=1))
+        m1 = S[s - 1] / s[:, None]
+        m2 = (S[-1] - S[s - 1]) / (n - s)[:, None]
+        between = s * (n - s) / n * np.sum((m1 - m2) ** 2, axis=1)
+        within = (Q[s - 1] - s * np.sum(m1 * m1, axis=1)) \
+            + (Q[-1] - Q[s - 1] - (n - s) * np.sum(m2 * m2, axis=1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = (between / 3) / (within / dof)
+        p = np.where(within > 0, stats.f.sf(np.nan_to_num(f, posinf=np.inf), 3, dof),
+                     np.where(between > 0, 0.0, 1.0))
+        steps.append(np.linalg.norm(m1 - m2, axis=1))
+        ps.append(p)
+    p = np.minimum(ps[0], ps[1])
+    i = int(np.argmin(p))
+    if not p[i] < 1.0:
+        return best
+    return (float(p[i]), int(s[i]), (float(steps[0][i]), float(ps[0][i])),
+            (float(np.degrees(steps[1][i])), float(ps[1][i])))
 
 
 def _places(attempt: Attempt, name: str) -> dict[str, np.ndarray]:
