@@ -400,9 +400,9 @@ def test_a_step_common_to_every_target_does_not_single_out_the_lone_board():
     that shifted, or a robot's kinematic errors that differ between the two parts of a
     recording): the board alone in its kind is not excluded for its step, since the tags step
     too; a board moved alone is (the previous test)."""
-    from rwhec_ros.core.verdict.step_check import lone_targets, step_misfits
     from rwhec_ros.core.verdict.misfit import Attempt
     from rwhec_ros.core.verdict.options import VerdictOptions
+    from rwhec_ros.core.verdict.step_check import lone_targets, step_misfits
 
     problem = _with_noisier_kind(3, factor=3.0)
     for x in EXACT.x_names:

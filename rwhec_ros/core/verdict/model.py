@@ -14,7 +14,7 @@ from .scale_check import ScaleCheck
 __all__ = ["Reason", "FrameVerdict", "Verdict", "Builder", "PRIORITY"]
 
 #: Order of the reasons of one level: the most specific cause first.
-PRIORITY = ("certificate_failed", "not_identifiable", "excluded", "not_calibrated", "tag",
+PRIORITY = ("inputs", "certificate_failed", "not_identifiable", "excluded", "not_calibrated", "tag",
             "camera", "reprojection", "intrinsics", "edge", "scale", "time_offset", "fit",
             "pair", "precision", "certificate", "unseen_tag", "check_failed")
 
@@ -28,7 +28,8 @@ class Reason:
     level : str
         ``caution`` or ``unusable``.
     code : str
-        What kind: one of ``certificate_failed``, ``not_identifiable``, ``excluded``
+        What kind: one of ``inputs`` (:mod:`.input_check`: the inputs fit far better read
+        otherwise), ``certificate_failed``, ``not_identifiable``, ``excluded``
         (:mod:`.exclusion`), ``not_calibrated``, ``scale``, ``tag``, ``camera``,
         ``reprojection`` (:mod:`.reprojection_check`), ``intrinsics`` (:mod:`.focal_check`),
         ``edge``, ``time_offset`` (:mod:`.lag_check`, and the session's estimated offsets),
@@ -122,6 +123,9 @@ class Verdict:
         (:mod:`.lag_check`); None when not measured.
     far_pairs : list of FarPair
         Single pairs far off that move a frame (:mod:`.pair_check`).
+    input_check : InputCheck or None
+        The inputs read otherwise (poses inverted, units, pairs shifted) and how well each fits
+        (:mod:`.input_check`); None when not made.
     """
 
     level: str
@@ -136,6 +140,7 @@ class Verdict:
     noise: Any = None
     motion_lag: Any = None
     far_pairs: list = field(default_factory=list)
+    input_check: Any = None
 
     @property
     def usable(self) -> bool:
@@ -174,6 +179,7 @@ class Verdict:
             "noise": None if self.noise is None else self.noise.to_dict(),
             "motion_lag": None if self.motion_lag is None else self.motion_lag.to_dict(),
             "far_pairs": [p.to_dict() for p in self.far_pairs],
+            "input_check": None if self.input_check is None else self.input_check.to_dict(),
         }
 
 

@@ -11,6 +11,8 @@ It combines, for a solution of a :class:`~rwhec_ros.core.problem.Problem`:
   stated noise compared with the estimate per noise group, and a camera far noisier than the
   others named;
 * the scale check of a known-scale problem (:mod:`.scale_check`);
+* a gross mistake in the inputs (:mod:`.input_check`): the pairs fit far better with the poses
+  inverted, in other units or paired with the view before or after;
 * the precision of each frame (:mod:`.precision`, from the per-frame covariance of
   :mod:`rwhec_ros.core.analysis.uncertainty`);
 * when the data keep the tag corners: the focal length each camera's corners fit
@@ -43,6 +45,7 @@ from ..result import CalibrationResult
 from .exclusion import exclusion_reasons
 from .fit import FitStatistics, goodness_of_fit
 from .focal_check import NOT_CHECKED, focal_checks, focal_reasons, focal_summary
+from .input_check import check_inputs, input_reasons
 from .lag_check import lag_reasons
 from .model import Builder, FrameVerdict, Reason, Verdict
 from .noise_check import noise_reasons, precision_factors, stated_scale
@@ -152,6 +155,8 @@ def assess(
         edge_reasons(b, fit, problem, opts, strict=exclusion is not None,
                      noise_estimated=noise is not None and noise.estimated)
         fit_reasons(b, fit, opts, scale_check)
+    inputs = _check_inputs(problem, result, camera_poses_given=reprojection is None)
+    input_reasons(b, inputs, scale_checked=scale_check is not None and scale_check.available)
     far = pair_reasons(b, problem, result, fit, opts) if fit is not None else []
     lag = lag_reasons(b, problem, result, opts)
     noise_reasons(b, noise, problem, opts)
@@ -178,7 +183,17 @@ def assess(
     verdict.noise = noise
     verdict.motion_lag = lag
     verdict.far_pairs = far
+    verdict.input_check = inputs
     return verdict
+
+
+def _check_inputs(problem: Problem, result: CalibrationResult, *, camera_poses_given: bool):
+    if not (np.all(np.isfinite(result.X)) and np.all(np.isfinite(result.Y))):
+        return None
+    try:
+        return check_inputs(problem, camera_poses_given=camera_poses_given)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
 
 
 def _analyze(problem: Problem, result: CalibrationResult):

@@ -1,0 +1,285 @@
+"""The verdict's check for a gross mistake in the inputs: poses the other way round, in other
+units, or paired with the wrong image.
+
+The commonest faults of a hand-eye bring-up are not noise but a wrong reading of the inputs:
+
+* the robot poses read the other way round (a file of ``T_tool_base`` read as ``T_base_tool``,
+  ``pose_source.parent`` and ``.child`` swapped) or the cameras on the other carrier (eye-to-hand
+  data calibrated as eye-in-hand): for a single pose stream both mean ``A_i`` in place of
+  ``A_i^-1`` in eq. (7);
+* the target-in-camera poses the other way round (``cam2target`` for ``target2cam``; only where
+  the user gives ``B``: CSV pose pairs, pose lists);
+* translations in millimetres, centimetres or inches where metres are expected (the pose stream,
+  or target sizes): a common factor of 1000, 100 or 39.37 between the pose stream and the
+  camera-target distances;
+* every image paired with the pose of the view before or after it (a pose list one row off).
+
+With the noise estimated from the data, such data still give a certified optimum, of a problem
+that fits nothing: the noise estimate swells to tens of millimetres and degrees and the verdict,
+without this check, could only say that the frames are imprecise ("record more views"). Measured
+on a real 28-view chessboard set (`RWHE-Calib`'s ``kuka_2``) with the poses inverted: a CAUTION
+(usable) with the camera 1.9 m from the flange, the pairs fitting 38 mm / 15.6 deg RMS against
+0.6 mm / 0.05 deg as read.
+
+So the same pairs are solved once per alternative reading (mode ``fast``, the scale free so
+that units show as ``alpha``; milliseconds to a third of a second on the paper's 3230 pairs), each
+with its own noise: the problem's relative weights, scaled by one factor for translation and one
+for rotation that make the mean of each term of eq. (33) its 3 degrees of freedom, re-solved
+until the factors settle (``_ROUNDS``). The weights the session estimated for the configured
+reading cannot judge the others: a reading whose translations fit nothing gets a translation
+noise of hundreds of metres, and then no alternative can fit better in translation. The
+configured reading goes through the same steps (known scale). A reading's misfit is the product
+of its RMS translation and rotation residuals (the likelihood of a reading with its noise
+estimated falls with the product of its noise levels); an alternative is named when it is at
+most ``1 / GROSS_MISFIT_RATIO`` of the configured one's and its scale is positive. Correct data
+fit at the noise level as read, and an alternative reading cannot fit better than the noise, so
+on them the ratio stays near or below 1; every fault above gave hundreds to thousands.
+A single edge cannot tell ``A`` inverted from
+``B`` inverted (``A^-1 X = Y B`` is ``X^-1 A = B^-1 Y^-1`` with the roles swapped) but by the
+noise model (inverting ``B`` carries its rotation noise into its translation): both are named
+where both fit far better than the configured reading, the better first. The units are named
+when the free scale of the best reading lies within 15 % of a unit factor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..lie import invert_transform
+from ..outliers.pairs import pair_residuals
+from ..problem import Edge, Problem
+from .model import Builder
+from .words import deg, mm
+
+__all__ = ["Reading", "InputCheck", "check_inputs", "input_reasons", "GROSS_MISFIT_RATIO", "UNITS"]
+
+#: An alternative reading is named when the configured reading's misfit (RMS translation x RMS
+#: rotation residual) is at least this many times its own (e.g. both ~5x larger as read).
+GROSS_MISFIT_RATIO = 25.0
+#: Solves per reading, the noise factors re-estimated after each but the last.
+_ROUNDS = 3
+
+#: Factor ``alpha`` (camera-tag translations / pose-stream translations) -> what it means.
+UNITS = {
+    1e-3: "the pose stream's translations are in millimetres (the camera-target distances are "
+          "1/1000 of them): convert the poses to metres",
+    1e-2: "the pose stream's translations are in centimetres: convert the poses to metres",
+    0.0254: "the pose stream's translations are in inches: convert the poses to metres",
+    1e3: "the camera-target distances are 1000x the pose stream's: the target sizes are given "
+         "in millimetres (tags.sizes, targets.<name>.square_size ... are in metres), or the "
+         "target-in-camera poses are in millimetres",
+    1e2: "the camera-target distances are 100x the pose stream's: the target sizes are given in "
+         "centimetres (they are in metres), or the target-in-camera poses are in centimetres",
+    1 / 0.0254: "the camera-target distances are 39.4x the pose stream's: the target sizes are "
+                "given in inches (they are in metres)",
+}
+#: ``alpha`` within this relative distance of a unit factor names that unit.
+UNIT_TOLERANCE = 0.15
+
+_READINGS = {
+    "pose_inverted": "with every robot pose inverted",
+    "camera_inverted": "with every target-in-camera pose inverted",
+    "both_inverted": "with the robot poses and the target-in-camera poses inverted",
+    "next_pose": "with each image paired with the pose of the view after it",
+    "previous_pose": "with each image paired with the pose of the view before it",
+    "units": "with the translations rescaled",
+}
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One reading of the pairs, solved.
+
+    Attributes
+    ----------
+    name : str
+        ``configured``, ``units`` (the configured reading, scale free), ``pose_inverted``,
+        ``camera_inverted``, ``both_inverted``, ``next_pose``, ``previous_pose``.
+    scale : float
+        Its free scale ``alpha`` (1 for the configured reading).
+    translation_rms_m, rotation_rms_deg : float
+        RMS residual of ``A X = Y B`` over its pairs (translation in the units of ``B``, divided
+        by the scale where it exceeds 1).
+    """
+
+    name: str
+    scale: float
+    translation_rms_m: float
+    rotation_rms_deg: float
+
+    @property
+    def misfit(self) -> float:
+        """RMS translation [m] x RMS rotation [deg] residual."""
+        return self.translation_rms_m * self.rotation_rms_deg
+
+    def to_dict(self) -> dict:
+        return {"reading": self.name, "scale": float(self.scale),
+                "translation_rms_m": float(self.translation_rms_m),
+                "rotation_rms_deg": float(self.rotation_rms_deg)}
+
+
+@dataclass(frozen=True)
+class InputCheck:
+    """The configured reading and every alternative tried (module docstring)."""
+
+    configured: Reading
+    alternatives: tuple[Reading, ...]
+
+    def to_dict(self) -> dict:
+        return {"configured": self.configured.to_dict(),
+                "alternatives": [dict(r.to_dict(), fits_better_x=float(self.ratio(r)))
+                                 for r in self.alternatives],
+                "named": [r.name for r in self.found()]}
+
+    def ratio(self, r: Reading) -> float:
+        """Configured misfit over ``r``'s (large: ``r`` fits far better)."""
+        return self.configured.misfit / r.misfit if r.misfit > 0 else float("inf")
+
+    def found(self) -> list[Reading]:
+        """The alternatives that fit far better than the configured reading, best first."""
+        good = [r for r in self.alternatives
+                if self.ratio(r) >= GROSS_MISFIT_RATIO and r.scale > 0]
+        return sorted(good, key=lambda r: r.misfit)
+
+
+def _length(value_m: float) -> str:
+    """:func:`~.words.mm`, in metres from 10 m (a reading in other units)."""
+    return f"{value_m:.0f} m" if value_m >= 10 else mm(value_m)
+
+
+def unit_of(alpha: float) -> str | None:
+    """The words of :data:`UNITS` for a scale within :data:`UNIT_TOLERANCE` of a unit factor."""
+    for factor, words in UNITS.items():
+        if np.isfinite(alpha) and abs(alpha / factor - 1.0) <= UNIT_TOLERANCE:
+            return words
+    return None
+
+
+def _reading(name: str, problem: Problem, *, invert_a: bool = False, invert_b: bool = False,
+             shift: int = 0) -> Problem | None:
+    edges = []
+    for e in problem.edges:
+        A, B, s, k = e.A, e.B, e.sigma, e.kappa
+        if shift:
+            if e.n <= abs(shift):
+                continue
+            a, b = (slice(shift, None), slice(None, -shift)) if shift > 0 else \
+                (slice(None, shift), slice(-shift, None))
+            A, B, s, k = A[a], B[b], s[b], k[b]
+        edges.append(Edge.build(e.x, e.y, invert_transform(A) if invert_a else A,
+                                invert_transform(B) if invert_b else B, s, k))
+    if not edges:
+        return None
+    return problem.with_edges(edges, unknown_scale=True)
+
+
+def _fit(name: str, problem: Problem) -> Reading:
+    """Solve ``problem`` with its noise re-scaled to its own residuals (module docstring)."""
+    from ..solve import SolveOptions, solve
+
+    p = problem
+    for k in range(_ROUNDS):
+        r = solve(p, SolveOptions(mode="fast"))
+        alpha = float(r.scale) if p.unknown_scale else 1.0
+        if not (np.all(np.isfinite(r.X)) and np.all(np.isfinite(r.Y)) and np.isfinite(alpha)):
+            raise ArithmeticError(f"{name}: the solve gave no estimate")
+        res = pair_residuals(p, r.X, r.Y, alpha)
+        if k == _ROUNDS - 1:
+            break
+        ft = np.mean(np.concatenate([v.normalised_translation for v in res.values()])) / 3.0
+        fr = np.mean(np.concatenate([v.normalised_rotation for v in res.values()])) / 3.0
+        if not (ft > 0 and fr > 0 and np.isfinite(ft) and np.isfinite(fr)):
+            break
+        p = p.with_edges([Edge.build(e.x, e.y, e.A, e.B, e.sigma * np.sqrt(ft), e.kappa / fr)
+                          for e in p.edges])
+    t = np.concatenate([v.translation for v in res.values()])
+    R = np.concatenate([v.rotation for v in res.values()])
+    # residuals are in the units of B; a scale far above 1 takes B as the unit at fault (sizes
+    # in millimetres), so its residuals are given in the pose stream's metres
+    t_rms = float(np.sqrt(np.mean(t**2))) / max(alpha, 1.0)
+    return Reading(name, alpha, t_rms,
+                   float(np.degrees(np.sqrt(np.mean(R**2)))))
+
+
+def check_inputs(problem: Problem, *, camera_poses_given: bool) -> InputCheck:
+    """Solve ``problem`` as configured and read otherwise (module docstring).
+
+    Parameters
+    ----------
+    problem : Problem
+        The pairs as solved (their relative weights).
+    camera_poses_given : bool
+        Whether the ``B`` came from the user (CSV, pose lists): only then are the readings with
+        ``B`` inverted tried (the package's own detections are ``T_cam_target`` by
+        construction).
+    """
+    configured = _fit("configured", problem)
+    plans = [("pose_inverted", {"invert_a": True}), ("next_pose", {"shift": 1}),
+             ("previous_pose", {"shift": -1})]
+    if not problem.unknown_scale:
+        plans.insert(0, ("units", {}))
+    if camera_poses_given:
+        plans += [("camera_inverted", {"invert_b": True}),
+                  ("both_inverted", {"invert_a": True, "invert_b": True})]
+    out = []
+    for name, how in plans:
+        p = _reading(name, problem, **how)
+        if p is None:
+            continue
+        try:
+            out.append(_fit(name, p))
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            continue
+    return InputCheck(configured, tuple(out))
+
+
+def input_reasons(b: Builder, check: InputCheck | None, *, scale_checked: bool = False) -> None:
+    """An ``unusable`` reason (code ``inputs``) when a reading of the inputs fits far better
+    than the configured one: what fits, by how much, the likely mistake and the fix.
+    ``scale_checked``: the scale check (:mod:`.scale_check`) measured the scale, so a free scale
+    that is no unit factor is left to it (its words name tag sizes and focal lengths)."""
+    if check is None:
+        return
+    found = [r for r in check.found()
+             if not (r.name == "units" and scale_checked and unit_of(r.scale) is None)]
+    if not found:
+        return
+    best = found[0]
+    c = check.configured
+    also = [r for r in found[1:] if {r.name, best.name} == {"pose_inverted", "camera_inverted"}]
+    how = _READINGS[best.name] + "".join(f" (or, a little worse, {_READINGS[r.name][5:]})"
+                                         for r in also)
+    fits = (f"the pairs fit {_length(best.translation_rms_m)} / {deg(best.rotation_rms_deg)} "
+            f"RMS {how}, against {_length(c.translation_rms_m)} / {deg(c.rotation_rms_deg)} "
+            "as read")
+    units = unit_of(best.scale)
+    if best.name == "units":
+        cause = units or (f"the camera-target distances are {best.scale:.3g} times the pose "
+                          "stream's: check the target sizes, the intrinsics and the units of "
+                          "the poses")
+        b.add("unusable", "inputs", f"the inputs do not fit as read: {fits} (scale "
+              f"{best.scale:.4g}): {cause}", why="units")
+        return
+    causes = {
+        "pose_inverted": "the robot poses are the other way round (T_tool_base given where "
+                         "T_base_tool is read: a pose file of the other convention, or "
+                         "pose_source.parent and .child swapped) or the cameras ride on the "
+                         "other carrier (eye-to-hand data calibrated as eye-in-hand, or the "
+                         "reverse); fix the pose convention, or the mount (camera_carrier / "
+                         "tag_carrier; the CLI's --eye-in-hand, --eye-to-hand)",
+        "camera_inverted": "the target-in-camera poses are the other way round (cam2target "
+                           "given where target2cam is read); invert them",
+        "both_inverted": "the robot poses and the target-in-camera poses are both the other "
+                         "way round; invert both",
+        "next_pose": "the poses are one row behind the images (a pose list or file that "
+                     "starts one view early, or an image missing at the start); pair each "
+                     "image with its own pose",
+        "previous_pose": "the poses are one row ahead of the images (a pose list or file that "
+                         "starts one view late, or a pose missing at the start); pair each "
+                         "image with its own pose",
+    }
+    extra = f"; and at that reading {units}" if units else ""
+    b.add("unusable", "inputs", f"the inputs do not fit as read: {fits}: {causes[best.name]}"
+          f"{extra}", why=best.name.replace("_", " "))
