@@ -383,3 +383,19 @@ def test_a_toolkit_chessboard_folder_is_calibrated(tmp_path):
     Y = frames(tmp_path / "o" / "result.yaml")["cam0"]
     assert np.linalg.norm(Y[:3, 3] - T_tool_cam[:3, 3]) < 2e-3
     assert np.degrees(rotation_distance(Y[:3, :3], T_tool_cam[:3, :3])) < 0.2
+
+
+def test_a_partial_configuration_of_tag_settings_keeps_the_data_s_targets(eye_in_hand, tmp_path):
+    # the verdict's fix for a scale ("set tags.unknown_scale: true") given as --config, or as
+    # --unknown-scale: the data's targets stay (a real user's run was refused: "tags.ids: at
+    # least one target is required")
+    config = tmp_path / "scale.yaml"
+    config.write_text("/**:\n  ros__parameters:\n    tags:\n      unknown_scale: true\n")
+    for extra, out in ((["--config", config], "a"), (["--unknown-scale"], "b")):
+        code, stdout, err = run(["samples", eye_in_hand, "-o", tmp_path / out, "--no-refine",
+                                 *extra])
+        assert code == EXIT_OK, stdout + err
+        doc = yaml.safe_load((tmp_path / out / "result.yaml").read_text())
+        assert doc["config"]["tags.unknown_scale"] is True
+        assert {f["name"] for f in doc["frames"]} >= {"cam0", "board"}
+        assert 0.97 < doc["scale"] < 1.03  # rendered at the configured sizes

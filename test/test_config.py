@@ -209,6 +209,7 @@ BAD = [
     ({"tags.sizes.ids": [7], "tags.sizes.values": [0.1]}, "tags.sizes.ids[0]"),
     ({"tags.ids": [0, -1]}, "tags.ids[1]"),
     ({"tags.ids": [0, 0]}, "tags.ids"),
+    ({"tags.family": "DICT_6X6_25"}, "tags.family"),
     ({"tags.ids": []}, "tags.ids"),
     ({"noise.sigma": 1}, "noise.sigma"),  # an integer for a double: ROS rejects it too
     ({"noise.kappa": "125"}, "noise.kappa"),
@@ -263,6 +264,12 @@ def test_bad_parameters_name_the_parameter(change, name):
         CalibratorConfig.from_parameters(p)
     message = str(info.value)
     assert message.startswith(name + ":"), message
+
+
+def test_single_tags_of_an_aruco_dictionary():
+    p = minimal()
+    p["tags.family"] = "DICT_6X6_250"
+    assert CalibratorConfig.from_parameters(p).tags.family == "DICT_6X6_250"
 
 
 def test_bad_value_is_shown_in_the_message():

@@ -205,8 +205,8 @@ def stated_noise(args: argparse.Namespace, config) -> tuple[float, float, str]:
 
 def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
     """The flat parameters that ``--mode``, ``--sdp-backend``, ``--min-pairs``, ``--robust``,
-    ``--folds``, ``--no-guidance``, ``--no-refine``, ``--no-noise-estimate`` and
-    ``--noise-groups`` set (those given)."""
+    ``--folds``, ``--no-guidance``, ``--no-refine``, ``--no-noise-estimate``,
+    ``--noise-groups`` and (``bag``, ``samples``) ``--unknown-scale`` set (those given)."""
     if args.min_pairs is not None and args.min_pairs < 1:
         raise BadInput(f"--min-pairs: must be >= 1, got {args.min_pairs}")
     out: dict[str, Any] = {}
@@ -231,6 +231,9 @@ def solver_overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["noise.estimate"] = False
     if getattr(args, "noise_groups", None) is not None:
         out["noise.groups"] = args.noise_groups
+    if getattr(args, "unknown_scale", False) and getattr(args, "command", "") in ("bag",
+                                                                                   "samples"):
+        out["tags.unknown_scale"] = True
     return out
 
 

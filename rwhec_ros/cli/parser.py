@@ -107,6 +107,13 @@ def _add_mount(p: argparse.ArgumentParser, default: str) -> None:
                             f"rides on the flange (default: {default})")
 
 
+def _add_unknown_scale(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--unknown-scale", action="store_true",
+                   help="estimate a common scale of the camera-target translations, paper "
+                        "Problem 3: for target sizes or intrinsics not known to the per cent "
+                        "(default: the configuration's tags.unknown_scale, else off)")
+
+
 def _add_solving(sub, name: str, help_text: str, positional: tuple[str, str, str] | None,
                  config_help: str, *, config_required: bool = False) -> argparse.ArgumentParser:
     """A solving subcommand: its positional argument ``(dest, metavar, help)`` and the shared
@@ -155,10 +162,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: the configuration's tags.unknown_scale, else off)")
     _add_carriers(p)
 
-    _add_solving(sub, "bag", "a rosbag2 recording (sqlite3 or mcap) with the node's config",
-                 ("bag", "BAG", "rosbag2 directory (sqlite3 or mcap)"),
-                 "the node's parameter file, e.g. config/demo.yaml (required)",
-                 config_required=True)
+    p = _add_solving(sub, "bag", "a rosbag2 recording (sqlite3 or mcap) with the node's config",
+                     ("bag", "BAG", "rosbag2 directory (sqlite3 or mcap)"),
+                     "the node's parameter file, e.g. config/demo.yaml (required)",
+                     config_required=True)
+    _add_unknown_scale(p)
 
     p = _add_solving(sub, "samples", "a folder of stop-and-go views: an image per camera and "
                      "the robot pose per view (our manifest samples.yaml, industrial_calibration's "
@@ -178,6 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
                             "camera_calibration_toolkit"),
                    help="how the folder is laid out (default: %(default)s, from the files "
                         "found)")
+    _add_unknown_scale(p)
 
     p = _add_solving(sub, "poses", "a pose list: robot poses and target-in-camera poses "
                      "(OpenCV's gripper2base and target2cam), CSV or YAML",

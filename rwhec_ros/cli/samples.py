@@ -12,7 +12,7 @@ files are those of ``bag`` on a recording of the same views (the tests check it 
 The configuration is built from the data (:func:`samples_parameters`: carriers from the mount,
 one camera per image column, the data's target) and ``--config FILE`` on top of it: a full node
 parameter file (its cameras, carriers and targets replace the data's; frames must agree) or a
-partial one (e.g. only ``noise`` and ``solver``).
+partial one (e.g. only ``noise`` and ``solver``, or ``tags.unknown_scale`` for the data's target).
 """
 
 from __future__ import annotations
@@ -183,6 +183,13 @@ def _has(flat: dict[str, Any], *prefixes: str) -> bool:
     return any(k.startswith(prefixes) for k in flat)
 
 
+def _defines_targets(flat: dict[str, Any]) -> bool:
+    """Whether a parameter file names targets of its own (``targets.*``, ``tags.ids``, tag sizes);
+    settings of the data's targets alone (``tags.unknown_scale``, ``tags.family``, ...) keep the
+    data's targets."""
+    return _has(flat, "targets.", "tags.ids", "tags.default_size", "tags.sizes.")
+
+
 def samples_parameters(samples, file_flat: dict[str, Any] | None = None,
                        mount_flag: str | None = None) -> tuple[dict[str, Any], bool, list[str]]:
     """Flat calibrator parameters for ``samples``: :data:`SAMPLES_DEFAULTS`, the frames
@@ -206,7 +213,7 @@ def samples_parameters(samples, file_flat: dict[str, Any] | None = None,
         missing = sorted(set(samples.cameras) - set(file_flat.get("cameras.names", ())))
         raise BadInput(f"{samples.source}: cameras {missing} of the data are not in the "
                        f"configuration's cameras.names {list(file_flat.get('cameras.names', []))}")
-    if _has(file_flat, "targets.", "tags."):
+    if _defines_targets(file_flat):
         if samples.target_parameters:
             warnings.append(f"the configuration's targets are used; the data's "
                             f"({samples.target_words or 'targets'}) are ignored")

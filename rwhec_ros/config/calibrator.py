@@ -495,6 +495,13 @@ def _build_tags(v: dict[str, Any]) -> TagsConfig:
         raise ValueError(f"tags.ids: duplicated ids {dup}")
     if not v["tags.family"]:
         raise ValueError("tags.family: must not be empty")
+    from ..vision.families import dictionary_key
+
+    try:
+        dictionary_key(v["tags.family"])
+    except ValueError as exc:
+        raise ValueError(f"tags.family: {exc} (AprilTag families tag16h5, tag25h9, tag36h10, "
+                         "tag36h11, or an ArUco dictionary such as DICT_6X6_250)") from None
     size_ids, size_values = v["tags.sizes.ids"], v["tags.sizes.values"]
     if len(size_ids) != len(size_values):
         raise ValueError(

@@ -115,7 +115,9 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="child frame of the pose stream T_parent_child (the other carrier)"),
     ParamSpec("cameras.names", "string_array", required=True,
               doc="camera names; each needs cameras.<name>.* parameters"),
-    ParamSpec("tags.family", "string", "tag36h11", doc="AprilTag family"),
+    ParamSpec("tags.family", "string", "tag36h11",
+              doc="AprilTag family (tag36h11, ...) or ArUco dictionary (DICT_6X6_250, ...) of the "
+                  "single tags"),
     ParamSpec("tags.ids", "int_array", (),
               doc="ids of the single tags to calibrate (frames <tags.frame_prefix><id>); any "
                   "other id is ignored (and counted); may be empty when targets.names is not"),
@@ -311,7 +313,8 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="known scale: also solve with an unknown scale and check that it is 1 (tag "
                   "sizes, focal lengths, pose units)"),
     ParamSpec("verdict.scale_sigmas", "double", 4.0,
-              doc="the scale differs from 1 only beyond this many standard deviations ..."),
+              doc="the scale differs from 1 only beyond this many standard deviations ... "
+                  "(from 0.75 of it: a caution that it may)"),
     ParamSpec("verdict.scale_caution", "double", 0.02,
               doc="... and beyond this relative difference: caution (0.02 = 2 %)"),
     ParamSpec("verdict.scale_unusable", "double", 0.05,

@@ -249,7 +249,7 @@ class CandidateSearch:
     Parameters
     ----------
     family : str
-        AprilTag family.
+        AprilTag family or ArUco dictionary.
     params : cv2.aruco.DetectorParameters
         Full-resolution parameters (refinement, thresholds, overrides).
     fixed_min_perimeter : bool

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from .candidates import check_decimate, decimation_factor
-from .families import _family_key
+from .families import dictionary_key
 from .planar_pose import check_flip_options
 
 __all__ = ["CORNER_REFINEMENT_MODES", "CHESSBOARD_REFINEMENTS", "RejectReason", "DetectorConfig",
@@ -72,7 +72,9 @@ class DetectorConfig:
     Attributes
     ----------
     family : str
-        AprilTag family: ``tag16h5``, ``tag25h9``, ``tag36h10`` or ``tag36h11`` (default).
+        AprilTag family: ``tag16h5``, ``tag25h9``, ``tag36h10`` or ``tag36h11`` (default), or an
+        ArUco dictionary of ``cv2.aruco`` (``DICT_6X6_250``; single markers as users print them
+        with OpenCV: the tag's size is the side of its black square, as for AprilTags).
     tag_sizes : dict[int, float]
         Black-square edge length (metres) per tag id.
     default_tag_size : float or None
@@ -165,7 +167,10 @@ class DetectorConfig:
     flip_prediction_margin: float = 0.75
 
     def __post_init__(self) -> None:
-        self.family = _family_key(self.family)
+        try:
+            self.family = dictionary_key(self.family)
+        except ValueError as exc:
+            raise ValueError(f"family: {exc}") from None
         sizes: dict[int, float] = {}
         for key, value in dict(self.tag_sizes).items():
             if isinstance(key, bool) or int(key) != key or int(key) < 0:

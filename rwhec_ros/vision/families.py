@@ -54,8 +54,9 @@ def _family_key(family: str) -> str:
 
 
 def aruco_dictionary(family: str) -> cv2.aruco.Dictionary:
-    """The ``cv2.aruco`` dictionary of an AprilTag family (``"tag36h11"`` or ``"36h11"``)."""
-    return cv2.aruco.getPredefinedDictionary(APRILTAG_FAMILIES[_family_key(family)])
+    """The ``cv2.aruco`` dictionary of an AprilTag family (``"tag36h11"`` or ``"36h11"``) or an
+    ArUco dictionary (``"DICT_6X6_250"``): single tags may be either (:func:`dictionary_key`)."""
+    return get_dictionary(family)
 
 
 def marker_cells(family: str) -> int:
@@ -69,7 +70,7 @@ def marker_bitmap(family: str, tag_id: int, quiet_zone_cells: int = 1) -> np.nda
     Parameters
     ----------
     family : str
-        AprilTag family.
+        AprilTag family or ArUco dictionary.
     tag_id : int
         Marker id, ``0 <= tag_id <`` number of markers of the family.
     quiet_zone_cells : int

@@ -347,3 +347,26 @@ def test_paper_data_three_consecutive_pairs_are_unusable(paper):
     assert verdict.reasons[0].code == "not_identifiable"
     assert "tag_0 and cam_0: not calibrated" in verdict.reasons[0].message
     assert verdict.usable_frames() == []
+
+
+@pytest.mark.parametrize("alpha, std, level, words", [
+    (1.048, 0.013, "caution", "may be 1.048 times what the pose stream implies (+-0.013, 3.7 std "
+                              "from 1: suggestive, not conclusive"),
+    (1.060, 0.012, "unusable", "are 1.060 times what the pose stream implies (+-0.012, 5 std"),
+    (1.030, 0.012, None, ""),   # 2.5 std: nothing
+    (1.015, 0.004, None, ""),   # 3.8 std but within 2 %: the detector's depth bias
+])
+def test_a_scale_between_3_and_4_std_is_a_caution(alpha, std, level, words):
+    # a real set's folds: 1.048 +- 0.013 was GOOD without a word, 1.050 +- 0.0126 UNUSABLE
+    from rwhec_ros.core.verdict.model import Builder
+    from rwhec_ros.core.verdict.reasons import scale_reason
+    from rwhec_ros.core.verdict.scale_check import ScaleCheck
+
+    b = Builder(["target"], ["cam0"])
+    scale_reason(b, ScaleCheck(alpha, std, noise_ratio_translation=1.0), VerdictOptions(), None)
+    if level is None:
+        assert b.reasons == []
+    else:
+        (r,) = b.reasons
+        assert r.level == level and r.code == "scale" and words in r.message, r.message
+        assert "--unknown-scale" in r.message

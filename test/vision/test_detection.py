@@ -206,8 +206,10 @@ def test_distortion_round_trip(model, D):
     assert e_t < 2.0 and e_r < 0.2
 
 
-@pytest.mark.parametrize("family", sorted(APRILTAG_FAMILIES))
+@pytest.mark.parametrize("family", [*sorted(APRILTAG_FAMILIES), "DICT_6X6_250", "DICT_4X4_50"])
 def test_every_family_detects(family):
+    # single ArUco markers too (printed with OpenCV; a real eye-to-hand set uses DICT_6X6_250):
+    # the frame is the one the renderer draws, OpenCV's, as for AprilTags
     cam = CameraIntrinsics.pinhole(640, 480, 500.0)
     T = viewed_from(25.0, 60.0, distance=0.8)
     img = render(cam, [T], ids=[3], family=family)
@@ -279,6 +281,7 @@ def test_bad_input_raises_value_error():
     "kwargs, field",
     [
         (dict(family="tag99h1"), "family"),
+        (dict(family="DICT_9X9_1"), "family"),
         (dict(tag_sizes={1: -0.1}), r"tag_sizes\[1\]"),
         (dict(tag_sizes={-1: 0.1}), "tag_sizes key"),
         (dict(default_tag_size=0.0), "default_tag_size"),

@@ -216,16 +216,24 @@ def _edge_has(key: str, name: str) -> bool:
     return name in parts
 
 
+#: A scale between this share of ``verdict.scale_sigmas`` and ``scale_sigmas`` standard deviations
+#: from 1 (3 to 4 at the defaults), and beyond ``verdict.scale_caution``, is a caution "may be":
+#: without it the verdict jumped from GOOD to UNUSABLE on a real set's folds as the scale
+#: crossed 4 std (1.048 +- 0.013 at 3.6 std: GOOD, not a word; 1.050 +- 0.0126: UNUSABLE).
+SUGGESTIVE_SHARE = 0.75
+
+
 def scale_reason(b: Builder, sc: ScaleCheck, opts: VerdictOptions,
                  fit: FitStatistics | None) -> None:
     if not sc.available:
         return
     dev = abs(sc.deviation)
-    if dev <= opts.scale_caution or sc.sigmas <= opts.scale_sigmas:
+    suggestive = SUGGESTIVE_SHARE * opts.scale_sigmas < sc.sigmas <= opts.scale_sigmas
+    if dev <= opts.scale_caution or not (sc.sigmas > opts.scale_sigmas or suggestive):
         return
     if not sc.noise_ratio_translation < opts.fit_caution_ratio:
         return  # a free scale does not make the data fit: not (only) a scale (see _fit)
-    level = "unusable" if dev > opts.scale_unusable else "caution"
+    level = "unusable" if dev > opts.scale_unusable and not suggestive else "caution"
     pct = f"{100.0 * dev:.1f}" if dev < 0.1 else f"{100.0 * dev:.0f}"
     word = "large" if sc.alpha > 1 else "small"
     fits = ""
@@ -233,12 +241,15 @@ def scale_reason(b: Builder, sc: ScaleCheck, opts: VerdictOptions,
             and np.isfinite(sc.noise_ratio_translation)):
         fits = (f"; with the scale free the translations fit {sc.noise_ratio_translation:.2g}x "
                 "the stated noise")
+    are, std = (("may be", f"{sc.sigmas:.1f} std from 1: suggestive, not conclusive with "
+                 f"these data") if suggestive else ("are", f"{sc.sigmas:.0f} std from 1"))
     b.add(level, "scale",
-          f"the camera-tag distances are {sc.alpha:.3f} times what the pose stream implies "
-          f"(+-{sc.std:.3f}, {sc.sigmas:.0f} std from 1): the configured tag sizes are "
+          f"the camera-tag distances {are} {sc.alpha:.3f} times what the pose stream implies "
+          f"(+-{sc.std:.3f}, {std}): the configured tag sizes are "
           f"~{pct} % too {word} (true size = configured / {sc.alpha:.3f}), or the focal "
           f"lengths ~{pct} % too {word}, or the pose stream is not in metres{fits}; "
-          "measure the tags, check the intrinsics (or set tags.unknown_scale: true)",
+          "measure the tags, check the intrinsics (or set tags.unknown_scale: true, the CLI's "
+          "--unknown-scale)",
           why=f"scale {sc.alpha:.3f}")
 
 
