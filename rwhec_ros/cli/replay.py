@@ -165,8 +165,13 @@ def _replay(args, say: Printer, session, handlers, routes,
         feeder.image(cam, msg, compressed=compressed, T_parent_child=T)
 
     waiting = CameraInfoWait()  # images a few ms ahead of their camera's first CameraInfo
-    progress = Progress(say.err, "reading bag", enabled=not args.quiet,
-                        status=lambda: session.live.status().line())
+    def live_words() -> str:
+        status = session.live.status()
+        # the live estimate judges precision only: say so beside the verdict of the full solve
+        return status.line() + (" (precision of the live estimate; the full solve's verdict "
+                                "follows)" if status.estimate is not None else "")
+
+    progress = Progress(say.err, "reading bag", enabled=not args.quiet, status=live_words)
     watch = LiveWatch(session.live, say, enabled=not args.quiet, lines=not progress.tty)
 
     def on_progress(done: int, total: int) -> None:

@@ -298,7 +298,8 @@ class LiveStatus:
             return f"live solve failed: {self.last_error}"
         if self.estimate is None:
             return "live: no estimate yet" + (
-                " (no edge has solver.min_pairs pairs)" if self.waiting_for_data else "")
+                " (no edge had solver.min_pairs pairs at the last live solve)"
+                if self.waiting_for_data else "")
         return "live: " + self.estimate.line()
 
     def diagnostic_row(self, prefix: str, hardware_id: str = "") -> dict[str, Any]:

@@ -370,3 +370,18 @@ def test_a_scale_between_3_and_4_std_is_a_caution(alpha, std, level, words):
         (r,) = b.reasons
         assert r.level == level and r.code == "scale" and words in r.message, r.message
         assert "--unknown-scale" in r.message
+
+
+def test_the_focal_summary_does_not_claim_a_check_it_could_not_make():
+    # a single marker's 4 corners per image with the lens distortion dropped: 11.5 % off, +-6 %:
+    # "fit the configured focal lengths (within 11.5 %)" read as a pass
+    from rwhec_ros.core.verdict.focal_check import FocalCheck, focal_summary
+
+    opts = VerdictOptions()
+    close = FocalCheck("cam0", 1.004, 0.002, 500.0, 0.3, 0.3, 0.5, 8)
+    loose = FocalCheck("cam1", 0.885, 0.06, 500.0, 2.1, 1.9, 3.0, 8)
+    assert focal_summary({"cam0": close}, opts) == \
+        "the detected corners fit the configured focal lengths (within 0.4 %)"
+    words = focal_summary({"cam0": close, "cam1": loose}, opts)
+    assert "too few or too noisy to check the focal lengths (cam1 -11.5 % +-6.0 %" in words
+    assert "fit the configured" not in words

@@ -148,10 +148,20 @@ def focal_reasons(b: Builder, checks: Mapping[str, FocalCheck], opts: VerdictOpt
 def focal_summary(checks: Mapping[str, FocalCheck], opts: VerdictOptions) -> str:
     """``the detected corners fit the configured focal lengths (within 0.3 %)`` when every
     checked camera passes (the largest deviation rounded up to 0.1 %, so that the words stay
-    true); empty otherwise (the reasons say it) or when none was checked."""
+    true); where a camera passes only because its fit is imprecise (off by more than
+    ``verdict.focal_caution``, within ``verdict.focal_sigmas`` std), that the corners cannot
+    check it; empty otherwise (the reasons say it) or when none was checked."""
     known = [c for c in checks.values() if np.isfinite(c.scale)]
     if not known or any(c.flagged(opts) for c in known):
         return ""
+    loose = [c for c in known if abs(c.deviation) > opts.focal_caution]
+    if loose:
+        # off by more than the caution but not significantly: the corners are too few or too
+        # noisy to check (a single marker's 4 corners per image, a lens model that misfits)
+        words = ", ".join(f"{c.camera} {100 * c.deviation:+.1f} % +-{100 * c.std:.1f} %"
+                          for c in loose)
+        return ("the detected corners are too few or too noisy to check the focal lengths "
+                f"({words}: not significant)")
     worst = max(abs(c.deviation) for c in known)
     within = max(math.ceil(round(1000 * worst, 6)) / 10, 0.1)
     return f"the detected corners fit the configured focal lengths (within {within:.1f} %)"
