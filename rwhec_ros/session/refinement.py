@@ -124,7 +124,8 @@ class CornerRefinement:
                 for name in r.names},
             "converged": bool(r.converged), "rounds": int(r.rounds),
             "n_downweighted": int(r.n_downweighted), "notes": list(r.notes),
-            "message": r.message})
+            "message": r.message,
+            "fold_spread": None if r.spread is None else r.spread.to_dict()})
         if r.scale_std is not None:
             out["scale"] = {"certified": float(result.scale), "refined": float(r.scale),
                             "refined_std": float(r.scale_std)}
@@ -152,7 +153,13 @@ class CornerRefinement:
         if not self.published or name not in self.refinement.names:
             return pose_level
         std = _std(self.refinement.frame_covariance(name))
-        return {"std_kind": REFINED_STD_KIND[self.refinement.model], **std,
+        kind = REFINED_STD_KIND[self.refinement.model]
+        spread = self.refinement.spread
+        if spread is not None and spread.significant:
+            kind += (f"; scaled by {spread.factor:.3g} (variance) to the spread of the "
+                     f"{spread.folds} cross-validation folds' estimates, which exceeds the "
+                     "model's")
+        return {"std_kind": kind, **std,
                 "a_posteriori": dict(std), "unobservable": {"translation": [], "rotation": []},
                 "pose_level": pose_level}
 

@@ -418,3 +418,47 @@ def test_the_cross_validation_scores_the_pose_level_fit_and_the_decision_uses_it
     r = refine_views(views, cams, start_X, start_Y, 1.0, False, RefineOptions(model="plain"),
                      pose_level=truth)
     assert set(r.held_out_rms_px) == {"plain", "certified"} and r.model == "plain"
+
+
+# --- the folds' spread against the model's covariance (rwhec_ros.core.refine.spread) ------------
+
+
+def _moved(T, d):
+    from rwhec_ros.core.lie import so3_exp
+
+    out = np.array(T, float)
+    out[:, :3, 3] += d[:, :3]
+    out[:, :3, :3] = so3_exp(d[:, 3:]) @ T[:, :3, :3]
+    return out
+
+
+@pytest.mark.parametrize("true_factor, significant", [(1.0, False), (9.0, True)])
+def test_the_folds_spread_is_measured_against_the_covariance(true_factor, significant):
+    # K delete-a-group fits whose deviations from their mean spread by Sigma K / (K - 1)^2 (their
+    # jackknife (K - 1) / K sum (d_k - mean d)^2 then expects Sigma, the estimate's covariance):
+    # factor ~1; folds spread 9x more (a model that misses something) give ~9 and scale it
+    from rwhec_ros.core.refine.model import State
+    from rwhec_ros.core.refine.spread import fold_spread
+
+    rng = np.random.default_rng(5)
+    M, P, K = 2, 3, 8
+    frames = np.tile(np.eye(4), (M + P, 1, 1))
+    frames[:, :3, 3] = rng.normal(size=(M + P, 3))
+    L = rng.normal(size=(M + P, 6, 6)) * 1e-3
+    cov = L @ np.transpose(L, (0, 2, 1)) + 1e-6 * np.eye(6)
+    estimate = State(frames[:M], frames[M:], 1.0, np.zeros((0, 4, 4)))
+    factors = []
+    for _ in range(40):
+        folds = []
+        for _k in range(K):
+            d = np.stack([np.linalg.cholesky(c * true_factor * K / (K - 1) ** 2)
+                          @ rng.normal(size=6)
+                          for c in cov])
+            moved = _moved(frames, d)
+            folds.append(State(moved[:M], moved[M:], 1.0, np.zeros((0, 4, 4))))
+        s = fold_spread(folds, estimate, cov)
+        factors.append(s.factor)
+        assert s.folds == K and 1.5 < s.threshold < 1.7
+    assert abs(np.mean(factors) / true_factor - 1.0) < 0.1
+    assert np.mean([f > s.threshold for f in factors]) == (1.0 if significant else 0.0)
+    assert fold_spread(folds[:3], estimate, cov) is None  # too few folds

@@ -27,7 +27,9 @@ From the certified pose-level optimum (``X``, ``Y``, ``alpha``), on every kept c
    held out).
 
 The covariance of the kept estimate comes from the corner-level model with the noise of step 1
-(:meth:`.fit.CornerFit.covariance`). Everything here is a *local* estimate of a different cost
+(:meth:`.fit.CornerFit.covariance`), scaled up where the cross-validation folds' estimates
+spread significantly more than it says (:mod:`.spread`: a jackknife over the pose samples).
+Everything here is a *local* estimate of a different cost
 than the certified one; :data:`SCOPE` says so in words and :mod:`.decision` decides what is
 published.
 """
@@ -43,6 +45,7 @@ import numpy as np
 from ..numerics.blas import blas_threads
 from .fit import CornerFit, Noise, RefinementFailed
 from .model import SIDES, State
+from .spread import FoldSpread, fold_spread
 from .views import CornerViews
 
 __all__ = ["RefineOptions", "Refinement", "RefinementFailed", "refine_views", "SCOPE", "MODELS",
@@ -163,6 +166,9 @@ class Refinement:
     message : str
     notes : list of str
     timing_s : float
+    spread : FoldSpread or None
+        The cross-validation folds' spread against the model's covariance (:mod:`.spread`);
+        where significant, ``covariance`` and ``scale_std`` are scaled by its factor.
     """
 
     x_names: tuple[str, ...]
@@ -188,6 +194,7 @@ class Refinement:
     message: str = ""
     notes: list[str] = field(default_factory=list)
     timing_s: float = 0.0
+    spread: FoldSpread | None = None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -218,16 +225,18 @@ def _squared_sum(tester: CornerFit, y_names, X, Y, alpha) -> float:
 
 def _held_out(views: CornerViews, cameras, unknown_scale, opts, starts: dict[str, State],
               noise: dict[str, Noise], pose_level: PoseLevelFit | None
-              ) -> tuple[dict[str, float], list[str]]:
+              ) -> tuple[dict[str, float], list[str], dict[str, list[State]]]:
     """Pooled held-out RMS [px] of each fit of ``starts`` (and of the pose-level fit with
     ``pose_level``, key ``"certified"``) over ``opts.folds`` folds of the pose groups, and notes
     on folds left out; each fold's corner fit starts from the frames of ``starts`` (the fits on
     all the data: fewer steps to the fold's optimum) at the noise ``noise[name]``. A fold enters
-    only when every fit could score it, so that all compare on the same corners."""
+    only when every fit could score it, so that all compare on the same corners. Also returns
+    each fit's estimate per fold entered (the jackknife of :mod:`.spread`)."""
     fold = (np.arange(views.n_groups) % opts.folds)[views.view_group]
     names = [*starts, *(["certified"] if pose_level is not None else [])]
     sums = dict.fromkeys(names, 0.0)
     n_held, notes = 0, []
+    fold_states: dict[str, list[State]] = {name: [] for name in starts}
     for k in range(opts.folds):
         test = fold == k
         train_views, test_views = views.subset(~test), views.subset(test)
@@ -237,13 +246,14 @@ def _held_out(views: CornerViews, cameras, unknown_scale, opts, starts: dict[str
             continue
         train = CornerFit(train_views, cameras, unknown_scale, opts.moving, opts.huber)
         tester = CornerFit(test_views, cameras, unknown_scale, opts.moving, opts.huber)
-        part = {}
+        part, fitted_states = {}, {}
         try:
             for name, s0 in starts.items():
                 s = train.gauss_newton(
                     State.start(s0.X, s0.Y, s0.alpha, train_views.n_groups), noise[name],
                     tol=0.1)
                 part[name] = _squared_sum(tester, views.y_names, s.X, s.Y, s.alpha)
+                fitted_states[name] = s
         except RefinementFailed as exc:
             notes.append(f"cross-validation fold {k + 1} left out: {exc}")
             continue
@@ -256,10 +266,12 @@ def _held_out(views: CornerViews, cameras, unknown_scale, opts, starts: dict[str
             part["certified"] = _squared_sum(tester, views.y_names, *fitted)
         for name, v in part.items():
             sums[name] += v
+        for name, st in fitted_states.items():
+            fold_states[name].append(st)
         n_held += test_views.n_corners
     if not n_held:
-        return {}, notes
-    return {m: float(np.sqrt(v / n_held)) for m, v in sums.items()}, notes
+        return {}, notes, fold_states
+    return {m: float(np.sqrt(v / n_held)) for m, v in sums.items()}, notes, fold_states
 
 
 def refine_views(views: CornerViews, cameras: Mapping, X: np.ndarray, Y: np.ndarray,
@@ -314,6 +326,7 @@ def _refine(views, cameras, X, Y, alpha, unknown_scale, opts, pose_level) -> Ref
         start, noise0, opts.max_rounds, opts.tolerance)
     notes = []
     held: dict[str, float] = {}
+    fold_states: dict[str, list[State]] = {}
     model = "plain" if opts.model == "plain" else "pose_noise"
     plain = fit.gauss_newton(start, noise.as_plain()) if opts.model != "pose_noise" else None
     fits = {"pose_noise": state, "plain": plain} if opts.model == "auto" else \
@@ -325,9 +338,9 @@ def _refine(views, cameras, X, Y, alpha, unknown_scale, opts, pose_level) -> Ref
                          "cross-validation" + ("; the fit with pose errors kept"
                                                if opts.model == "auto" else ""))
         else:
-            held, cv_notes = _held_out(views, cameras, unknown_scale, replace(opts, folds=folds),
-                                       fits, {"pose_noise": noise, "plain": noise.as_plain()},
-                                       pose_level)
+            held, cv_notes, fold_states = _held_out(
+                views, cameras, unknown_scale, replace(opts, folds=folds), fits,
+                {"pose_noise": noise, "plain": noise.as_plain()}, pose_level)
             notes += cv_notes
             if opts.model == "auto" and held and \
                     held["plain"] < (1.0 - opts.plain_margin) * held["pose_noise"]:
@@ -339,13 +352,23 @@ def _refine(views, cameras, X, Y, alpha, unknown_scale, opts, pose_level) -> Ref
     cost_start = fit.cost(fit.gauss_newton(start, kept, frames_fixed=True), kept)
     M, P = len(views.x_names), len(views.y_names)
     frames = np.stack([cov[6 * f:6 * f + 6, 6 * f:6 * f + 6] for f in range(M + P)])
+    scale_var = max(cov[-1, -1], 0.0) if unknown_scale else None
+    spread = fold_spread(fold_states.get(model, []), state, frames)
+    if spread is not None and spread.significant:
+        frames = frames * spread.factor
+        scale_var = None if scale_var is None else scale_var * spread.factor
+        notes.append(f"the covariance of the corner-level model scaled by {spread.factor:.3g} "
+                     f"(std x{np.sqrt(spread.factor):.2g}): the estimates of the "
+                     f"{spread.folds} cross-validation folds spread that much more than it "
+                     "says (the model misses something: intrinsics, the target's print, the "
+                     "structure of the pose errors)")
     message = (f"noise estimates converged in {rounds} rounds" if converged else
                f"noise estimates not converged in {rounds} rounds (still changing by "
                f"{100 * change:.2g} %)")
     return Refinement(
         x_names=views.x_names, y_names=views.y_names, X=state.X, Y=state.Y,
         scale=float(state.alpha), covariance=frames,
-        scale_std=float(np.sqrt(max(cov[-1, -1], 0.0))) if unknown_scale else None,
+        scale_std=float(np.sqrt(scale_var)) if scale_var is not None else None,
         model=model, sigma_px={n: float(noise.sigma_px[k]) for k, n in enumerate(views.y_names)},
         sigma_pose_m=float(noise.sigma_m), sigma_pose_rad=float(noise.sigma_rad),
         rms_start_px=rms0, rms_px=fit.rms(state),
@@ -353,4 +376,4 @@ def _refine(views, cameras, X, Y, alpha, unknown_scale, opts, pose_level) -> Ref
                    enumerate(views.y_names)},
         cost_start=cost_start, cost=fit.cost(state, kept),
         held_out_rms_px=held, n_downweighted=n_down, rounds=rounds, converged=converged,
-        message=message, notes=notes)
+        message=message, notes=notes, spread=spread)
