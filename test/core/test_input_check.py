@@ -119,8 +119,8 @@ def test_a_single_edge_names_both_inversions():
     problem = drawn(4, 1, 1, n=25, kappa=1e5)
     broken = changed(problem, inverted_poses)
     verdict = assess(solve(broken), broken)
-    assert ("with every robot pose inverted (or, a little worse, every target-in-camera pose "
-            "inverted)") \
+    assert ("with every robot pose inverted (or, fitting less well, every target-in-camera "
+            "pose inverted)") \
         in verdict.reasons[0].message
 
 

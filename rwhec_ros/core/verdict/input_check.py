@@ -249,7 +249,7 @@ def input_reasons(b: Builder, check: InputCheck | None, *, scale_checked: bool =
     best = found[0]
     c = check.configured
     also = [r for r in found[1:] if {r.name, best.name} == {"pose_inverted", "camera_inverted"}]
-    how = _READINGS[best.name] + "".join(f" (or, a little worse, {_READINGS[r.name][5:]})"
+    how = _READINGS[best.name] + "".join(f" (or, fitting less well, {_READINGS[r.name][5:]})"
                                          for r in also)
     fits = (f"the pairs fit {_length(best.translation_rms_m)} / {deg(best.rotation_rms_deg)} "
             f"RMS {how}, against {_length(c.translation_rms_m)} / {deg(c.rotation_rms_deg)} "
