@@ -399,3 +399,33 @@ def test_a_partial_configuration_of_tag_settings_keeps_the_data_s_targets(eye_in
         assert doc["config"]["tags.unknown_scale"] is True
         assert {f["name"] for f in doc["frames"]} >= {"cam0", "board"}
         assert 0.97 < doc["scale"] < 1.03  # rendered at the configured sizes
+
+
+def test_a_toolkit_grid_board_of_one_marker_is_a_single_tag(tmp_path):
+    # camera_calibration_toolkit's eye-to-hand sample data use a 1 x 1 grid_board (one ArUco
+    # marker): read as one tag of its dictionary, id 0; a larger grid is still refused in words
+    import json
+
+    from rwhec_ros.data.sample_layouts import read_samples
+
+    _toolkit_folder(tmp_path / "cct")
+    config = tmp_path / "cct" / "chessboard_config.json"
+    config.write_text(json.dumps({"pattern_id": "grid_board", "parameters": {
+        "width": 1, "height": 1, "marker_size": 0.053, "dictionary_id": 10}}))
+    samples = read_samples(tmp_path / "cct")
+    assert samples.target_parameters == {
+        "targets.names": ["marker"], "targets.marker.type": "tag", "targets.marker.tag_id": 0,
+        "targets.marker.tag_size": 0.053, "tags.family": "DICT_6X6_250"}
+    CalibratorConfig.from_parameters({**_minimal_for(samples), **samples.target_parameters})
+    config.write_text(json.dumps({"pattern_id": "grid_board", "parameters": {
+        "width": 3, "height": 2, "marker_size": 0.05, "dictionary_id": 10}}))
+    code, out, err = run(["samples", tmp_path / "cct", "--eye-in-hand", "--intrinsics",
+                          tmp_path / "cct" / "cam.yaml", "-o", tmp_path / "o"])
+    assert code == EXIT_BAD_INPUT and "pattern 'grid_board'" in err
+
+
+def _minimal_for(samples) -> dict:
+    from rwhec_ros.cli.samples import samples_parameters
+
+    flat, _, _ = samples_parameters(samples, {}, "eye_in_hand")
+    return flat

@@ -45,6 +45,8 @@ MANIFEST_NAME = "samples.yaml"
 LAYOUTS = ("manifest", "industrial_calibration", "camera_calibration_toolkit")
 #: Target frame name of the layouts' single board.
 BOARD_NAME = "board"
+#: The target name of a layout whose target is one marker.
+MARKER_NAME = "marker"
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 
@@ -168,6 +170,8 @@ def _cct_target(directory: Path) -> tuple[dict[str, Any], str]:
         kind = str(doc.get("pattern_id", ""))
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"{path}: expected pattern_id and parameters ({exc})") from None
+    if kind == "grid_board" and _one_marker(params):
+        return _cct_marker(params, path)
     if kind != "standard_chessboard":
         return {}, f"pattern {kind!r} of {path.name}"
     try:
@@ -182,6 +186,29 @@ def _cct_target(directory: Path) -> tuple[dict[str, Any], str]:
     p = f"targets.{BOARD_NAME}."
     return {"targets.names": [BOARD_NAME], p + "type": "chessboard", p + "cols": cols,
             p + "rows": rows, p + "square_size": square}, words
+
+
+def _one_marker(params: Any) -> bool:
+    try:
+        return int(params.get("width", 0)) == 1 and int(params.get("height", 0)) == 1
+    except (AttributeError, TypeError, ValueError):
+        return False
+
+
+def _cct_marker(params: Any, path: Path) -> tuple[dict[str, Any], str]:
+    """A toolkit ``grid_board`` of one marker (1 x 1): a single tag of its ArUco dictionary, id
+    0 (OpenCV's first id of a grid board), the side of its black square ``marker_size``."""
+    try:
+        size = float(params["marker_size"])
+        family = _aruco_name(params.get("dictionary_id", "DICT_6X6_250"),
+                             f"{path}: parameters.dictionary_id")
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: parameters: expected marker_size and dictionary_id ({exc})"
+                         ) from None
+    words = f"one ArUco marker ({family}, id 0) of {size} m"
+    p = f"targets.{MARKER_NAME}."
+    return {"targets.names": [MARKER_NAME], p + "type": "tag", p + "tag_id": 0,
+            p + "tag_size": size, "tags.family": family}, words
 
 
 def read_calibration_toolkit(directory: str | Path) -> SampleSet:
