@@ -145,3 +145,15 @@ def test_a_scale_that_is_no_unit_is_left_to_the_scale_check():
 def test_unit_factors(alpha, unit):
     words = unit_of(alpha)
     assert (words is None) if unit is None else (unit in words)
+
+
+def test_the_units_are_guessed_before_the_readings_are_solved():
+    # a real fixed-camera single-tag set with poses in mm: the free-scale solve of the data as
+    # they are ended at a scale of -1.5e-4; the readings are solved from data brought to the
+    # nearest unit factor of the spreads' ratio, where the scale is near 1
+    from rwhec_ros.core.verdict.input_check import unit_prescale
+
+    problem = drawn(2)
+    assert unit_prescale(problem) == 1.0
+    assert unit_prescale(changed(problem, poses_in_mm)) == 1e-3
+    assert unit_prescale(changed(problem, sizes_in_mm)) == 1e3

@@ -21,17 +21,18 @@ on a real 28-view chessboard set (`RWHE-Calib`'s ``kuka_2``) with the poses inve
 (usable) with the camera 1.9 m from the flange, the pairs fitting 38 mm / 15.6 deg RMS against
 0.6 mm / 0.05 deg as read.
 
-So the same pairs are solved once per alternative reading (mode ``fast``, the scale free so
-that units show as ``alpha``; milliseconds to a third of a second on the paper's 3230 pairs), each
-with its own noise: the problem's relative weights, scaled by one factor for translation and one
-for rotation that make the mean of each term of eq. (33) its 3 degrees of freedom, re-solved
-until the factors settle (``_ROUNDS``). The weights the session estimated for the configured
-reading cannot judge the others: a reading whose translations fit nothing gets a translation
-noise of hundreds of metres, and then no alternative can fit better in translation. The
-configured reading goes through the same steps (known scale), and so does the trimming of each
-reading's gross pairs after its first solve (beyond 9 times the median normalised residual, at
-most a fifth of the pairs: a view with no detection shifts the pairs after it by one more, and a
-real set has its outlying views). A reading's misfit is the product
+So the same pairs are solved once per alternative reading (mode ``fast``, the scale free so that
+units show as ``alpha``; milliseconds to a third of a second on the paper's 3230 pairs), each
+with its own noise: the problem's relative weights, started at 1 cm and 1 deg (medians) and then
+scaled by one factor for translation and one for rotation that make the mean of each term of eq.
+(33) its 3 degrees of freedom, re-solved until the factors settle (``_ROUNDS``). The weights the
+session estimated for the configured reading cannot judge the others: a reading whose
+translations fit nothing gets a translation noise of hundreds of metres, and then no alternative
+can fit better in translation. The configured reading goes through the same steps (known scale),
+and so does the trimming of each reading's gross pairs after its first solve (beyond 9 times the
+median normalised residual, at most a fifth of the pairs: a view with no detection shifts the
+pairs after it by one more, and a real set has its outlying views).
+A reading's misfit is the product
 of its RMS translation and rotation residuals (the likelihood of a reading with its noise
 estimated falls with the product of its noise levels); an alternative is named when it is at
 most ``1 / GROSS_MISFIT_RATIO`` of the configured one's and its scale is positive. Correct data
@@ -68,6 +69,9 @@ __all__ = ["Reading", "InputCheck", "check_inputs", "input_reasons", "GROSS_MISF
 GROSS_MISFIT_RATIO = 10.0
 #: Solves per reading, the noise factors re-estimated after each but the last.
 _ROUNDS = 3
+#: Median translation noise [m] and rotation noise per axis [deg] of every reading's first solve
+#: (its relative weights kept): the level of a hand-eye set, so that no term is ignored at start.
+_START_SIGMA_M, _START_ROTATION_DEG = 0.01, 1.0
 #: After the first solve of a reading, pairs whose normalised residual exceeds this many times
 #: the median are left out, at most this share of them (:func:`_trimmed`).
 _TRIM_FACTOR, _TRIM_SHARE = 9.0, 0.2
@@ -168,11 +172,37 @@ def unit_of(alpha: float) -> str | None:
     return None
 
 
+def unit_prescale(problem: Problem) -> float:
+    """The unit factor (1 or one of :data:`UNITS`) nearest, in ratio, to a rough scale of the
+    data: the median over edges of the spread of the camera-target translations over the spread
+    of the pose stream's (each the median distance to the median). A robot's motion and the
+    camera-target distances vary by comparable amounts (a few to tens of centimetres), so the
+    rough scale lies within a few times the true one, and the unit factors are 25 times or more
+    apart. The alternative readings are solved with the pose stream's translations multiplied
+    by it: a free scale of ``1e-3`` is found by the solver from data in metres, not from data a
+    thousand times off (a real single-tag set's millimetre reading ended at a scale of -1.5e-4,
+    the other readings at 1e-3)."""
+    ratios = []
+    for e in problem.edges:
+        sa = np.median(np.linalg.norm(e.A[:, :3, 3] - np.median(e.A[:, :3, 3], axis=0), axis=1))
+        sb = np.median(np.linalg.norm(e.B[:, :3, 3] - np.median(e.B[:, :3, 3], axis=0), axis=1))
+        if sa > 0 and sb > 0:
+            ratios.append(sb / sa)
+    if not ratios:
+        return 1.0
+    guess = float(np.median(ratios))
+    factors = (1.0, *UNITS)
+    return min(factors, key=lambda f: abs(np.log(guess / f)))
+
+
 def _reading(name: str, problem: Problem, *, invert_a: bool = False, invert_b: bool = False,
-             shift: int = 0) -> Problem | None:
+             shift: int = 0, prescale: float = 1.0) -> Problem | None:
     edges = []
     for e in problem.edges:
         A, B, s, k = e.A, e.B, e.sigma, e.kappa
+        if prescale != 1.0:
+            A = np.array(A, float)
+            A[:, :3, 3] *= prescale
         if shift:
             if e.n <= abs(shift):
                 continue
@@ -211,11 +241,27 @@ def _trimmed(problem: Problem, res: dict) -> tuple[Problem, dict]:
     return problem.with_edges(edges), kept
 
 
+def _neutral(problem: Problem) -> Problem:
+    """``problem`` with its relative weights kept and their levels set to :data:`_START_SIGMA_M`
+    and :data:`_START_ROTATION_DEG` (medians): the start of every reading. The weights as solved
+    were estimated for the configured reading; with poses in millimetres they carry a
+    translation noise of a kilometre, under which a free scale is not determined at all (a real
+    single-tag set's units reading ended at a scale of -1.5e-4)."""
+    sig = np.concatenate([e.sigma for e in problem.edges])
+    kap = np.concatenate([e.kappa for e in problem.edges])
+    fs = _START_SIGMA_M / float(np.median(sig))
+    fk = 1.0 / (2.0 * np.radians(_START_ROTATION_DEG) ** 2) / float(np.median(kap))
+    if not (np.isfinite(fs) and np.isfinite(fk) and fs > 0 and fk > 0):
+        return problem
+    return problem.with_edges([Edge.build(e.x, e.y, e.A, e.B, e.sigma * fs, e.kappa * fk)
+                               for e in problem.edges])
+
+
 def _fit(name: str, problem: Problem) -> Reading:
     """Solve ``problem`` with its noise re-scaled to its own residuals (module docstring)."""
     from ..solve import SolveOptions, solve
 
-    p = problem
+    p = _neutral(problem)
     for k in range(_ROUNDS):
         r = solve(p, SolveOptions(mode="fast"))
         alpha = float(r.scale) if p.unknown_scale else 1.0
@@ -261,15 +307,19 @@ def check_inputs(problem: Problem, *, camera_poses_given: bool) -> InputCheck:
     if camera_poses_given:
         plans += [("camera_inverted", {"invert_b": True}),
                   ("both_inverted", {"invert_a": True, "invert_b": True})]
+    f = unit_prescale(problem)
     out = []
     for name, how in plans:
-        p = _reading(name, problem, **how)
+        p = _reading(name, problem, prescale=f, **how)
         if p is None:
             continue
         try:
-            out.append(_fit(name, p))
+            r = _fit(name, p)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError):
             continue
+        out.append(r if f == 1.0 else dataclasses.replace(
+            r, scale=r.scale * f, translation_rms_m=r.translation_rms_m
+            * max(r.scale, 1.0) / max(r.scale * f, 1.0)))
     return InputCheck(configured, tuple(out))
 
 
