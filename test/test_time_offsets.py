@@ -186,7 +186,7 @@ def test_not_estimated_without_a_stream_or_when_off():
     assert out is problem and report.lines() == [
         "time offsets: not estimated (sync.estimate_time_offset is off)"]
     report, out = estimate_offsets(problem, stamps_of(data), None, TimeOffsetOptions(), solve_fn)
-    assert out is problem and "no pose stream recorded" in report.lines()[0]
+    assert out is problem and "no pose stream kept" in report.lines()[0]
 
 
 def test_the_data_set_gets_the_applied_offsets_and_a_resolve_finds_none_left():

@@ -199,8 +199,10 @@ def _unavailable(problem: Problem, stamps, track, options) -> TimeOffsetReport |
         return _not(problem, options, "not_estimated", "sync.estimate_time_offset is off")
     if track is None or track.n < 2:
         return _not(problem, options, "not_estimated",
-                    "no pose stream recorded: poses given per image (tf lookups, pose lists, "
-                    "a data set without its stream)")
+                    "no pose stream kept: the poses are given per image (pose_source.type: tf, "
+                    "looked up at each image stamp; pose lists, samples, a data set without "
+                    "its stream); a PoseStamped topic (pose_source.type: topic) keeps the "
+                    "stream the estimate needs")
     if _check_stamps(problem, stamps) is None:
         return _not(problem, options, "not_estimated", "the pairs' stamps are not known")
     return None

@@ -152,8 +152,15 @@ def decide(refinement: Refinement, result, certified_covariances: Mapping | None
                         f"{100 * q:g} % chi-square quantile): the corner-level and the "
                         "pose-level model disagree about these data", dist, limit)
     worst = max(dist, key=dist.get)
+    moves = {name: frame_difference(refinement.transform(name), result.transform(name))
+             for name in refinement.names}
+    far = max(moves, key=lambda n: float(np.linalg.norm(moves[n][:3])))
+    turned = max(moves, key=lambda n: float(np.linalg.norm(moves[n][3:])))
     return Decision("refined", f"the refinement lowers the corner residual (robust cost "
                     f"{refinement.cost_start:.6g} -> {refinement.cost:.6g}) and every frame "
                     f"stays within the uncertainties of the certified estimate (largest "
                     f"Mahalanobis distance squared {dist[worst]:.3g} on {worst}, bound "
-                    f"{limit:.3g})", dist, limit)
+                    f"{limit:.3g}); it moves {far} by "
+                    f"{1e3 * float(np.linalg.norm(moves[far][:3])):.3g} mm and {turned} by "
+                    f"{np.degrees(float(np.linalg.norm(moves[turned][3:]))):.2g} deg from the "
+                    f"certified estimate", dist, limit)
