@@ -291,9 +291,16 @@ def test_feed_topics_and_calibrate(running, tmp_path):
     # the image's own stamp (session.image_time: the camera's clock, not the pose stream's)
     det_ns = det.header.stamp.sec * NS + det.header.stamp.nanosec
     assert any(det_ns == t0 + int(round(t * NS)) for t in np.arange(0.0, 24.0, 0.2))
-    pixels = np.frombuffer(bytes(det.data), np.uint8).reshape(480, 640, 3)
-    assert np.any(np.all(pixels == (0, 255, 0), axis=-1)) or np.any(
-        np.all(pixels == (0, 165, 255), axis=-1))  # outlines in the kept/rejected colours
+    # outlines in the kept/rejected colours (in some image: the last one published may be a
+    # searched image whose tags were all out of view, as on a busy machine, where the 2 Hz
+    # throttle picks other images)
+
+    def outlined(msg) -> bool:
+        pixels = np.frombuffer(bytes(msg.data), np.uint8).reshape(480, 640, 3)
+        return bool(np.any(np.all(pixels == (0, 255, 0), axis=-1))
+                    or np.any(np.all(pixels == (0, 165, 255), axis=-1)))
+
+    assert any(outlined(m) for m in received["detections"])
 
     # the live re-solve (solver.live_period_s 2 s by default) publishes the running estimate
     # with every frame's stds, in the result YAML's schema, and its row on /diagnostics
