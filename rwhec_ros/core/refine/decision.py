@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
-from ..lie import so3_log
 from .estimate import Refinement
+from .model import frame_difference
 
 __all__ = ["DecisionOptions", "Decision", "decide", "frame_difference"]
 
@@ -81,12 +81,6 @@ class Decision:
         return self.published == "refined"
 
 
-def frame_difference(T_ref: np.ndarray, T_cert: np.ndarray) -> np.ndarray:
-    """``[t_ref - t_cert, log(R_ref R_cert^T)]`` (6,) in the convention of the covariances."""
-    return np.concatenate([T_ref[:3, 3] - T_cert[:3, 3],
-                           so3_log(T_ref[:3, :3] @ T_cert[:3, :3].T)])
-
-
 def _mahalanobis(d: np.ndarray, C: np.ndarray) -> float:
     if not np.all(np.isfinite(C)):
         return float("inf")
@@ -130,13 +124,14 @@ def decide(refinement: Refinement, result, certified_covariances: Mapping | None
                         f"cross-validation over the pose samples): the refinement fits its own "
                         f"corners, not the calibration; record more poses to refine",
                         limit=limit)
+    moves = {name: frame_difference(refinement.transform(name), result.transform(name))
+             for name in refinement.names}
     dist = {}
     for name in refinement.names:
         C = np.array(refinement.frame_covariance(name), float)
         if certified_covariances is not None and name in certified_covariances:
             C = C + np.asarray(certified_covariances[name], float)
-        dist[name] = _mahalanobis(frame_difference(refinement.transform(name),
-                                                   result.transform(name)), C)
+        dist[name] = _mahalanobis(moves[name], C)
     bad = {n: v for n, v in dist.items() if not v <= limit}
     if refinement.scale_std is not None:
         var = refinement.scale_std ** 2 + (certified_scale_std or 0.0) ** 2
@@ -152,8 +147,6 @@ def decide(refinement: Refinement, result, certified_covariances: Mapping | None
                         f"{100 * q:g} % chi-square quantile): the corner-level and the "
                         "pose-level model disagree about these data", dist, limit)
     worst = max(dist, key=dist.get)
-    moves = {name: frame_difference(refinement.transform(name), result.transform(name))
-             for name in refinement.names}
     far = max(moves, key=lambda n: float(np.linalg.norm(moves[n][:3])))
     turned = max(moves, key=lambda n: float(np.linalg.norm(moves[n][3:])))
     return Decision("refined", f"the refinement lowers the corner residual (robust cost "

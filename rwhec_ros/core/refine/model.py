@@ -38,7 +38,8 @@ import numpy as np
 from ..lie import hat, so3_exp, so3_log
 from .views import CornerViews
 
-__all__ = ["State", "Linearization", "linearize", "retract", "predict_pixels", "SIDES"]
+__all__ = ["State", "Linearization", "linearize", "retract", "frame_difference",
+           "predict_pixels", "SIDES"]
 
 #: Which carrier the pose group's error moves: "y" the camera carrier (``E A``), "x" the target
 #: carrier (``A E``).
@@ -183,6 +184,16 @@ def linearize(views: CornerViews, cameras: Mapping, state: State, sigma_px: np.n
         residual=(uv - views.pixels) * w[:, None],
         J_global=Jpw @ Jq, J_group=Jpw @ Jg,
         index=global_index(views, unknown_scale), depth=q3[:, 2].reshape(n))
+
+
+def frame_difference(T: np.ndarray, T_ref: np.ndarray) -> np.ndarray:
+    """``[t - t_ref, log(R R_ref^T)]`` of frames ``T`` (..., 4, 4) about ``T_ref`` (same shape):
+    the tangent of the covariances (module docstring; what :func:`retract` adds), shape
+    (..., 6)."""
+    T, T_ref = np.asarray(T, float), np.asarray(T_ref, float)
+    return np.concatenate([T[..., :3, 3] - T_ref[..., :3, 3],
+                           so3_log(T[..., :3, :3] @ np.swapaxes(T_ref[..., :3, :3], -1, -2))],
+                          axis=-1)
 
 
 def retract(state: State, d_global: np.ndarray, d_group: np.ndarray, unknown_scale: bool

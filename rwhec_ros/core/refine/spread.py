@@ -29,8 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from ..lie import so3_log
-from .model import State
+from .model import State, frame_difference
 
 __all__ = ["FoldSpread", "fold_spread", "SIGNIFICANCE"]
 
@@ -65,14 +64,6 @@ class FoldSpread:
                 "threshold": float(self.threshold), "applied": self.significant}
 
 
-def _tangent(T: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """(n, 6) tangents of the frames ``T`` (n, 4, 4) about ``ref``: ``[t - t_ref,
-    log(R R_ref^T)]``."""
-    dt = T[:, :3, 3] - ref[:, :3, 3]
-    phi = so3_log(T[:, :3, :3] @ np.transpose(ref[:, :3, :3], (0, 2, 1)))
-    return np.concatenate([dt, phi], axis=1)
-
-
 def fold_spread(folds: Sequence[State], estimate: State, covariance: np.ndarray
                 ) -> FoldSpread | None:
     """The spread of the fold fits ``folds`` about ``estimate`` against ``covariance``
@@ -82,7 +73,8 @@ def fold_spread(folds: Sequence[State], estimate: State, covariance: np.ndarray
     if K < 4:
         return None
     frames = np.concatenate([estimate.X, estimate.Y])
-    d = np.stack([_tangent(np.concatenate([s.X, s.Y]), frames) for s in folds])  # (K, n, 6)
+    d = np.stack([frame_difference(np.concatenate([s.X, s.Y]), frames)
+                  for s in folds])  # (K, n, 6)
     centred = d - d.mean(axis=0)
     total = 0.0
     for f in range(frames.shape[0]):

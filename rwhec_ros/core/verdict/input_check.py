@@ -55,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..lie import invert_transform
-from ..outliers.pairs import pair_residuals
+from ..outliers.pairs import pair_residuals, restrict_problem
 from ..problem import Edge, Problem
 from .model import Builder
 from .words import deg, mm
@@ -195,7 +195,7 @@ def unit_prescale(problem: Problem) -> float:
     return min(factors, key=lambda f: abs(np.log(guess / f)))
 
 
-def _reading(name: str, problem: Problem, *, invert_a: bool = False, invert_b: bool = False,
+def _reading(problem: Problem, *, invert_a: bool = False, invert_b: bool = False,
              shift: int = 0, prescale: float = 1.0) -> Problem | None:
     edges = []
     for e in problem.edges:
@@ -228,17 +228,12 @@ def _trimmed(problem: Problem, res: dict) -> tuple[Problem, dict]:
     drop[order[J[order] > limit]] = True
     if not drop.any():
         return problem, res
-    edges, kept, start = [], {}, 0
-    for e in problem.edges:
-        keep = ~drop[start:start + e.n]
-        start += e.n
-        if keep.any():
-            edges.append(Edge.build(e.x, e.y, e.A[keep], e.B[keep], e.sigma[keep],
-                                    e.kappa[keep]))
-            kept[e.name] = dataclasses.replace(
-                res[e.name], **{f.name: getattr(res[e.name], f.name)[keep]
-                                for f in dataclasses.fields(res[e.name])})
-    return problem.with_edges(edges), kept
+    ends = np.cumsum([e.n for e in problem.edges])
+    masks = {e.name: ~m for e, m in zip(problem.edges, np.split(drop, ends[:-1]), strict=True)}
+    kept = {name: dataclasses.replace(res[name], **{f.name: getattr(res[name], f.name)[m]
+                                                    for f in dataclasses.fields(res[name])})
+            for name, m in masks.items() if m.any()}
+    return restrict_problem(problem, masks, what="input check"), kept
 
 
 def _neutral(problem: Problem) -> Problem:
@@ -253,12 +248,20 @@ def _neutral(problem: Problem) -> Problem:
     fk = 1.0 / (2.0 * np.radians(_START_ROTATION_DEG) ** 2) / float(np.median(kap))
     if not (np.isfinite(fs) and np.isfinite(fk) and fs > 0 and fk > 0):
         return problem
-    return problem.with_edges([Edge.build(e.x, e.y, e.A, e.B, e.sigma * fs, e.kappa * fk)
-                               for e in problem.edges])
+    return _weighted(problem, fs, fk)
 
 
-def _fit(name: str, problem: Problem) -> Reading:
-    """Solve ``problem`` with its noise re-scaled to its own residuals (module docstring)."""
+def _weighted(problem: Problem, sigma_factor: float, kappa_factor: float) -> Problem:
+    """``problem`` with every ``sigma`` times ``sigma_factor`` and ``kappa`` times
+    ``kappa_factor``."""
+    return problem.with_edges([Edge.build(e.x, e.y, e.A, e.B, e.sigma * sigma_factor,
+                                          e.kappa * kappa_factor) for e in problem.edges])
+
+
+def _fit(name: str, problem: Problem, prescale: float = 1.0) -> Reading:
+    """Solve ``problem`` with its noise re-scaled to its own residuals (module docstring);
+    ``prescale``: the factor its pose-stream translations were multiplied by
+    (:func:`unit_prescale`), so that the reading's scale is the solve's times it."""
     from ..solve import SolveOptions, solve
 
     p = _neutral(problem)
@@ -276,14 +279,14 @@ def _fit(name: str, problem: Problem) -> Reading:
         fr = np.mean(np.concatenate([v.normalised_rotation for v in res.values()])) / 3.0
         if not (ft > 0 and fr > 0 and np.isfinite(ft) and np.isfinite(fr)):
             break
-        p = p.with_edges([Edge.build(e.x, e.y, e.A, e.B, e.sigma * np.sqrt(ft), e.kappa / fr)
-                          for e in p.edges])
+        p = _weighted(p, np.sqrt(ft), 1.0 / fr)
     t = np.concatenate([v.translation for v in res.values()])
     R = np.concatenate([v.rotation for v in res.values()])
     # residuals are in the units of B; a scale far above 1 takes B as the unit at fault (sizes
     # in millimetres), so its residuals are given in the pose stream's metres
-    t_rms = float(np.sqrt(np.mean(t**2))) / max(alpha, 1.0)
-    return Reading(name, alpha, t_rms,
+    scale = alpha * prescale
+    t_rms = float(np.sqrt(np.mean(t**2))) / max(scale, 1.0)
+    return Reading(name, scale, t_rms,
                    float(np.degrees(np.sqrt(np.mean(R**2)))))
 
 
@@ -310,16 +313,13 @@ def check_inputs(problem: Problem, *, camera_poses_given: bool) -> InputCheck:
     f = unit_prescale(problem)
     out = []
     for name, how in plans:
-        p = _reading(name, problem, prescale=f, **how)
+        p = _reading(problem, prescale=f, **how)
         if p is None:
             continue
         try:
-            r = _fit(name, p)
+            out.append(_fit(name, p, prescale=f))
         except (ValueError, ArithmeticError, np.linalg.LinAlgError):
             continue
-        out.append(r if f == 1.0 else dataclasses.replace(
-            r, scale=r.scale * f, translation_rms_m=r.translation_rms_m
-            * max(r.scale, 1.0) / max(r.scale * f, 1.0)))
     return InputCheck(configured, tuple(out))
 
 
