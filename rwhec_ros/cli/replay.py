@@ -26,7 +26,7 @@ from .common import (
     solver_overrides,
 )
 from .run import Run, pause_for_test
-from .solving import calibrate_session
+from .solving import calibrate_session, input_line
 
 __all__ = ["cmd_bag", "cmd_demo", "demo_parameters", "LiveWatch"]
 
@@ -110,14 +110,6 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     except KeyboardInterrupt as exc:
         session.close()
         raise run.interrupted(exc, session.dataset) from None
-
-
-def input_line(counters: dict[str, int]) -> str:
-    """``input: <counter>=<n>, ...``: the session's non-zero counters, sorted; the
-    accumulator's ``pairs:<x>`` left out where the session's ``pairs_<x>`` says the same."""
-    shown = {k: v for k, v in counters.items() if v and not (
-        k.startswith("pairs:") and counters.get("pairs_" + k.removeprefix("pairs:")) == v)}
-    return "input: " + ", ".join(f"{k}={v}" for k, v in sorted(shown.items()))
 
 
 def _replay(args, say: Printer, session, handlers, routes,

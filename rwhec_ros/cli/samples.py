@@ -240,8 +240,8 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
     from ..session import CalibrationSession, MessageHandlers
     from ..session.capture import seen_words
     from ..session.paths import plain_output_root
-    from .replay import input_line
     from .run import Run
+    from .solving import input_line
 
     samples = read_samples(args.path, args.layout)
     for note in samples.notes:

@@ -22,7 +22,7 @@ from .common import (
     write_report,
 )
 
-__all__ = ["solve_and_write", "calibrate_session"]
+__all__ = ["solve_and_write", "calibrate_session", "input_line"]
 
 
 def solve_and_write(
@@ -173,13 +173,22 @@ def _moving(parameters: Mapping[str, Any]) -> str:
     return "x" if tag and not cam else "y"
 
 
+def input_line(counters: dict[str, int]) -> str:
+    """``input: <counter>=<n>, ...``: the session's non-zero counters, sorted; the
+    accumulator's ``pairs:<x>`` left out where the session's ``pairs_<x>`` says the same."""
+    shown = {k: v for k, v in counters.items() if v and not (
+        k.startswith("pairs:") and counters.get("pairs_" + k.removeprefix("pairs:")) == v)}
+    return "input: " + ", ".join(f"{k}={v}" for k, v in sorted(shown.items()))
+
+
 def calibrate_session(say: Printer, session, run, *, report: bool,
                       inputs: Sequence[str] = ()) -> tuple[int, Any]:
     """``session.calibrate()`` into the directory of ``run`` (:class:`~rwhec_ros.cli.run.Run`;
     the pairs are kept there first), printed: the summary (the verdict first), then the lines
     ``inputs`` (what was read), then the files; the report from the written data set and the
     result (``bag`` and ``demo``). No solution or outputs that cannot be written: one line
-    (:class:`NoSolution`, :class:`BadInput`) naming the data set kept and how to resume."""
+    (:class:`NoSolution`, :class:`BadInput`) naming the data set kept and how to resume. An
+    ``input: `` line is written again from the session's counters after the solve."""
     from ..data.dataset import Dataset
     from ..data.results import session_output_paths, solved_pairs
     from ..session.outcomes import too_few_pairs_words
@@ -191,6 +200,9 @@ def calibrate_session(say: Printer, session, run, *, report: bool,
                  f"{solver.mode}" + (", outlier rejection" if solver.reject_outliers else ""))
     out = None if run.paths is None else run.paths.result.parent
     outcome = session.calibrate(out, force=True, on_phase=run.enter)
+    # the counters as the solve left them (its second look may recover views)
+    inputs = [input_line(session.counters()) if line.startswith("input: ") else line
+              for line in inputs]
     if not outcome.success:
         for line in inputs:  # what was read (stdout), the reason on stderr
             say(line)

@@ -71,13 +71,14 @@ from typing import Any
 
 import numpy as np
 
-from ..vision.detection import RejectReason
+from ..vision.detection import DetectorConfig, RejectReason
 from ..vision.target_detector import TargetDetector
 from .capture import NOT_CAPTURED
 from .image_wait import NO_POSE_PREFIX, ImageWait
 from .outcomes import ImageOutcome
 
-__all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS", "LOOK_BACK_IMAGES"]
+__all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS", "LOOK_BACK_IMAGES",
+           "detector_config", "first_target_rejection"]
 
 #: An image as the session takes it: a (H, W) uint8 array, or a callable returning one (decoded
 #: only when the motion gate lets the image through; ``ValueError``/``TypeError`` from it counts
@@ -109,7 +110,26 @@ def safe_int(value: Any) -> int | None:
         return None
 
 
-def _first_target_rejection(detection) -> str | None:
+def detector_config(config) -> DetectorConfig:
+    """The detector settings of a :class:`~rwhec_ros.config.CalibratorConfig` (``tags.*``,
+    ``detection.*``; the per-pose precision always estimated)."""
+    return DetectorConfig(
+        family=config.tags.family,
+        tag_sizes=dict(config.tags.sizes),
+        default_tag_size=None,
+        unknown_scale=config.tags.unknown_scale,
+        corner_refinement=config.detection.corner_refinement,
+        max_reprojection_rms_px=config.detection.max_reprojection_rms_px,
+        reprojection_gate_factor=config.detection.reprojection_gate_factor,
+        chessboard_refinement=config.detection.chessboard_refinement,
+        min_side_px=config.detection.min_side_px,
+        max_obliquity_deg=config.detection.max_obliquity_deg,
+        estimate_precision=True,
+        decimate=config.detection.decimate,
+    )
+
+
+def first_target_rejection(detection) -> str | None:
     """The reason an image whose configured targets were all rejected gave no pair: the first
     whole-target rejection of a configured target, else its first marker's; None when no
     configured target was found (markers of no target do not count)."""
@@ -329,6 +349,7 @@ class ImageInput(ImageWait):
             if new:
                 self._look_back(camera, skipped, new)
         outcome = self._offer_detection(camera, stamp, A, detection)
+        self._hold_for_second_look(camera, stamp, image, intrinsics, A, detection, outcome)
         outcome.image = gray
         return outcome
 
@@ -395,7 +416,7 @@ class ImageInput(ImageWait):
             obs = detection.observations
             self._count("tags_detected", len(obs))
             if not obs and not detection.skipped:
-                why = _first_target_rejection(detection)
+                why = first_target_rejection(detection)
                 self._count("images_without_tags" if why is None
                             else f"images_targets_rejected:{why}")
                 return ImageOutcome(camera, stamp, "no_tags", reasons=reasons,

@@ -35,16 +35,16 @@ from ..sync.board_turns import turn_document, turn_lines
 from ..sync.buffer import PoseBuffer
 from ..sync.pose_track import PoseTrack, track_window_ns
 from ..sync.pose_wait import PoseLatency
-from ..vision.detection import DetectorConfig
 from ..vision.intrinsics import CameraIntrinsics
 from .accuracy import AccuracyOptions
 from .capture import CaptureGate, CaptureMixin
-from .image_input import CAMERA_COUNTERS, LOOK_BACK_IMAGES, ImageInput
+from .image_input import CAMERA_COUNTERS, LOOK_BACK_IMAGES, ImageInput, detector_config
 from .live_solve import LiveSolver, PairsSnapshot
 from .outcomes import SolveOutcome, edge_rows, no_pairs_words, too_few_pairs_words
 from .outputs import publishable, session_dataset, summary, write_session_outputs
 from .paths import plain_output_root
 from .rejections import RejectionLog
+from .second_look import SecondLookMixin, new_held_views, second_look_lines
 from .solving import config_noise, make_tracker, report_dict, solve_and_assess, verdict_options
 from .time_offsets import add_offset_reasons, correct_time_offsets, offsets_then_assess
 
@@ -55,7 +55,7 @@ _NS_PER_S = 1_000_000_000
 NOISE_HISTORY = 64
 
 
-class CalibrationSession(ImageInput, CaptureMixin):
+class CalibrationSession(SecondLookMixin, ImageInput, CaptureMixin):
     """Accumulate synchronised measurement pairs live and calibrate on request.
 
     Images go in through :meth:`add_image` (:class:`~rwhec_ros.session.image_input.ImageInput`:
@@ -112,20 +112,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         self._lock = threading.Lock()
         self._solve_lock = threading.Lock()
         self._local = threading.local()
-        self._detector_config = DetectorConfig(
-            family=config.tags.family,
-            tag_sizes=dict(config.tags.sizes),
-            default_tag_size=None,
-            unknown_scale=config.tags.unknown_scale,
-            corner_refinement=config.detection.corner_refinement,
-            max_reprojection_rms_px=config.detection.max_reprojection_rms_px,
-            reprojection_gate_factor=config.detection.reprojection_gate_factor,
-            chessboard_refinement=config.detection.chessboard_refinement,
-            min_side_px=config.detection.min_side_px,
-            max_obliquity_deg=config.detection.max_obliquity_deg,
-            estimate_precision=True,
-            decimate=config.detection.decimate,
-        )
+        self._detector_config = detector_config(config)
         self._target_specs = config.target_specs()
         self._x_names = config.x_names
         self._intrinsics: dict[str, CameraIntrinsics] = {}
@@ -174,6 +161,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
         # camera -> (stamp, A, image, intrinsics) the gate skipped since its last search
         self._skipped_since_search = collections.defaultdict(
             lambda: collections.deque(maxlen=LOOK_BACK_IMAGES))
+        self._held_views = new_held_views()  # camera -> images for the second look
         # camera -> corner noise [px] of its latest poses (the scaled reprojection gate)
         self._corner_noise = collections.defaultdict(
             lambda: collections.deque(maxlen=NOISE_HISTORY))
@@ -402,7 +390,8 @@ class CalibrationSession(ImageInput, CaptureMixin):
         return problem, excluded, err, report, dataset, counts, turns
 
     def _calibrate(self, output_dir: str | Path | None, force: bool,
-                   on_phase: Callable[[str], None] | None = None) -> SolveOutcome:
+                   on_phase: Callable[[str], None] | None = None,
+                   looked: tuple[int, int] | None = None) -> SolveOutcome:
         from .solving import solver_alternatives
         c = self.config
         problem, excluded, err, report, dataset, counts, turns = self._snapshot()
@@ -445,6 +434,10 @@ class CalibrationSession(ImageInput, CaptureMixin):
                 excluded=excl, identifiability=ident,
             )
         result, verdict = solved.result, solved.verdict
+        if looked is None and verdict.level != "unusable" and self.held_views():
+            looked = self.second_look(result)  # (module second_look) then solve with them
+            if looked[1]:
+                return self._calibrate(output_dir, force, on_phase, looked)
         add_offset_reasons(verdict, offsets)
         excl.update(solved.dropped)
         ident = solved.identifiability_dict or ident
@@ -464,7 +457,7 @@ class CalibrationSession(ImageInput, CaptureMixin):
             files, write_error = {}, describe_os_error(exc)
         message = "\n".join([summary(result, solved.problem, excl, self.config, verdict,
                                       solved.accuracy), *offsets.lines(),
-                             *turn_lines(turns)]) + (
+                             *turn_lines(turns), *second_look_lines(looked)]) + (
             f"\nWRITING THE OUTPUTS FAILED: {write_error}" if write_error else "")
         return SolveOutcome(True, message, result, excl, files, ident, text, verdict,
                             solved.accuracy, write_error, time_offsets=offsets)
