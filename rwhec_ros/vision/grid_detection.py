@@ -7,9 +7,12 @@ Per board (:meth:`GridFinder.find`):
    ``CALIB_CB_NORMALIZE_IMAGE | CALIB_CB_EXHAUSTIVE``) with the configured size; its corners are
    used as found (``chessboard_refinement: sb``, the more accurate on the real chessboard set,
    ``benchmarks/real_data.md``) or polished by ``cv2.cornerSubPix`` with a window of 0.4 times
-   the shortest corner spacing (``subpix``, the more accurate on renders at an angle). When the
-   whole board is not found, the same detector with ``CALIB_CB_LARGER`` and a 3 x 3 minimum looks
-   for a part of it (a large board on a real arm is often seen only in part); a part whose
+   the shortest corner spacing (``subpix``, the more accurate on renders at an angle). Where it
+   finds no whole board, it searches again without ``CALIB_CB_NORMALIZE_IMAGE`` (the equalised
+   histogram hid the whole board in 3 of 20 real 1280x960 views of leo038/hand_eye_calibrate,
+   which OpenCV's default flags find with all 88 corners). When the whole board is still not
+   found, the same detector with ``CALIB_CB_LARGER`` and a 3 x 3 minimum looks for a part of it
+   (a large board on a real arm is often seen only in part); a part whose
    square colours do not show the chessboard pattern clearly counts as nothing found. Circle grids:
    ``cv2.findCirclesGrid`` (symmetric or asymmetric) with a blob detector that accepts circles
    of any size from 8 px area to a twentieth of the image.
@@ -54,10 +57,14 @@ from .intrinsics import CameraIntrinsics
 from .planar_pose import solve_planar_pose
 from .targets import TargetRejection, TargetSpec
 
-__all__ = ["GridFinder", "GridPoints", "centre_bias", "CHESSBOARD_REFINEMENTS", "SB_FLAGS"]
+__all__ = ["GridFinder", "GridPoints", "centre_bias", "CHESSBOARD_REFINEMENTS", "SB_FLAGS",
+           "SB_RETRY_FLAGS"]
 
 #: ``findChessboardCornersSB`` flags of the search.
 SB_FLAGS = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE
+#: Flags of the second search for the whole board, where the first found none (no histogram
+#: equalisation: OpenCV's own default finds such boards).
+SB_RETRY_FLAGS = cv2.CALIB_CB_EXHAUSTIVE
 #: Seed of OpenCV's RNG before each sector-based search (:meth:`GridFinder._chessboard`).
 SB_RNG_SEED = 0
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
@@ -273,6 +280,10 @@ class GridFinder:
         # counters; on a noise image the part search found a 3 x 3 "part" for 2 seeds of 60)
         cv2.setRNGSeed(SB_RNG_SEED)
         ok, corners = cv2.findChessboardCornersSB(gray, spec.pattern_size, flags=SB_FLAGS)
+        if not ok:  # the histogram equalisation can hide a whole board (module docstring)
+            cv2.setRNGSeed(SB_RNG_SEED)
+            ok, corners = cv2.findChessboardCornersSB(gray, spec.pattern_size,
+                                                      flags=SB_RETRY_FLAGS)
         partial = False
         shape = (spec.rows, spec.cols)
         if not ok:

@@ -174,6 +174,37 @@ def test_partial_chessboard_is_refused_without_a_prediction_and_placed_with_one(
     assert [r.reason for r in res.rejections] == [RejectReason.PARTIAL_VIEW.value]
 
 
+def test_a_whole_board_the_equalised_search_misses_is_found_by_the_plain_one(monkeypatch):
+    """Where ``findChessboardCornersSB`` with ``CALIB_CB_NORMALIZE_IMAGE`` finds no whole board
+    (3 of 20 real views of leo038/hand_eye_calibrate), the search without it runs before any part
+    search: the whole board, every corner, not a part refused as ``partial_view``."""
+    import cv2
+
+    rng = np.random.default_rng(5)
+    T = view(rng)
+    img = render(CHESS, T, rng)
+    real, real_meta = cv2.findChessboardCornersSB, cv2.findChessboardCornersSBWithMeta
+
+    def equalised_misses(gray, size, flags=0):
+        if flags & cv2.CALIB_CB_NORMALIZE_IMAGE:
+            return False, None
+        return real(gray, size, flags=flags)
+
+    def equalised_part_misses(gray, size, flags=0):
+        if flags & cv2.CALIB_CB_NORMALIZE_IMAGE:
+            return False, None, None
+        return real_meta(gray, size, flags=flags)
+
+    monkeypatch.setattr(cv2, "findChessboardCornersSB", equalised_misses)
+    monkeypatch.setattr(cv2, "findChessboardCornersSBWithMeta", equalised_part_misses)
+    res = TargetDetector([TargetSpec("b", board=CHESS)]).detect(img, CAM)
+    assert not res.rejections
+    obs = res.by_name()["b"]
+    assert obs.n_corners == CHESS.n_corners and obs.pose_status == "unique"
+    t, r = errors(obs.T_cam_target, T)
+    assert t < 1.5 and r < 0.4
+
+
 def test_chessboard_subpix_refinement_is_selectable():
     rng = np.random.default_rng(2)
     T = view(rng)
