@@ -51,11 +51,14 @@ def summary(result: CalibrationResult, problem, excluded: dict, config,
     lines.append(f"{problem.n_measurements} pairs on {len(problem.edges)} edges, mode "
                  f"{result.mode}")
     lines += noise_lines(getattr(verdict, "noise", None))
-    if problem.unknown_scale:
+    if problem.unknown_scale:  # the std of the scale published (refined: its own)
         s = None if accuracy is None or accuracy.uncertainty is None else \
             accuracy.uncertainty.scale_std
+        kind = "predicted"
+        if refined and accuracy.refinement.refinement.scale_std is not None:
+            s, kind = float(accuracy.refinement.refinement.scale_std), "the refinement's"
         std = ("" if s is None else " (not determined by the data)" if np.isnan(s) else
-               f" +-{s:.5f} (1 sigma, predicted)")
+               f" +-{s:.5f} (1 sigma, {kind})")
         lines.append(f"scale {result.scale:.5f}{std}")
     frames = config.published_frames()
     estimates = dict(zip(result.y_names, result.Y, strict=True))

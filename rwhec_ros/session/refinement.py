@@ -278,3 +278,35 @@ def published_result(result: CalibrationResult, refinement: CornerRefinement | N
                    notes=[*result.notes, f"the published frames are the corner-level "
                                          f"refinement: {refinement.scope}"],
                    timing_s={**result.timing_s, "refine": float(refinement.timing_s)})
+
+
+def published_uncertainty(uncertainty, refinement: CornerRefinement | None):
+    """The uncertainty the verdict judges the published frames by: ``uncertainty`` (the
+    certified estimate's :class:`~rwhec_ros.core.analysis.uncertainty.Uncertainty`) itself, or
+    with a published refinement a copy whose frames' translation and rotation blocks are
+    widened where the refinement's std in the worst direction is larger (each block scaled by
+    the squared ratio): the verdict's precision (the first line, each frame's ``+-``) then holds
+    for the frames published, refined or not. (The scale's std stays the certified one's: the
+    verdict's scale check judges the certified scale; the summary prints the published one's.)
+    The refined covariance is a posteriori already; the verdict's factor on top only widens it."""
+    if uncertainty is None or refinement is None or not refinement.published:
+        return uncertainty
+    ref = refinement.refinement
+    frames = []
+    for f in uncertainty.frames:
+        C = np.array(f.covariance, dtype=float)
+        if f.name in ref.names:
+            R = np.asarray(ref.frame_covariance(f.name), dtype=float)
+            for sl in (slice(0, 3), slice(3, 6)):
+                ours, theirs = _largest_eigenvalue(C[sl, sl]), _largest_eigenvalue(R[sl, sl])
+                if np.isfinite(ours) and np.isfinite(theirs) and theirs > ours > 0:
+                    C[sl, :] *= np.sqrt(theirs / ours)
+                    C[:, sl] *= np.sqrt(theirs / ours)
+        frames.append(replace(f, covariance=C))
+    return replace(uncertainty, frames=frames)
+
+
+def _largest_eigenvalue(block: np.ndarray) -> float:
+    if not np.isfinite(block).all():
+        return float("nan")
+    return float(np.linalg.eigvalsh(0.5 * (block + block.T))[-1])

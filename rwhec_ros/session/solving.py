@@ -17,7 +17,7 @@ from ..core.verdict import Verdict, VerdictOptions, assess
 from ..core.verdict.exclusion import Attempt, Exclusion, exclude_misfits
 from ..data.results import plain
 from .accuracy import Accuracy, AccuracyOptions, assess_accuracy
-from .refinement import published_result, refine_solution
+from .refinement import published_result, published_uncertainty, refine_solution
 
 __all__ = [
     "solve_options",
@@ -317,9 +317,10 @@ def solve_and_assess(
             solved, result, corners, acc.uncertainty, accuracy.moving,
             pose_level_options=replace(options, mode="fast", fallback_to_sdp=False,
                                        initial=(result.X, result.Y)))
-    with blas_threads(1):
+    with blas_threads(1):  # the precision judged: that of the frames published
         verdict = assess(result, solved, identifiability=ident, options=thresholds,
-                         uncertainty=None if acc is None else acc.uncertainty,
+                         uncertainty=None if acc is None else published_uncertainty(
+                             acc.uncertainty, acc.refinement),
                          reprojection=None if acc is None else acc.reprojection,
                          intrinsics=None if corners is None else corners[1],
                          expected_x=[*expected_x, *problem.x_names],
