@@ -371,6 +371,18 @@ def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tm
     code, _, stderr = run(["bag", root / "compressed", "--config", root / "topic.yaml",
                            "-o", tmp_path / "raw"])
     assert "cameras.cam0.image_transport: compressed" in stderr
+    # ... also where the image topic names the compressed topic itself
+    flat = demo_parameters(rig, output_directory=str(tmp_path / "unused"))
+    topic = flat["cameras.cam0.image_topic"]
+    for cam in rig.cameras:
+        flat[f"cameras.{cam}.image_topic"] += "/compressed"
+    cfg = tmp_path / "compressed_topic_raw.yaml"
+    cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
+    code, _, stderr = run(["bag", root / "compressed", "--config", cfg, "-o", tmp_path / "r2"])
+    assert code == EXIT_BAD_INPUT
+    assert (f"has type sensor_msgs/msg/CompressedImage, expected sensor_msgs/msg/Image; for "
+            f"compressed images set cameras.cam0.image_transport: compressed and "
+            f"cameras.cam0.image_topic: {topic} ") in stderr, stderr
 
 
 def test_check_reads_a_bag_through_the_run_and_resumes_from_the_kept_pairs(recorded, tmp_path,

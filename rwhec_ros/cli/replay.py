@@ -73,10 +73,10 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
                         if cam.subscribed_topic not in topics)
         raise BadInput(f"bag {str(args.bag)!r}: no topic " + ", ".join(missing)
                        + f"; topics in the bag: {sorted(topics)}" + hints)
-    for topic, (_, _, msgtype) in routes.items():
+    for topic, (_, cam, msgtype) in routes.items():
         if topics[topic][0] != msgtype:
             raise BadInput(f"bag {str(args.bag)!r}: topic {topic} has type {topics[topic][0]}, "
-                           f"expected {msgtype}")
+                           f"expected {msgtype}" + _type_hint(cam, topic, topics[topic][0]))
     for tf_topic in ("/tf", "/tf_static"):
         if ps.type == "tf" and tf_topic in topics and topics[tf_topic][0] != TF_MESSAGE:
             raise BadInput(f"bag {str(args.bag)!r}: {tf_topic} has type "
@@ -225,6 +225,22 @@ class LiveWatch:
         if est is not None and est.converged != self.shown:
             self.shown = est.converged
             self.say.progress(f"live estimate at message {done}/{total}: {est.line()}")
+
+
+def _type_hint(camera: str | None, topic: str, found: str) -> str:
+    """A hint when a camera's image topic holds the other transport's messages."""
+    from ..data.rosbag import COMPRESSED_IMAGE, IMAGE
+
+    if camera is None:
+        return ""
+    if found == COMPRESSED_IMAGE:
+        base = topic.removesuffix("/compressed")
+        return (f"; for compressed images set cameras.{camera}.image_transport: compressed "
+                f"and cameras.{camera}.image_topic: {base} (the images are read from "
+                f"<image_topic>/compressed)")
+    if found == IMAGE:
+        return f"; for raw images set cameras.{camera}.image_transport: raw"
+    return ""
 
 
 def _transport_hint(cam, topics) -> str:

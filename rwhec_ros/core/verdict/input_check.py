@@ -361,12 +361,12 @@ def input_reasons(b: Builder, check: InputCheck | None, *, scale_checked: bool =
                            "given where target2cam is read); invert them",
         "both_inverted": "the robot poses and the target-in-camera poses are both the other "
                          "way round; invert both",
-        "next_pose": "the poses are one row behind the images (a pose list or file that "
-                     "starts one view early, or an image missing at the start); pair each "
-                     "image with its own pose",
-        "previous_pose": "the poses are one row ahead of the images (a pose list or file that "
-                         "starts one view late, or a pose missing at the start); pair each "
-                         "image with its own pose",
+        "next_pose": "the poses are one view behind the images (a pose list that starts "
+                     "one view early or an image missing at the start; in a recording, images "
+                     "stamped a view late); pair each image with its own pose",
+        "previous_pose": "the poses are one view ahead of the images (a pose list that starts "
+                         "one view late or a pose missing at the start; in a recording, images "
+                         "stamped a view early); pair each image with its own pose",
     }
     extra = f"; and at that reading {units}" if units else ""
     b.add("unusable", "inputs", f"the inputs do not fit as read: {fits}: {causes[best.name]}"
