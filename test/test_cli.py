@@ -335,7 +335,7 @@ def test_a_data_set_recording_a_retired_parameter_still_loads(tmp_path):
 
 def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tmp_path):
     rig, root = recorded
-    pairs, inputs = {}, {}
+    pairs, inputs, inputs_all = {}, {}, {}
     # (the rig turns 0.1 rad between two images here: the gate skips none, see
     # test_session_gating.py for the skipping)
     runs = {"1": (1, {}), "2": (2, {}),  # the defaults: motion gate with discovery step 0.5
@@ -350,11 +350,13 @@ def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tm
         cfg = tmp_path / f"compressed_{name}.yaml"
         cfg.write_text(CalibratorConfig.from_parameters(flat).to_yaml())
         out = tmp_path / f"out_{name}"
+        drawn = ["--detections", tmp_path / "det"] if name == "2" else []
         code, stdout, stderr = run(["bag", root / "compressed", "--config", cfg, "--quiet",
-                                    "-o", out])
+                                    "-o", out, *drawn])
         assert code == EXIT_OK, stdout + stderr
         pairs[name] = {(e.x, e.y): e for e in Dataset.load(out / "dataset.yaml").edges}
         inputs[name] = next(line for line in stdout.splitlines() if line.startswith("input: "))
+        inputs_all[name] = stdout
 
     def same(a: str, b: str) -> None:
         assert pairs[a].keys() == pairs[b].keys() and len(pairs[a]) >= 9
@@ -364,6 +366,10 @@ def test_compressed_bag_gives_the_same_pairs_on_one_and_two_threads(recorded, tm
 
     # each camera's images are examined in order on any number of threads: the same pairs
     same("1", "2")
+    # --detections: every image searched drawn, from the detection threads, named by stamp
+    drawn = sorted((tmp_path / "det").glob("cam*_*.jpg"))
+    assert drawn and f"detections: {len(drawn)} annotated image(s)" in inputs_all["2"]
+    assert all(re.fullmatch(r"cam\d_\d+\.jpg", f.name) for f in drawn)
     # the gate decides before decoding; with every edge counting it changes no pair
     same("edges", "every")
     assert "images_skipped_no_motion" not in inputs["every"]

@@ -88,6 +88,29 @@ def test_manifest_calibrates_the_rendered_arm(eye_in_hand, tmp_path):
     assert doc["config"]["tag_carrier.frame"] == "base"
 
 
+def test_detections_draws_every_view_as_the_node_does(eye_in_hand, tmp_path):
+    """``--detections DIR``: one annotated image per view and camera, named by the view and the
+    image file, with the targets kept drawn green (as the node's ~/detections)."""
+    import cv2
+
+    from rwhec_ros.vision.annotate import KEPT
+
+    code, out, _ = run(["samples", eye_in_hand, "-o", tmp_path / "out", "--detections",
+                        tmp_path / "det"])
+    assert code == EXIT_OK, out
+    files = sorted((tmp_path / "det").glob("*.jpg"))
+    assert [f.name for f in files] == [f"cam0_{i:03d}_{i}.jpg" for i in range(7)]
+    assert f"detections: 7 annotated image(s) in {tmp_path / 'det'}" in out
+    img = cv2.imread(str(files[0]))
+    raw = cv2.imread(str(eye_in_hand / "images" / "0.png"))
+    assert img.shape == raw.shape
+    # green outlines where the targets were kept (JPEG: near the colour, not exactly)
+    def green(im):
+        return int(np.all(np.abs(im.astype(int) - np.array(KEPT)) < 60, axis=2).sum())
+
+    assert green(raw) == 0 and green(img) > 20
+
+
 def _bag_config(tmp_path: Path, folder: Path, pose_source: str) -> Path:
     """The configuration ``samples`` builds for ``folder``, with compressed images and the pose
     source of the bag, as a parameter file."""

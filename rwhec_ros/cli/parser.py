@@ -114,6 +114,14 @@ def _add_unknown_scale(p: argparse.ArgumentParser) -> None:
                         "(default: the configuration's tags.unknown_scale, else off)")
 
 
+def _add_detections(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--detections", type=Path, default=None, metavar="DIR",
+                   help="write every image searched, with what was detected drawn on it (as the "
+                        "node's ~/detections: green kept, orange refused with the reason), into "
+                        "DIR as <camera>_<view>_<image>.jpg (samples) or <camera>_<stamp "
+                        "ns>.jpg (bag) (default: none)")
+
+
 def _add_solving(sub, name: str, help_text: str, positional: tuple[str, str, str] | None,
                  config_help: str, *, config_required: bool = False) -> argparse.ArgumentParser:
     """A solving subcommand: its positional argument ``(dest, metavar, help)`` and the shared
@@ -167,6 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
                      "the node's parameter file, e.g. config/demo.yaml (required)",
                      config_required=True)
     _add_unknown_scale(p)
+    _add_detections(p)
 
     p = _add_solving(sub, "samples", "a folder of stop-and-go views: an image per camera and "
                      "the robot pose per view (our manifest samples.yaml, industrial_calibration's "
@@ -187,6 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the folder is laid out (default: %(default)s, from the files "
                         "found)")
     _add_unknown_scale(p)
+    _add_detections(p)
 
     p = _add_solving(sub, "poses", "a pose list: robot poses and target-in-camera poses "
                      "(OpenCV's gripper2base and target2cam), CSV or YAML",

@@ -47,6 +47,7 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
         bag_topics,
     )
     from ..session import CalibrationSession, MessageHandlers
+    from .detections import detection_images
 
     config = read_config(args, solver_overrides(args))
     root = plain_output_root(config.output.directory)
@@ -84,6 +85,7 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
 
     session = CalibrationSession(config)
     handlers = MessageHandlers(session)
+    drawn = detection_images(args)  # --detections DIR
     settings = SolveSettings.from_parameters(config.to_parameters())
     run = Run("bag", say, paths, root, force=args.force,
               **{"resume_options": settings.resume_options(args.report),
@@ -91,7 +93,8 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
     try:
         run.enter("reading", pause=False)  # the pause: half-way through the messages
         try:
-            tf_failure, errors = _replay(args, say, session, handlers, routes, TfTree)
+            tf_failure, errors = _replay(args, say, session, handlers, routes, TfTree,
+                                         drawn)
         except ValueError as exc:  # a bag damaged part-way: keep what was read
             session.close()
             kept = run.keep(session.dataset())
@@ -105,7 +108,8 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
         if tf_failure and not counters.get("pairs_kept"):
             say.warning("bag", tf_failure)
         finish = getattr(args, "finish", None) or calibrate_session  # check: its own
-        code, _ = finish(say, session, run, report=args.report, inputs=[input_line(counters)])
+        code, _ = finish(say, session, run, report=args.report, inputs=[input_line(counters)]
+                         + ([] if drawn is None else [drawn.line()]))
         return code
     except KeyboardInterrupt as exc:
         session.close()
@@ -113,10 +117,11 @@ def cmd_bag(args: argparse.Namespace, say: Printer) -> int:
 
 
 def _replay(args, say: Printer, session, handlers, routes,
-            tf_tree_type) -> tuple[str, list[BaseException]]:
+            tf_tree_type, drawn=None) -> tuple[str, list[BaseException]]:
     """Feed the bag's messages to the session (images on ``sync.detection_threads`` threads,
     :class:`~rwhec_ros.session.replay.ReplayFeeder`); returns why tf lookups failed (or "") and
-    the detection threads' errors. On Ctrl-C the threads stop and the exception propagates."""
+    the detection threads' errors. On Ctrl-C the threads stop and the exception propagates.
+    ``drawn`` (:class:`~rwhec_ros.cli.detections.DetectionImages`) draws each image examined."""
     from ..data.rosbag import read_messages
     from ..messages import stamp_to_ns
     from ..session.info_wait import CameraInfoWait
@@ -135,8 +140,16 @@ def _replay(args, say: Printer, session, handlers, routes,
             tf.add_message(m.msg, static=m.topic == "/tf_static")
         progress.close()
     failure = ""
+    def draw(cam: str, msg, outcome) -> None:
+        try:
+            stamp = stamp_to_ns(msg.header.stamp)
+        except (ValueError, TypeError, AttributeError):
+            stamp = "bad_stamp"
+        drawn(cam, stamp, outcome)
+
     feeder = ReplayFeeder(handlers, threads=config.detection_thread_count(),
-                          queue_size=config.sync.image_queue_size)
+                          queue_size=config.sync.image_queue_size,
+                          on_outcome=None if drawn is None else draw)
 
     def image(cam: str, held: tuple) -> None:
         nonlocal failure

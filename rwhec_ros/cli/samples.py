@@ -240,6 +240,7 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
     from ..session import CalibrationSession, MessageHandlers
     from ..session.capture import seen_words
     from ..session.paths import plain_output_root
+    from .detections import detection_images
     from .run import Run
     from .solving import input_line
 
@@ -279,12 +280,15 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
     run = Run("samples", say, paths, root, force=args.force,
               **{"resume_options": settings.resume_options(args.report),
                  **getattr(args, "run_as", {})})  # check: its directory and resume command
+    drawn = detection_images(args)
     try:
         run.enter("reading")
-        for view, stamp in zip(samples.views, stamps, strict=True):
+        for index, (view, stamp) in enumerate(zip(samples.views, stamps, strict=True)):
             T = invert_transform(view.T_parent_child) if invert else np.array(view.T_parent_child)
             for cam, file in view.images.items():
                 outcome = handlers.on_compressed_image(cam, file_message(file, stamp), T)
+                if drawn is not None:  # <camera>_<view index>_<image file's stem>.jpg
+                    drawn(cam, f"{index:03d}_{Path(file).stem}", outcome)
                 say.progress(f"{view.name} {cam}: "
                              f"{seen_words(outcome, (kf.min_rotation_rad, kf.min_translation_m))}")
         session.close()
@@ -295,7 +299,8 @@ def cmd_samples(args: argparse.Namespace, say: Printer) -> int:
                 f"{samples.layout} {samples.source}")
         finish = getattr(args, "finish", None) or calibrate_session  # check: its own
         code, _ = finish(say, session, run, report=args.report,
-                         inputs=[input_line(counters), line])
+                         inputs=[input_line(counters), line]
+                         + ([] if drawn is None else [drawn.line()]))
         return code
     except KeyboardInterrupt as exc:
         session.close()

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import collections
 import threading
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -42,13 +43,19 @@ class ReplayFeeder:
         Detection threads; 1 feeds everything synchronously on the caller's thread.
     queue_size : int
         Images queued per camera before :meth:`image` waits (``sync.image_queue_size``).
+    on_outcome : callable, optional
+        Called as ``on_outcome(camera, msg, outcome)`` with each image's
+        :class:`~rwhec_ros.session.outcomes.ImageOutcome` (on the detection thread that
+        examined it; the CLI's ``--detections``).
     """
 
-    def __init__(self, handlers: MessageHandlers, *, threads: int, queue_size: int) -> None:
+    def __init__(self, handlers: MessageHandlers, *, threads: int, queue_size: int,
+                 on_outcome: Callable[[str, Any, Any], None] | None = None) -> None:
         if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
             raise ValueError(f"threads: expected an integer >= 1, got {threads!r}")
         self.handlers = handlers
         self.session = handlers.session
+        self.on_outcome = on_outcome
         self.threads = threads
         self.errors: list[BaseException] = []
         self._lock = threading.Lock()
@@ -127,9 +134,11 @@ class ReplayFeeder:
     def _handle(self, camera: str, item: tuple) -> None:
         msg, compressed, T, arrived = item
         if compressed:
-            self.handlers.on_compressed_image(camera, msg, T, arrived_ns=arrived)
+            outcome = self.handlers.on_compressed_image(camera, msg, T, arrived_ns=arrived)
         else:
-            self.handlers.on_image(camera, msg, T, arrived_ns=arrived)
+            outcome = self.handlers.on_image(camera, msg, T, arrived_ns=arrived)
+        if self.on_outcome is not None:
+            self.on_outcome(camera, msg, outcome)
 
     def _error(self, exc: BaseException) -> None:
         with self._lock:
