@@ -17,6 +17,7 @@ from ..core.verdict import Verdict, VerdictOptions, assess
 from ..core.verdict.exclusion import Attempt, Exclusion, exclude_misfits
 from ..data.results import plain
 from .accuracy import Accuracy, AccuracyOptions, assess_accuracy
+from .pooled_noise import pooled_corner_noise
 from .refinement import published_result, published_uncertainty, refine_solution
 
 __all__ = [
@@ -294,6 +295,8 @@ def solve_and_assess(
     solver propagate."""
     from ..core.solve import blas_threads
 
+    if noise is not None and noise.given == "reprojection" and corners is not None:
+        problem = pooled_corner_noise(problem, corners, noise.min_redundancy)  # few corners
     options, prior_notes = solve_options(problem, mode=mode, priors=priors,
                                          unobservable_std_m=unobservable_std_m,
                                          min_scale=min_scale, sdp_backend=sdp_backend)
