@@ -336,11 +336,14 @@ def accuracy_lines(accuracy: Accuracy | None) -> list[str]:
             lines.append("unobservable (not determined by the data, axes of the parents): "
                          + ", ".join(axes))
     w = accuracy.worst_held_out()
+    # with a refinement published, these two lines are of the certified (pose-level) estimate
+    of = (" of the certified estimate" if accuracy.refinement is not None
+          and accuracy.refinement.published else "")
     if w is not None:
-        lines.append(f"cross-validation ({accuracy.validation.folds} folds), worst held-out "
-                     f"edge: {_held_out_words(w)}")
+        lines.append(f"cross-validation ({accuracy.validation.folds} folds){of}, worst "
+                     f"held-out edge: {_held_out_words(w)}")
     if accuracy.reprojection:
-        lines.append("reprojection error of the detected corners through the calibration "
+        lines.append(f"reprojection error of the detected corners through the calibration{of} "
                      "(RMS): "
                      + ", ".join(f"{cam} {r.rms_px:.2f} px" for cam, r in
                                  accuracy.reprojection.items()))
