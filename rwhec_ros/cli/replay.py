@@ -140,6 +140,8 @@ def _replay(args, say: Printer, session, handlers, routes,
             tf.add_message(m.msg, static=m.topic == "/tf_static")
         progress.close()
     failure = ""
+    stream = _TfStream(tf, ps, session) if tf is not None else None  # for the time offsets
+
     def draw(cam: str, msg, outcome) -> None:
         try:
             stamp = stamp_to_ns(msg.header.stamp)
@@ -157,7 +159,9 @@ def _replay(args, say: Printer, session, handlers, routes,
         T = None
         if tf is not None:
             try:
-                T = tf.lookup(ps.parent, ps.child, stamp_to_ns(msg.header.stamp)
+                stamp = stamp_to_ns(msg.header.stamp)
+                stream.feed_until(stamp)
+                T = tf.lookup(ps.parent, ps.child, stamp
                               + int(round(config.sync.time_offset_s(cam) * 1e9)))
             except LookupError as exc:
                 session.record("no_tf_at_stamp")
@@ -238,6 +242,35 @@ class LiveWatch:
         if est is not None and est.converged != self.shown:
             self.shown = est.converged
             self.say.progress(f"live estimate at message {done}/{total}: {est.line()}")
+
+
+class _TfStream:
+    """The pose stream of a tf pose source for the time offsets
+    (:meth:`~rwhec_ros.session.CalibrationSession.add_stream_pose`): the chain ``pose_source.
+    parent -> child`` at the stamps of its dynamic links' samples
+    (:meth:`~rwhec_ros.data.rosbag.TfTree.chain_stamps`), fed as the images come, up to the
+    time-offset window after each image (the session records the stream around its kept pairs
+    only, and the newest ``sync.pose_buffer_size`` samples before their marks)."""
+
+    def __init__(self, tf, pose_source, session) -> None:
+        from ..sync.pose_track import track_window_ns
+
+        sync = session.config.sync
+        self.tf, self.ps, self.session = tf, pose_source, session
+        self.stamps = (tf.chain_stamps(pose_source.parent, pose_source.child)
+                       if sync.estimate_time_offset else np.zeros(0, dtype=np.int64))
+        self.ahead = track_window_ns(sync.time_offset_range_s) + int(sync.max_gap_s * 1e9)
+        self.next = 0
+
+    def feed_until(self, stamp_ns: int) -> None:
+        end = int(np.searchsorted(self.stamps, int(stamp_ns) + self.ahead, side="right"))
+        for s in self.stamps[self.next:end]:
+            try:
+                T = self.tf.lookup(self.ps.parent, self.ps.child, int(s))
+            except LookupError:
+                continue
+            self.session.add_stream_pose(int(s), T)
+        self.next = max(self.next, end)
 
 
 def _type_hint(camera: str | None, topic: str, found: str) -> str:

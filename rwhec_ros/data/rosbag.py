@@ -310,6 +310,24 @@ class TfTree:
             seen.add(frame)
         return frame, T
 
+    def chain_stamps(self, parent: str, child: str) -> np.ndarray:
+        """The stamps [ns] (sorted, unique) of the samples of every dynamic link between
+        ``parent`` and ``child`` (both up to their common root): where ``T_parent_child``
+        changes, the pose stream of a tf pose source (:meth:`lookup` at each gives it)."""
+        links, stamps = set(), []
+        for frame in (parent, child):
+            seen = {frame}
+            while frame in self._parent:
+                if frame in self._dynamic:
+                    links.add(frame)
+                frame = self._parent[frame]
+                if frame in seen:
+                    break
+                seen.add(frame)
+        for frame in links:
+            stamps.append(self._dynamic[frame].stamps())
+        return np.unique(np.concatenate(stamps)) if stamps else np.zeros(0, dtype=np.int64)
+
     def lookup(self, parent: str, child: str, stamp_ns: int) -> np.ndarray:
         """``T_parent_child`` (4, 4) at ``stamp_ns``.
 

@@ -216,8 +216,7 @@ class CalibrationSession(SecondLookMixin, ImageInput, CaptureMixin):
         self._counters[key] += n
 
     def record(self, reason: str, n: int = 1) -> None:
-        """Count an event seen outside the session (e.g. a message the node could not convert,
-        ``"bad_image_message"``). Thread-safe; never raises."""
+        """Count an event seen outside the session (``"bad_image_message"``); thread-safe."""
         with self._lock:
             self._count(str(reason), int(n))
 
@@ -263,6 +262,15 @@ class CalibrationSession(SecondLookMixin, ImageInput, CaptureMixin):
         ok = self._store_pose(stamp_ns, T_parent_child, source)
         self._serve_pending()
         return ok
+
+    def add_stream_pose(self, stamp_ns: int, T_parent_child: np.ndarray) -> bool:
+        """A pose-stream sample kept for the time offsets only (``bag`` with a tf pose source:
+        its chain at its links' stamps); images still take their pose as given."""
+        with self._lock:
+            A = self._pose_to_A(T_parent_child)
+            if A is not None:
+                self._track.add(int(stamp_ns), A)
+            return A is not None
 
     def _store_pose(self, stamp_ns: int, T_parent_child: Any, source: str | None) -> bool:
         with self._lock:
@@ -586,8 +594,7 @@ class CalibrationSession(SecondLookMixin, ImageInput, CaptureMixin):
                                  self._acc.rotation_tol, self._track.data())
 
     def live_counts(self) -> tuple[int, int, int, bool]:
-        """``(data version, calibrations started, resets, calibrate running)``: what the live
-        solver needs to decide whether a re-solve is due or its result still holds."""
+        """``(data version, calibrations, resets, calibrate running)``: is a re-solve due?"""
         with self._lock:
             return (self._data_version, self._calibrations, self._resets,
                     self._solve_lock.locked())

@@ -9,7 +9,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 __all__ = ["TimeOffsetOptions", "CameraOffset", "TimeOffsetReport", "add_offset_reasons",
-           "SIGNIFICANT_SIGMAS", "CAUTION_S", "NOT_CERTIFIED"]
+           "SIGNIFICANT_SIGMAS", "CAUTION_S", "NOT_CERTIFIED", "ms_std"]
 
 #: An offset beyond this many standard deviations is significant (applied) ...
 SIGNIFICANT_SIGMAS = 3.0
@@ -21,6 +21,13 @@ CAUTION_S = 0.002
 NOT_CERTIFIED = ("a local estimate (Gauss-Newton steps on top of the certified solve), not "
                  "certified: the certificate covers the extrinsics for the pairs at the applied "
                  "offsets, not the offsets")
+
+
+def ms_std(std_s: float) -> str:
+    """A std [s] in milliseconds with one decimal, or two significant digits below 0.1 ms (a
+    std of 0.04 ms is not written as 0.0)."""
+    v = 1e3 * float(std_s)
+    return f"{v:.1f}" if not math.isfinite(v) or abs(v) >= 0.1 else f"{v:.2g}"
 
 
 @dataclass(frozen=True)
@@ -165,7 +172,7 @@ class CameraOffset:
             tail = "not significant (within 3 std): not applied"
         conf = (f" ({1e3 * self.configured_s:g} ms of it in the pairs' stamps)"
                 if self.configured_s else "")
-        return (f"{1e3 * self.offset_s:+.1f} +- {1e3 * self.std_s:.1f} ms{conf}, {tail}"
+        return (f"{1e3 * self.offset_s:+.1f} +- {ms_std(self.std_s)} ms{conf}, {tail}"
                 + (f"; {self.dropped} pairs beyond the recorded stream left out"
                    if self.dropped else ""))
 
@@ -251,7 +258,7 @@ class TimeOffsetReport:
         ``local estimate, not certified``."""
         out = []
         for c, o in self.cameras.items():
-            value = (f"{1e3 * o.offset_s:+.1f} +- {1e3 * o.std_s:.1f} ms" if o.determined
+            value = (f"{1e3 * o.offset_s:+.1f} +- {ms_std(o.std_s)} ms" if o.determined
                      else o.words())
             out.append((f"{prefix} {c}", value))
         if any(o.determined for o in self.cameras.values()):
@@ -276,7 +283,7 @@ def add_offset_reasons(verdict, report: TimeOffsetReport | None) -> None:
         verdict.reasons.append(Reason(
             "caution", "time_offset",
             f"camera {cam}'s images are stamped {1e3 * abs(o.offset_s):.1f} +- "
-            f"{1e3 * o.std_s:.1f} ms {late} against the pose stream (t_pose = t_image "
+            f"{ms_std(o.std_s)} ms {late} against the pose stream (t_pose = t_image "
             f"{'+' if o.offset_s >= 0 else '-'} {1e3 * abs(o.offset_s):.1f} ms): estimated and "
             f"applied here{param}; set sync.time_offset.{cam}: {o.offset_s:.4f} (or fix the camera "
             "driver's stamps) so that live pairing and keyframes use it from the start",
