@@ -205,6 +205,21 @@ def test_the_verdict_s_precision_holds_for_the_published_frames(refined):
         solved.accuracy.uncertainty
 
 
+def test_the_launch_file_s_comment_says_the_frames_are_not_certified(refined):
+    """The launch file, URDF and frames YAML carry the verdict and the certificate as a
+    comment: with the refinement published it says the frames are not the certified ones, and
+    each reason is written once."""
+    from rwhec_ros.session.outputs import launch_header
+
+    _, solved, _ = refined
+    header = launch_header(solved.result, solved.verdict, {}, "created now")
+    assert ("certified: True, suboptimality bound" in header and "these frames are its "
+            "corner-level refinement, a local estimate, not certified" in header), header
+    assert "more reason" not in header
+    plain = launch_header(solved.accuracy.refinement.certified, solved.verdict, {}, "now")
+    assert "refinement" not in plain
+
+
 def test_summary_says_what_is_published_and_what_is_certified(refined):
     ds, solved, _ = refined
     text = summary(solved.result, solved.problem, {}, _naming(ds), solved.verdict,

@@ -194,9 +194,11 @@ def calibrate_session(say: Printer, session, run, *, report: bool,
     from ..session.outcomes import too_few_pairs_words
 
     solver = session.config.solver
-    run.keep(session.dataset())
+    dataset = session.dataset()
+    run.keep(dataset)
     run.enter("solving")
-    say.progress(f"solving: {session.counters().get('pairs_kept', 0)} pairs kept, mode "
+    held = 0 if dataset is None else dataset.n_pairs  # (pairs_kept counts those replaced too)
+    say.progress(f"solving: {held} pairs kept, mode "
                  f"{solver.mode}" + (", outlier rejection" if solver.reject_outliers else ""))
     out = None if run.paths is None else run.paths.result.parent
     outcome = session.calibrate(out, force=True, on_phase=run.enter)

@@ -15,6 +15,7 @@ from ..data.dataset import Dataset
 from ..data.export import frames_yaml, urdf_snippet
 from ..data.results import session_output_paths, write_outputs
 from .accuracy import Accuracy, accuracy_lines, std_words
+from .refinement import PUBLISHED_NOTE
 
 __all__ = ["summary", "publishable", "launch_header", "static_transforms_launch",
            "description_texts", "session_dataset", "write_session_outputs"]
@@ -128,9 +129,12 @@ def launch_header(result: CalibrationResult, verdict: Verdict | None, left_out: 
     """The comment at the top of the static-transform launch file: the verdict and its reasons,
     the certificate, the frames left out and why."""
     c = result.certificate
-    lines = [] if verdict is None else [verdict.headline(), *verdict.messages()[1:]]
+    lines = [] if verdict is None else (verdict.messages() or [verdict.headline()])
+    refined = any(n.startswith(PUBLISHED_NOTE) for n in result.notes)
     lines.append(f"certified: {result.certified}, suboptimality bound "
-                 f"{c.suboptimality_bound:.3g}, {created}")
+                 f"{c.suboptimality_bound:.3g}" + (" (the pose-level optimum; these frames are "
+                 "its corner-level refinement, a local estimate, not certified)" if refined
+                 else "") + f", {created}")
     if left_out:
         lines.append("left out (not usable): " + "; ".join(f"{k}: {v}" for k, v in
                                                             left_out.items()))

@@ -267,6 +267,10 @@ def refine_solution(problem, result: CalibrationResult, corners, uncertainty=Non
     return out
 
 
+#: The start of the note of a result whose frames are the refinement (:func:`published_result`).
+PUBLISHED_NOTE = "the published frames are the corner-level refinement"
+
+
 def published_result(result: CalibrationResult, refinement: CornerRefinement | None
                      ) -> CalibrationResult:
     """``result`` itself, or with a published refinement a copy holding the refined frames and
@@ -275,8 +279,7 @@ def published_result(result: CalibrationResult, refinement: CornerRefinement | N
         return result
     r = refinement.refinement
     return replace(result, X=np.array(r.X), Y=np.array(r.Y), scale=float(r.scale),
-                   notes=[*result.notes, f"the published frames are the corner-level "
-                                         f"refinement: {refinement.scope}"],
+                   notes=[*result.notes, f"{PUBLISHED_NOTE}: {refinement.scope}"],
                    timing_s={**result.timing_s, "refine": float(refinement.timing_s)})
 
 
