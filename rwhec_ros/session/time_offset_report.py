@@ -284,8 +284,10 @@ def add_offset_reasons(verdict, report: TimeOffsetReport | None) -> None:
             "caution", "time_offset",
             f"camera {cam}'s images are stamped {1e3 * abs(o.offset_s):.1f} +- "
             f"{ms_std(o.std_s)} ms {late} against the pose stream (t_pose = t_image "
-            f"{'+' if o.offset_s >= 0 else '-'} {1e3 * abs(o.offset_s):.1f} ms): estimated and "
-            f"applied here{param}; set sync.time_offset.{cam}: {o.offset_s:.4f} (or fix the camera "
+            f"{'+' if o.offset_s >= 0 else '-'} {1e3 * abs(o.offset_s):.1f} ms): "
+            + ("estimated and applied here" if o.applied else
+               "in the data's stamps already, nothing left to apply")
+            + f"{param}; set sync.time_offset.{cam}: {o.offset_s:.4f} (or fix the camera "
             "driver's stamps) so that live pairing and keyframes use it from the start",
             frames=(cam,)))
         fv = verdict.frames.get(cam)
