@@ -326,6 +326,12 @@ def test_decision_publishes_only_a_better_and_consistent_refinement():
     d = decide(r, cert, big)
     assert d.published == "refined" and "lowers the corner residual" in d.reason
     assert max(d.distances.values()) <= d.limit
+    # the same estimate certified with a std of 10 um / 6e-4 deg: the refinement is consistent
+    # with it but far less precise (condition 5), so the certified estimate is published
+    same = _Result(names, [r.transform(n) for n in names])
+    d = decide(r, same, {n: np.eye(6) * 1e-10 for n in names})
+    assert d.published == "certified" and "less precise than the certified" in d.reason
+    assert max(d.distances.values()) < 1e-6
     # a certified estimate 5 cm away with a tiny covariance: the models disagree
     far = _Result(names, [make_transform(T[:3, :3], T[:3, 3] + 0.05) for T in cert.T])
     d = decide(r, far, {n: np.eye(6) * 1e-10 for n in names})
