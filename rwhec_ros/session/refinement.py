@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..core.analysis.uncertainty import CONVENTION
+from ..core.analysis.uncertainty import CONVENTION, block_variances
 from ..core.lie import transform_to_quat_xyzw
 from ..core.refine import (
     SCOPE,
@@ -299,17 +299,11 @@ def published_uncertainty(uncertainty, refinement: CornerRefinement | None):
     for f in uncertainty.frames:
         C = np.array(f.covariance, dtype=float)
         if f.name in ref.names:
-            R = np.asarray(ref.frame_covariance(f.name), dtype=float)
-            for sl in (slice(0, 3), slice(3, 6)):
-                ours, theirs = _largest_eigenvalue(C[sl, sl]), _largest_eigenvalue(R[sl, sl])
-                if np.isfinite(ours) and np.isfinite(theirs) and theirs > ours > 0:
-                    C[sl, :] *= np.sqrt(theirs / ours)
-                    C[:, sl] *= np.sqrt(theirs / ours)
+            ours = block_variances(C)
+            theirs = block_variances(ref.frame_covariance(f.name))
+            for sl, a, b in zip((slice(0, 3), slice(3, 6)), ours, theirs, strict=True):
+                if np.isfinite(a) and np.isfinite(b) and b > a > 0:
+                    C[sl, :] *= np.sqrt(b / a)
+                    C[:, sl] *= np.sqrt(b / a)
         frames.append(replace(f, covariance=C))
     return replace(uncertainty, frames=frames)
-
-
-def _largest_eigenvalue(block: np.ndarray) -> float:
-    if not np.isfinite(block).all():
-        return float("nan")
-    return float(np.linalg.eigvalsh(0.5 * (block + block.T))[-1])

@@ -61,6 +61,7 @@ from .information import (
 )
 
 __all__ = [
+    "block_variances",
     "CONVENTION",
     "UncertaintyOptions",
     "FrameUncertainty",
@@ -138,6 +139,19 @@ def _nan_list(a: np.ndarray):
     return [_nan_list(v) for v in a]
 
 
+def block_variances(C: np.ndarray, missing: float = np.nan) -> np.ndarray:
+    """The largest eigenvalues of the translation and rotation blocks of a (6, 6) covariance
+    ``[dt (m), phi (rad)]``: the variances in the worst directions, shape (2,); ``missing``
+    for a block that is not finite."""
+    C = np.asarray(C, dtype=float)
+    out = np.full(2, float(missing))
+    for k, sl in enumerate((slice(0, 3), slice(3, 6))):
+        block = C[sl, sl]
+        if np.isfinite(block).all():
+            out[k] = float(np.linalg.eigvalsh(0.5 * (block + block.T))[-1])
+    return out
+
+
 @dataclass
 class FrameUncertainty:
     """Uncertainty of one frame (conventions: module docstring and :data:`CONVENTION`).
@@ -193,16 +207,12 @@ class FrameUncertainty:
         square roots of the largest eigenvalues of the 3x3 translation and rotation blocks of
         :attr:`covariance` (at least the largest per-axis std); ``inf`` for a block with an
         unobservable axis (not determined)."""
+        lam = block_variances(self.covariance, missing=np.inf)
         out = []
-        for sl, bad, unit in ((slice(0, 3), self.unobservable_translation, 1.0),
-                              (slice(3, 6), self.unobservable_rotation, np.degrees(1.0))):
-            if np.asarray(bad).any():
-                out.append(float("inf"))
-                continue
-            block = self.covariance[sl, sl]
-            lam = np.linalg.eigvalsh(0.5 * (block + block.T))[-1] if np.isfinite(block).all() \
-                else np.inf
-            out.append(float(unit * np.sqrt(max(lam, 0.0))))
+        for v, bad, unit in ((lam[0], self.unobservable_translation, 1.0),
+                             (lam[1], self.unobservable_rotation, np.degrees(1.0))):
+            out.append(float("inf") if np.asarray(bad).any()
+                       else float(unit * np.sqrt(max(v, 0.0))))
         return out[0], out[1]
 
     @property

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
+from ..analysis.uncertainty import block_variances
 from .estimate import Refinement
 from .model import frame_difference
 
@@ -104,18 +105,6 @@ def _mahalanobis(d: np.ndarray, C: np.ndarray) -> float:
         return float("inf")
 
 
-def _worst_stds(C) -> np.ndarray:
-    """Translation and rotation std in the worst direction of a (6, 6) covariance (NaN where
-    not finite)."""
-    C = np.asarray(C, float)
-    out = []
-    for sl in (slice(0, 3), slice(3, 6)):
-        block = C[sl, sl]
-        out.append(float(np.sqrt(max(np.linalg.eigvalsh(0.5 * (block + block.T))[-1], 0.0)))
-                   if np.isfinite(block).all() else float("nan"))
-    return np.array(out)
-
-
 def _precision_ratio(refinement: Refinement, certified: Mapping | None) -> float:
     """Condition 5 of the module docstring: the geometric mean over the frames (translation and
     rotation) of refined std / certified std in the worst direction; 1 when not comparable (no
@@ -126,7 +115,8 @@ def _precision_ratio(refinement: Refinement, certified: Mapping | None) -> float
     for name in refinement.names:
         if name not in certified:
             continue
-        r = _worst_stds(refinement.frame_covariance(name)) / _worst_stds(certified[name])
+        r = np.sqrt(np.maximum(block_variances(refinement.frame_covariance(name)), 0.0)
+                    / np.maximum(block_variances(certified[name]), 0.0))
         logs += [float(np.log(v)) for v in r if np.isfinite(v) and v > 0]
     return float(np.exp(np.mean(logs))) if logs else 1.0
 
