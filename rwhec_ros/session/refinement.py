@@ -24,7 +24,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..core.analysis.uncertainty import CONVENTION, block_variances
+from ..core.analysis.uncertainty import CONVENTION
+from ..core.analysis.worst_direction import block_variances
 from ..core.lie import transform_to_quat_xyzw
 from ..core.refine import (
     SCOPE,

@@ -59,9 +59,9 @@ from .information import (
     information_from_edge_blocks,
     information_matrix,
 )
+from .worst_direction import block_variances
 
 __all__ = [
-    "block_variances",
     "CONVENTION",
     "UncertaintyOptions",
     "FrameUncertainty",
@@ -137,19 +137,6 @@ def _nan_list(a: np.ndarray):
     if a.ndim == 0:
         return None if np.isnan(a) else float(a)
     return [_nan_list(v) for v in a]
-
-
-def block_variances(C: np.ndarray, missing: float = np.nan) -> np.ndarray:
-    """The largest eigenvalues of the translation and rotation blocks of a (6, 6) covariance
-    ``[dt (m), phi (rad)]``: the variances in the worst directions, shape (2,); ``missing``
-    for a block that is not finite."""
-    C = np.asarray(C, dtype=float)
-    out = np.full(2, float(missing))
-    for k, sl in enumerate((slice(0, 3), slice(3, 6))):
-        block = C[sl, sl]
-        if np.isfinite(block).all():
-            out[k] = float(np.linalg.eigvalsh(0.5 * (block + block.T))[-1])
-    return out
 
 
 @dataclass

@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
-from ..analysis.uncertainty import block_variances
+from ..analysis.worst_direction import block_variances
 from .estimate import Refinement
 from .model import frame_difference
 
