@@ -260,8 +260,9 @@ GLOBAL_SPECS: tuple[ParamSpec, ...] = (
               doc="after the certified solve, refine the frames on the reprojection error of "
                   "the detected corners when the data keep them (docs/refinement.md); the "
                   "refined estimate is published when it lowers the corner residual, stays "
-                  "within the uncertainties of the certified one and predicts held-out corners "
-                  "no worse; false = the certified pose-level estimate only"),
+                  "within the uncertainties of the certified one, predicts held-out corners "
+                  "no worse and is at least as precise; false = the certified pose-level "
+                  "estimate only"),
     ParamSpec("solver.live_period_s", "double", 2.0,
               doc="re-solve in the background ('fast', no SDP fallback) at most this often [s] "
                   "while new pairs arrive, for the running estimate and its convergence "
