@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 import yaml
+from session_feed import feed
 
 from rwhec_ros.cli.replay import demo_parameters
 from rwhec_ros.config import CalibratorConfig
@@ -58,15 +59,8 @@ def run(tmp_path_factory):
     session = CalibrationSession(config)
     for cam in rig.cameras:
         session.set_camera_info(cam, rig.intrinsics[cam])
-    waiting = []
-    for stamp, cam, data in simulated_stream(rig, np.random.default_rng(3), seconds=36.0,
-                                             image_rate_hz=3.0):
-        if cam is not None:
-            waiting.append((cam, stamp, data))
-            continue
-        session.add_pose(stamp, data, source=config.pose_source.parent)
-        while waiting and session.pose_ready(waiting[0][1]):
-            session.add_image(*waiting.pop(0))
+    feed(session, config, simulated_stream(rig, np.random.default_rng(3), seconds=36.0,
+                                         image_rate_hz=3.0))
     outcome = session.calibrate()
     return rig, session, outcome
 

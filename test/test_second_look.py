@@ -13,6 +13,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from session_feed import feed
 
 from rwhec_ros.cli.replay import demo_parameters
 from rwhec_ros.config import CalibratorConfig
@@ -51,15 +52,8 @@ def run(tmp_path_factory):
     session = CalibrationSession(config)
     for cam in rig.cameras:
         session.set_camera_info(cam, rig.intrinsics[cam])
-    waiting = []
-    for stamp, cam, data in simulated_stream(rig, np.random.default_rng(3), seconds=24.0,
-                                             image_rate_hz=2.0):
-        if cam is not None:
-            waiting.append((cam, stamp, data))
-            continue
-        session.add_pose(stamp, data, source=config.pose_source.parent)
-        while waiting and session.pose_ready(waiting[0][1]):
-            session.add_image(*waiting.pop(0))
+    feed(session, config, simulated_stream(rig, np.random.default_rng(3), seconds=24.0,
+                                         image_rate_hz=2.0))
     before, held = dict(session.counters()), session.held_views()
     outcome = session.calibrate()
     return rig, session, before, held, outcome
