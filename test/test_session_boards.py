@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from session_feed import feed
 
 from rwhec_ros.cli.replay import demo_parameters
 from rwhec_ros.config import CalibratorConfig
@@ -36,17 +37,9 @@ def run(stream, tmp_path_factory):
     session = CalibrationSession(config)
     for cam in rig.cameras:
         session.set_camera_info(cam, rig.intrinsics[cam])
-    outcomes, waiting = [], []
-    for stamp, cam, data in samples:
-        if cam is not None:
-            waiting.append((cam, stamp, data))
-            continue
-        session.add_pose(stamp, data, source=config.pose_source.parent)
-        # as the node's image queue: an image goes in once a pose brackets it (its outcome,
-        # with what was detected, is then add_image's answer, not that of a later add_pose)
-        while waiting and session.pose_ready(waiting[0][1]):
-            outcomes.append(session.add_image(*waiting.pop(0)))
-    assert not waiting
+    # as the node's image queue: an image goes in once a pose brackets it (its outcome, with
+    # what was detected, is then add_image's answer, not that of a later add_pose)
+    outcomes = feed(session, config, samples)
     outcome = session.calibrate()
     return rig, config, session, outcomes, outcome
 
