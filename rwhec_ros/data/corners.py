@@ -39,7 +39,7 @@ import numpy as np
 from ..vision.intrinsics import CameraIntrinsics
 from ..vision.reprojection import CornerObservation
 
-__all__ = ["intrinsics_to_dict", "intrinsics_from_dict", "check_tag_sizes",
+__all__ = ["intrinsics_to_dict", "intrinsics_from_dict", "check_tag_sizes", "pairs_at_pose",
            "corner_observations", "corner_data"]
 
 
@@ -82,6 +82,12 @@ def check_tag_sizes(sizes: Any, x_names) -> dict[str, float]:
             raise ValueError(f"tag_sizes_m[{tag!r}]: must be finite and > 0, got {size!r}")
         out[str(tag)] = float(size)
     return out
+
+
+def pairs_at_pose(A_pairs: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """Indices of the pairs among ``A_pairs`` (n, 4, 4) whose ``A`` is ``A`` (to 1e-9): how a
+    corner observation finds its pair (it keeps the pair's ``A``, not its index)."""
+    return np.flatnonzero(np.abs(np.asarray(A_pairs) - np.asarray(A)).max(axis=(1, 2)) <= 1e-9)
 
 
 def corner_observations(dataset) -> list[CornerObservation]:

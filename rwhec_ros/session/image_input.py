@@ -78,7 +78,7 @@ from .image_wait import NO_POSE_PREFIX, ImageWait
 from .outcomes import ImageOutcome
 
 __all__ = ["ImageInput", "ImageSource", "safe_int", "CAMERA_COUNTERS", "LOOK_BACK_IMAGES",
-           "detector_config", "first_target_rejection"]
+           "detector_config", "first_target_rejection", "no_pair_counter"]
 
 #: An image as the session takes it: a (H, W) uint8 array, or a callable returning one (decoded
 #: only when the motion gate lets the image through; ``ValueError``/``TypeError`` from it counts
@@ -127,6 +127,14 @@ def detector_config(config) -> DetectorConfig:
         estimate_precision=True,
         decimate=config.detection.decimate,
     )
+
+
+def no_pair_counter(detection) -> str:
+    """The image counter of a search that found no configured target to pose
+    (:data:`CAMERA_COUNTERS` aside): ``images_without_tags``, or
+    ``images_targets_rejected:<reason>`` (:func:`first_target_rejection`)."""
+    why = first_target_rejection(detection)
+    return "images_without_tags" if why is None else f"images_targets_rejected:{why}"
 
 
 def first_target_rejection(detection) -> str | None:
@@ -416,9 +424,7 @@ class ImageInput(ImageWait):
             obs = detection.observations
             self._count("tags_detected", len(obs))
             if not obs and not detection.skipped:
-                why = first_target_rejection(detection)
-                self._count("images_without_tags" if why is None
-                            else f"images_targets_rejected:{why}")
+                self._count(no_pair_counter(detection))
                 return ImageOutcome(camera, stamp, "no_tags", reasons=reasons,
                                     detection=detection)
             names = self._offer(camera, stamp, A, obs)

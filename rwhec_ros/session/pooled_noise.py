@@ -26,6 +26,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..core.problem import Problem
+from ..data.corners import pairs_at_pose
 from ..vision.detection import DetectorConfig, tag_object_points
 
 __all__ = ["pooled_corner_noise"]
@@ -36,7 +37,8 @@ PIXEL_NOISE_FLOOR_PX = DetectorConfig.pixel_noise_floor_px
 
 def _own_noise(problem: Problem, corners) -> dict[tuple[str, int], tuple[float, int, str]]:
     """``(edge name, pair index) -> (rms [px], corners, group)`` of every pair with corners
-    (matched by ``A``), its corners reprojected through its own ``B``."""
+    (matched by ``A``, :func:`~rwhec_ros.data.corners.pairs_at_pose`), its corners reprojected
+    through its own ``B``."""
     obs, intrinsics = corners
     own = {}
     edges = {(e.x, e.y): e for e in problem.edges}
@@ -45,7 +47,7 @@ def _own_noise(problem: Problem, corners) -> dict[tuple[str, int], tuple[float, 
         cam = intrinsics.get(o.y)
         if e is None or cam is None:
             continue
-        hit = np.flatnonzero(np.abs(e.A - np.asarray(o.A)).max(axis=(1, 2)) <= 1e-9)
+        hit = pairs_at_pose(e.A, o.A)
         if len(hit) != 1:
             continue
         j = int(hit[0])

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..core.lie import invert_transform
 from ..vision.detection import RejectReason
-from .image_input import first_target_rejection
+from .image_input import no_pair_counter
 
 __all__ = ["SECOND_LOOK_IMAGES", "RESOLVABLE", "SecondLookMixin", "predicted_poses",
            "second_look_lines",
@@ -100,7 +100,7 @@ class SecondLookMixin:
             return
         counted = ("images_used" if outcome.status == "used" else
                    "images_no_new_pairs" if outcome.status == "no_new_pairs" else
-                   _rejected_key(outcome))
+                   no_pair_counter(detection))
         with self._lock:
             wanted = [(n, r) for n, r in refused
                       if self._acc.would_keep(n, camera, stamp, A)]
@@ -166,12 +166,6 @@ class SecondLookMixin:
         if not self._counters[key]:
             del self._counters[key]
         return True
-
-
-def _rejected_key(outcome) -> str:
-    """The image counter an outcome without pairs was counted under."""
-    why = first_target_rejection(outcome.detection)
-    return "images_without_tags" if why is None else f"images_targets_rejected:{why}"
 
 
 def second_look_lines(looked: tuple[int, int] | None) -> list[str]:

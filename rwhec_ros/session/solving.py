@@ -15,6 +15,7 @@ from ..core.problem import Problem
 from ..core.result import CalibrationResult
 from ..core.verdict import Verdict, VerdictOptions, assess
 from ..core.verdict.exclusion import Attempt, Exclusion, exclude_misfits
+from ..data.corners import pairs_at_pose
 from ..data.results import plain
 from .accuracy import Accuracy, AccuracyOptions, assess_accuracy
 from .pooled_noise import pooled_corner_noise
@@ -355,8 +356,7 @@ def _kept_corners(corners, problem: Problem, dropped: Mapping[str, str],
         if name in dropped:
             return False
         gone = left_out.get(name)
-        return gone is None or not bool(
-            (np.abs(gone - np.asarray(o.A)).max(axis=(1, 2)) <= 1e-9).any())
+        return gone is None or not len(pairs_at_pose(gone, o.A))
 
     return [o for o in corners[0] if solved(o)], corners[1]
 
